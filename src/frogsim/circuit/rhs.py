@@ -1,0 +1,216 @@
+"""Right-hand side of the pneumatic circuit: Eqs. (2)-(9) assembled for n muscles.
+
+``rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux)`` writes dy/dt. ``u`` holds
+the valve states (u[2i] charge, u[2i+1] discharge of muscle i, 1 = open), constant over the call's
+segment; muscle lengths come from the motion tables (cubic Hermite knots, see
+:func:`motion_length`). ``aux`` receives per-muscle charge and discharge mass flows [kg/s] (2n) and
+the pump flow (last entry) for diagnostics.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from frogsim.circuit.layout import (
+    G_BRANCH_LIMIT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF, G_SUPPLY_MODE, G_TAMB,
+    G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_B0, M_CB, M_CC, M_CM, M_CRL, M_DB,
+    M_DC, M_DEAD, M_DM, M_DRL, M_FIXEDV, M_N, SUPPLY_PAPER, SUPPLY_PHYSICAL, Y_ME, Y_MS,
+    Y_MUSCLE0, Y_PE, Y_PS,
+)
+from frogsim.physics.flow import iso6358_mass_flow, pump_mass_flow
+from frogsim.physics.gas import pressure_rate
+from frogsim.physics.muscle import muscle_volume, muscle_volume_slope
+
+
+@njit(cache=True)
+def motion_length(t, i, mot_t, mot_L, mot_d, mot_n):
+    """Muscle i's length L(t) [m] and rate dL/dt [m/s] from its cubic Hermite knots.
+
+    Knots (t_k, L_k, dL_k); constant before the first and after the last knot.
+    """
+    nk = mot_n[i]
+    if nk == 1 or t <= mot_t[i, 0]:
+        return mot_L[i, 0], 0.0
+    if t >= mot_t[i, nk - 1]:
+        return mot_L[i, nk - 1], 0.0
+    lo = 0
+    hi = nk - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if mot_t[i, mid] <= t:
+            lo = mid
+        else:
+            hi = mid
+    h = mot_t[i, hi] - mot_t[i, lo]
+    s = (t - mot_t[i, lo]) / h
+    y0 = mot_L[i, lo]
+    y1 = mot_L[i, hi]
+    d0 = mot_d[i, lo] * h
+    d1 = mot_d[i, hi] * h
+    s2 = s * s
+    s3 = s2 * s
+    L = (2 * s3 - 3 * s2 + 1) * y0 + (s3 - 2 * s2 + s) * d0 + (-2 * s3 + 3 * s2) * y1 + (s3 - s2) * d1
+    dLds = (6 * s2 - 6 * s) * y0 + (3 * s2 - 4 * s + 1) * d0 + (-6 * s2 + 6 * s) * y1 + (3 * s2 - 2 * s) * d1
+    return L, dLds / h
+
+
+@njit(cache=True)
+def muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n):
+    """Total volume V [m^3] (Eq. (5) plus dead volume, or the fixed volume) and dV/dt [m^3/s]."""
+    if mp[i, M_FIXEDV] > 0.0:
+        return mp[i, M_FIXEDV], 0.0
+    L, dL = motion_length(t, i, mot_t, mot_L, mot_d, mot_n)
+    b0 = mp[i, M_B0]
+    nt = mp[i, M_N]
+    return muscle_volume(L, b0, nt) + mp[i, M_DEAD], muscle_volume_slope(L, b0, nt) * dL
+
+
+@njit(cache=True)
+def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
+    """Main-tube inflow minus the open branches' outflow at manifold pressure pm [kg/s]."""
+    R = g[G_R]
+    rho_ref = g[G_RHOREF]
+    T_ref = g[G_TREF]
+    f = iso6358_mass_flow(p_s, T_s, pm, T_s, g[G_TUBE_C], g[G_TUBE_B], 0.5, g[G_TUBE_RLAM],
+                          rho_ref, T_ref)
+    for i in range(n):
+        if u[2 * i] > 0.5:
+            p_i = y[Y_MUSCLE0 + 2 * i + 1]
+            f -= iso6358_mass_flow(pm, T_s, p_i, T_mus[i], mp[i, M_CC], mp[i, M_CB], mp[i, M_CM],
+                                   mp[i, M_CRL], rho_ref, T_ref)
+    return f
+
+
+@njit(cache=True)
+def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
+    """Physical tube mode: pressure where the main tube feeds the open branches [Pa abs].
+
+    Solves main-tube flow(p_s -> pm) = sum of open charge-valve flows(pm -> p_i); the residual is
+    monotonically decreasing in pm, so a bracketed Illinois (regula falsi) iteration converges.
+    """
+    lo = p_s
+    hi = p_s
+    any_open = False
+    for i in range(n):
+        if u[2 * i] > 0.5:
+            any_open = True
+            p_i = y[Y_MUSCLE0 + 2 * i + 1]
+            lo = min(lo, p_i)
+            hi = max(hi, p_i)
+    if not any_open or hi - lo <= 0.0:
+        return p_s
+    f_lo = _manifold_residual(lo, p_s, T_s, y, u, g, mp, n, T_mus)
+    f_hi = _manifold_residual(hi, p_s, T_s, y, u, g, mp, n, T_mus)
+    side = 0
+    pm = 0.5 * (lo + hi)
+    for _ in range(100):
+        if f_lo == f_hi:
+            pm = 0.5 * (lo + hi)
+        else:
+            pm = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        f = _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus)
+        if f > 0.0:
+            lo = pm
+            f_lo = f
+            if side == 1:
+                f_hi *= 0.5
+            side = 1
+        else:
+            hi = pm
+            f_hi = f
+            if side == -1:
+                f_lo *= 0.5
+            side = -1
+        if hi - lo <= 1e-12 * hi or f == 0.0:
+            break
+    return pm
+
+
+@njit(cache=True)
+def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux):
+    """dy/dt of the whole circuit (see the module docstring and :mod:`frogsim.circuit.layout`).
+
+    Every transfer moves mass out of one volume at that volume's temperature and into another, so
+    the sum of the mass rates is zero term by term: air is conserved to rounding.
+    """
+    n = mp.shape[0]
+    k = g[G_K]
+    R = g[G_R]
+    rho_ref = g[G_RHOREF]
+    T_ref = g[G_TREF]
+    p_s = y[Y_PS]
+    p_e = y[Y_PE]
+    V_s = g[G_VS]
+    V_e = g[G_VE]
+    T_s = p_s * V_s / (y[Y_MS] * R)
+    T_e = p_e * V_e / (y[Y_ME] * R)
+    # per volume: mass in, enthalpy in (sum m_dot T_in), mass out
+    min_s = 0.0
+    hin_s = 0.0
+    out_s = 0.0
+    min_e = 0.0
+    hin_e = 0.0
+    out_e = 0.0
+    mode = int(g[G_SUPPLY_MODE])
+    T_mus = np.empty(n)
+    V_mus = np.empty(n)
+    dV_mus = np.empty(n)
+    for i in range(n):
+        V, dV = muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n)
+        V_mus[i] = V
+        dV_mus[i] = dV
+        T_mus[i] = y[Y_MUSCLE0 + 2 * i + 1] * V / (y[Y_MUSCLE0 + 2 * i] * R)
+    p_up = p_s
+    if mode == SUPPLY_PHYSICAL:
+        p_up = manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus)
+    limit = g[G_BRANCH_LIMIT]
+    for i in range(n):
+        j = Y_MUSCLE0 + 2 * i
+        p_i = y[j + 1]
+        T_i = T_mus[i]
+        hin_i = 0.0
+        out_i = 0.0
+        mc = 0.0
+        md = 0.0
+        if u[2 * i] > 0.5:
+            mc = iso6358_mass_flow(p_up, T_s, p_i, T_i, mp[i, M_CC], mp[i, M_CB], mp[i, M_CM],
+                                   mp[i, M_CRL], rho_ref, T_ref)
+            if mode == SUPPLY_PAPER:
+                mc = min(max(mc, -limit), limit)
+            if mc >= 0.0:          # source -> muscle, at the source temperature
+                out_s += mc
+                hin_i += mc * T_s
+            else:                  # muscle -> source (source below the muscle)
+                out_i -= mc
+                min_s -= mc
+                hin_s -= mc * T_i
+        if u[2 * i + 1] > 0.5:
+            md = iso6358_mass_flow(p_i, T_i, p_e, T_e, mp[i, M_DC], mp[i, M_DB], mp[i, M_DM],
+                                   mp[i, M_DRL], rho_ref, T_ref)
+            if md >= 0.0:          # muscle -> exhaust, at the muscle temperature
+                out_i += md
+                min_e += md
+                hin_e += md * T_i
+            else:                  # exhaust -> muscle
+                out_e -= md
+                hin_i -= md * T_e
+        dydt[j] = mc - md
+        dydt[j + 1] = pressure_rate(p_i, V_mus[i], dV_mus[i], hin_i, out_i, T_i, R, k)
+        dydt[Y_MUSCLE0 + 2 * n + i] = mc
+        dydt[Y_MUSCLE0 + 3 * n + i] = md
+        aux[2 * i] = mc
+        aux[2 * i + 1] = md
+    m_pump = 0.0
+    if pump_on > 0.5:
+        m_pump = pump_mass_flow(p_e, T_e, p_s, g[G_PUMP_DISP], g[G_PUMP_RMAX], R)
+        out_e += m_pump
+        min_s += m_pump
+        hin_s += m_pump * g[G_TAMB]   # delivered through the pump's cooling fin at ambient T
+    aux[2 * n] = m_pump
+    dydt[Y_MS] = min_s - out_s
+    dydt[Y_PS] = pressure_rate(p_s, V_s, 0.0, hin_s, out_s, T_s, R, k)
+    dydt[Y_ME] = min_e - out_e
+    dydt[Y_PE] = pressure_rate(p_e, V_e, 0.0, hin_e, out_e, T_e, R, k)
+    dydt[Y_MUSCLE0 + 4 * n] = m_pump

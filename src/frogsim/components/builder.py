@@ -1,0 +1,161 @@
+"""Build frozen dataclasses from nested dicts (parsed TOML), validating every value.
+
+Each dataclass field carries metadata: the kind of quantity (see :data:`frogsim.io.units.SI_UNITS`),
+bounds in SI, a display unit for messages, allowed choices, and an optional default. Errors name the
+dotted path of the field, the value as written and what is allowed; unknown keys get a "did you
+mean". A value may be written plain ("4 L") or with its source ({ value = "4 L", source = "..." }).
+"""
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import typing
+from dataclasses import MISSING, field
+
+from frogsim.errors import ScenarioError
+from frogsim.io.units import SI_UNITS, parse_quantity, to_si
+
+_NO_DEFAULT = object()
+
+
+def quantity(kind: str, *, gt=None, ge=None, lt=None, le=None, display: str | None = None,
+             default=_NO_DEFAULT, doc: str = ""):
+    """A float field holding an SI value of the given kind, with bounds (SI) and a display unit."""
+    meta = dict(kind=kind, gt=gt, ge=ge, lt=lt, le=le, display=display, default=default, doc=doc)
+    if default is _NO_DEFAULT:
+        return field(metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def choice(options: tuple, *, default=_NO_DEFAULT, doc: str = ""):
+    """A field whose value must be one of options."""
+    meta = dict(choices=options, default=default, doc=doc)
+    if default is _NO_DEFAULT:
+        return field(metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def integer(*, ge=None, le=None, default=_NO_DEFAULT, doc: str = ""):
+    """An integer field with bounds."""
+    meta = dict(integer=True, ge=ge, le=le, default=default, doc=doc)
+    if default is _NO_DEFAULT:
+        return field(metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def flag(*, default=_NO_DEFAULT, doc: str = ""):
+    """A boolean field."""
+    meta = dict(boolean=True, default=default, doc=doc)
+    if default is _NO_DEFAULT:
+        return field(metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def unwrap(value):
+    """Take the value out of a { value = ..., source = ... } table; leave other values alone."""
+    if isinstance(value, dict) and "value" in value and set(value) <= {"value", "source", "note"}:
+        return value["value"]
+    return value
+
+
+def _fmt_bound(x: float, meta: dict) -> str:
+    disp = meta.get("display")
+    kind = meta.get("kind")
+    if disp and kind:
+        factor = parse_quantity(f"1 {disp}", kind)
+        return f"{x / factor:g} {disp}"
+    return f"{x:g}"
+
+
+def check_bounds(x: float, meta: dict, path: str, raw) -> None:
+    """Raise ScenarioError unless x lies within the metadata bounds."""
+    for key, ok, word in (("gt", lambda a, b: a > b, ">"), ("ge", lambda a, b: a >= b, ">="),
+                          ("lt", lambda a, b: a < b, "<"), ("le", lambda a, b: a <= b, "<=")):
+        bound = meta.get(key)
+        if bound is not None and not ok(x, bound):
+            raise ScenarioError(path, raw, f"must be {word} {_fmt_bound(bound, meta)}")
+
+
+def parse_field(raw, meta: dict, path: str):
+    """Validate and convert one raw value according to its field metadata."""
+    raw = unwrap(raw)
+    if meta.get("boolean"):
+        if not isinstance(raw, bool):
+            raise ScenarioError(path, raw, "expected true or false")
+        return raw
+    if "choices" in meta:
+        if raw not in meta["choices"]:
+            allowed = ", ".join(repr(c) for c in meta["choices"])
+            raise ScenarioError(path, raw, f"must be one of {allowed}")
+        return raw
+    if meta.get("integer"):
+        if isinstance(raw, bool) or not isinstance(raw, int):
+            raise ScenarioError(path, raw, "expected a whole number")
+        check_bounds(raw, meta, path, raw)
+        return raw
+    kind = meta["kind"]
+    x = to_si(raw, kind, path)
+    if x != x or x in (float("inf"), float("-inf")):
+        raise ScenarioError(path, raw, "must be a finite number")
+    check_bounds(x, meta, path, raw)
+    return x
+
+
+def unknown_key_error(path: str, key: str, known) -> ScenarioError:
+    """ScenarioError for a key that is not a field, with the closest known names."""
+    where = f"{path}.{key}" if path else key
+    close = difflib.get_close_matches(key, list(known), n=2)
+    hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+    allowed = ", ".join(sorted(known))
+    return ScenarioError(where, "(unknown key)", f"not a known setting{hint} (known here: {allowed})")
+
+
+def build(cls, raw, path: str = ""):
+    """Build dataclass cls from the dict raw, validating every field (see module docstring)."""
+    if not isinstance(raw, dict):
+        raise ScenarioError(path or cls.__name__, raw, f"expected a table of {cls.__name__} settings")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init and not f.name.startswith("_")}
+    for key in raw:
+        if key not in fields:
+            raise unknown_key_error(path, key, fields)
+    values = {}
+    for name, f in fields.items():
+        sub = f"{path}.{name}" if path else name
+        hint = hints[name]
+        if name not in raw:
+            default = f.metadata.get("default", _NO_DEFAULT) if f.metadata else _NO_DEFAULT
+            if default is not _NO_DEFAULT:
+                values[name] = default
+                continue
+            if f.default is not MISSING or f.default_factory is not MISSING:
+                continue
+            if typing.get_origin(hint) is typing.Union and type(None) in typing.get_args(hint):
+                values[name] = None
+                continue
+            raise ScenarioError(sub, "(missing)", "required setting is missing")
+        values[name] = build_value(hint, raw[name], f.metadata, sub)
+    return cls(**values)
+
+
+def build_value(hint, raw, meta, path):
+    """Build one value of the type hint: a dataclass, dict[str, dataclass], optional or a leaf."""
+    origin = typing.get_origin(hint)
+    if origin is typing.Union:
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        return build_value(args[0], raw, meta, path)
+    if dataclasses.is_dataclass(hint):
+        if hasattr(hint, "from_raw"):
+            return hint.from_raw(unwrap(raw), path)
+        return build(hint, unwrap(raw), path)
+    if origin is dict:
+        _, vtype = typing.get_args(hint)
+        if not isinstance(raw, dict):
+            raise ScenarioError(path, raw, "expected a table of named entries")
+        return {str(k): build_value(vtype, v, meta, f"{path}.{k}") for k, v in raw.items()}
+    if hint is str and not meta:
+        raw = unwrap(raw)
+        if not isinstance(raw, str):
+            raise ScenarioError(path, raw, "expected text")
+        return raw
+    return parse_field(raw, meta, path)

@@ -1,0 +1,329 @@
+"""The parameter and scenario dataclasses: every field SI inside, with the unit kind it is read in.
+
+Pressures say in their name whether they are gauge (``*_gauge``, relative to the atmosphere) or
+absolute (``*_abs``). Bounds are checked when a file is loaded; nothing is clamped later.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from frogsim.components.builder import build, choice, flag, integer, parse_field, quantity, unwrap
+from frogsim.errors import ScenarioError
+
+BAR = 1e5
+MAX_BRAID_ANGLE = math.acos(1.0 / math.sqrt(3.0))  # 54.7 deg: the ideal muscle's force vanishes
+GAUGE_MIN = -1.0 * BAR  # below -1 bar gauge there is (almost) no air left: refused
+GAUGE_MAX = 16.0 * BAR
+
+
+def gauge_pressure(doc: str = "", default=None):
+    kw = {} if default is None else {"default": default}
+    return quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar", doc=doc, **kw)
+
+
+@dataclass(frozen=True)
+class Air:
+    """Air properties and reference conditions."""
+    gas_constant: float = quantity("gas_constant", gt=0, display="J/(kg*K)")
+    heat_capacity_ratio: float = quantity("dimensionless", gt=1.0, le=5.0 / 3.0)
+    atmospheric_pressure_abs: float = quantity("pressure", gt=0, display="kPa")
+    reference_pressure_abs: float = quantity("pressure", gt=0, display="kPa",
+                                             doc="ISO 8778 standard state for 'standard' volumes")
+    reference_temperature: float = quantity("temperature", gt=0, display="K")
+    ambient_temperature: float = quantity("temperature", gt=0, display="K")
+
+    @property
+    def reference_density(self) -> float:
+        """rho_ref = p_ref/(R T_ref) [kg/m^3]: converts standard volumes to mass."""
+        return self.reference_pressure_abs / (self.gas_constant * self.reference_temperature)
+
+
+@dataclass(frozen=True)
+class Chamber:
+    """A rigid air chamber (the source tanks or the exhaust space inside the hull)."""
+    volume: float = quantity("volume", gt=0, display="L")
+    initial_pressure_gauge: float = gauge_pressure()
+
+
+@dataclass(frozen=True)
+class Pump:
+    """Micro pump returning air from the exhaust chamber to the source, switched by a pressure band."""
+    enabled: bool = flag()
+    displacement: float = quantity("volume_flow", ge=0, display="L/min",
+                                   doc="free-air flow at inlet conditions with no pressure rise")
+    max_pressure_ratio: float = quantity("dimensionless", gt=1.0, doc="stall ratio p_out/p_in")
+    on_below_gauge: float = gauge_pressure()
+    off_above_gauge: float = gauge_pressure()
+
+
+@dataclass(frozen=True)
+class Valve:
+    """A high-speed switching valve described by its ISO 6358 flow-rate characteristics."""
+    sonic_conductance: float = quantity("conductance", gt=0, display="L/(s*bar)")
+    critical_ratio: float = quantity("dimensionless", ge=0.0, lt=1.0)
+    subsonic_index: float = quantity("dimensionless", gt=0.0, le=1.0, default=0.5)
+    laminar_ratio: float = quantity("dimensionless", gt=0.0, le=1.0, default=1.0)
+    dead_time: float = quantity("time", ge=0.0, le=1.0, display="ms", default=0.0)
+
+
+@dataclass(frozen=True)
+class Valves:
+    """The two valves of every muscle: charge (source -> muscle) and discharge (muscle -> exhaust)."""
+    charge: Valve
+    discharge: Valve
+
+
+@dataclass(frozen=True)
+class Supply:
+    """How the source reaches the charge valves: the main tube and its branches (Eq. (9))."""
+    mode: str = choice(("paper", "physical", "none"),
+                       doc="paper: Eq. (9) fixed per-branch limit; physical: shared choked tube; "
+                           "none: no tube limit")
+    main_tube_inner_diameter: float = quantity("length", gt=0, display="mm")
+    main_tube_count: int = integer(ge=1, le=100)
+    branch_count: int = integer(ge=1, le=100)
+    velocity_limit: float = quantity("velocity", gt=0, display="m/s")
+    discharge_coefficient: float = quantity("dimensionless", gt=0.0, le=1.0)
+    branch_limit: float | None = quantity("volume_flow", gt=0, display="L/min", default=None,
+                                          doc="paper mode: overrides Eq. (9)'s per-branch value")
+
+
+@dataclass(frozen=True)
+class MuscleType:
+    """A McKibben muscle model (FESTO DMSP-20 of a given length) and its crank mounting."""
+    nominal_length: float = quantity("length", gt=0, le=2.0, display="mm")
+    inner_diameter: float = quantity("length", gt=0, le=0.2, display="mm")
+    braid_angle: float = quantity("angle", gt=0.0, lt=MAX_BRAID_ANGLE, display="deg")
+    max_contraction: float = quantity("dimensionless", gt=0.0, lt=1.0, display="%")
+    dead_volume: float = quantity("volume", ge=0.0, display="cm^3")
+    stroke_contraction: float = quantity("dimensionless", ge=0.0, lt=1.0, display="%")
+    crank_radius: float = quantity("length", gt=0, display="mm")
+    anchor_distance: float = quantity("length", gt=0, display="mm")
+    rest_angle: float = quantity("angle", ge=-math.pi, le=math.pi, display="deg")
+    side: int = integer(ge=-1, le=1, default=1)
+
+    def check(self, path: str) -> None:
+        if self.stroke_contraction > self.max_contraction:
+            raise ScenarioError(f"{path}.stroke_contraction", f"{self.stroke_contraction:.1%}",
+                                f"must be <= max_contraction ({self.max_contraction:.0%})")
+        if self.side not in (-1, 1):
+            raise ScenarioError(f"{path}.side", self.side, "must be 1 or -1")
+        if self.anchor_distance <= self.crank_radius:
+            raise ScenarioError(f"{path}.anchor_distance", f"{self.anchor_distance * 1e3:g} mm",
+                                f"must exceed crank_radius ({self.crank_radius * 1e3:g} mm)")
+
+
+VALVE_STATES = {"charge": (1, 0), "vent": (0, 1), "hold": (0, 0)}
+
+
+@dataclass(frozen=True)
+class Program:
+    """An open-loop valve program: a list of (time [s], state) with state charge, vent or hold.
+
+    Written either as a cycle, { pressurise = "1 s", release = "1 s", start = "0 s", cycles = 1 },
+    or as steps, { steps = [ { at = "0 s", state = "charge" }, { at = "1 s", state = "vent" } ] }.
+    """
+    steps: tuple
+
+    @classmethod
+    def from_raw(cls, raw, path: str) -> "Program":
+        if not isinstance(raw, dict):
+            raise ScenarioError(path, raw, "expected a program table (cycle or steps)")
+        if "steps" in raw:
+            extra = set(raw) - {"steps"}
+            if extra:
+                raise ScenarioError(f"{path}.{sorted(extra)[0]}", raw[sorted(extra)[0]],
+                                    "a program has either steps or cycle settings, not both")
+            steps_raw = raw["steps"]
+            if not isinstance(steps_raw, list) or not steps_raw:
+                raise ScenarioError(f"{path}.steps", steps_raw, "expected a non-empty list of steps")
+            steps = []
+            for j, st in enumerate(steps_raw):
+                sp = f"{path}.steps[{j}]"
+                if not isinstance(st, dict) or set(st) != {"at", "state"}:
+                    raise ScenarioError(sp, st, 'expected { at = "<time>", state = "charge|vent|hold" }')
+                t = parse_field(st["at"], dict(kind="time", ge=0.0, display="s"), f"{sp}.at")
+                state = parse_field(st["state"], dict(choices=tuple(VALVE_STATES)), f"{sp}.state")
+                if steps and t <= steps[-1][0]:
+                    raise ScenarioError(f"{sp}.at", st["at"], "step times must increase")
+                steps.append((t, state))
+            return cls(tuple(steps))
+        cyc = build(_Cycle, raw, path)
+        steps = []
+        period = cyc.pressurise + cyc.release
+        for c in range(cyc.cycles):
+            t0 = cyc.start + c * period
+            steps.append((t0, "charge"))
+            steps.append((t0 + cyc.pressurise, "vent"))
+        return cls(tuple(steps))
+
+
+@dataclass(frozen=True)
+class _Cycle:
+    pressurise: float = quantity("time", gt=0, display="s")
+    release: float = quantity("time", gt=0, display="s")
+    start: float = quantity("time", ge=0, display="s", default=0.0)
+    cycles: int = integer(ge=1, le=100000, default=1)
+
+
+MOTION_KINDS = {
+    # kind: (required fields, optional fields)
+    "stroke": ((), ("contraction", "delay", "rise", "fall")),
+    "constant": ((), ("contraction",)),
+    "volume_constant": (("fraction",), ("contraction",)),
+    "table": (("time_s", "contraction_percent"), ()),
+    "joint_angles": (("file", "column"), ("time_column",)),
+}
+
+
+@dataclass(frozen=True)
+class Motion:
+    """How a muscle's length is prescribed (the paper's Figure 8 model takes it as an input).
+
+    kinds:
+      stroke          contraction follows each charge/vent command after a delay, over rise/fall
+                      (smooth; defaults: the muscle type's stroke_contraction, 0.1 s, 0.3 s, 0.3 s)
+      constant        fixed contraction (default 0 %)
+      volume_constant fixed volume: rest volume + fraction x (volume at the stroke contraction -
+                      rest volume) (the paper's Fig. 16 "muscle volume constant")
+      table           time_s = [...], contraction_percent = [...], monotone cubic between points
+      joint_angles    a CSV of joint angles in degrees (file, column, time_column = "time_s")
+                      turned into muscle length through the muscle type's crank geometry
+    """
+    kind: str
+    contraction: float | None = None
+    delay: float = 0.1
+    rise: float = 0.3
+    fall: float = 0.3
+    fraction: float | None = None
+    time_s: tuple = ()
+    contraction_percent: tuple = ()
+    file: str | None = None
+    column: str | None = None
+    time_column: str = "time_s"
+
+    @classmethod
+    def from_raw(cls, raw, path: str) -> "Motion":
+        if not isinstance(raw, dict) or "kind" not in raw:
+            raise ScenarioError(path, raw, f"expected a table with kind = one of {', '.join(MOTION_KINDS)}")
+        kind = parse_field(raw["kind"], dict(choices=tuple(MOTION_KINDS)), f"{path}.kind")
+        required, optional = MOTION_KINDS[kind]
+        allowed = set(required) | set(optional) | {"kind"}
+        from frogsim.components.builder import unknown_key_error
+        for key in raw:
+            if key not in allowed:
+                raise unknown_key_error(path, key, allowed)
+        for key in required:
+            if key not in raw:
+                raise ScenarioError(f"{path}.{key}", "(missing)", f"required for kind {kind!r}")
+        kw = {"kind": kind}
+        pct = dict(kind="dimensionless", ge=0.0, lt=1.0, display="%")
+        if "contraction" in raw:
+            kw["contraction"] = parse_field(raw["contraction"], pct, f"{path}.contraction")
+        for key in ("delay", "rise", "fall"):
+            if key in raw:
+                lo = "ge" if key == "delay" else "gt"
+                kw[key] = parse_field(raw[key], {"kind": "time", lo: 0.0, "display": "s"}, f"{path}.{key}")
+        if "fraction" in raw:
+            kw["fraction"] = parse_field(raw["fraction"], dict(kind="dimensionless", ge=0.0, le=1.0,
+                                                                display="%"), f"{path}.fraction")
+        if kind == "table":
+            ts, cs = raw["time_s"], raw["contraction_percent"]
+            for key, arr in (("time_s", ts), ("contraction_percent", cs)):
+                if not isinstance(arr, list) or not arr or not all(
+                        isinstance(x, (int, float)) and not isinstance(x, bool) for x in arr):
+                    raise ScenarioError(f"{path}.{key}", arr, "expected a non-empty list of numbers")
+            if len(ts) != len(cs):
+                raise ScenarioError(f"{path}.contraction_percent", cs,
+                                    f"must have as many entries as time_s ({len(ts)})")
+            if any(b <= a for a, b in zip(ts, ts[1:])):
+                raise ScenarioError(f"{path}.time_s", ts, "times must increase")
+            for c in cs:
+                if not 0.0 <= c < 100.0:
+                    raise ScenarioError(f"{path}.contraction_percent", c, "must be in [0, 100)")
+            kw["time_s"] = tuple(float(x) for x in ts)
+            kw["contraction_percent"] = tuple(float(x) for x in cs)
+        if kind == "joint_angles":
+            for key in ("file", "column", "time_column"):
+                if key in raw:
+                    if not isinstance(raw[key], str) or not raw[key]:
+                        raise ScenarioError(f"{path}.{key}", raw[key], "expected text")
+                    kw[key] = raw[key]
+        return cls(**kw)
+
+
+@dataclass(frozen=True)
+class Muscle:
+    """One muscle in the circuit: its type, its valve program and how its length moves."""
+    type: str
+    program: Program
+    motion: Motion
+    initial_pressure_gauge: float | None = None
+
+    @classmethod
+    def from_raw(cls, raw, path: str, programs: dict | None = None) -> "Muscle":
+        if not isinstance(raw, dict):
+            raise ScenarioError(path, raw, "expected a muscle table")
+        allowed = {"type", "program", "motion", "initial_pressure_gauge"}
+        from frogsim.components.builder import unknown_key_error
+        for key in raw:
+            if key not in allowed:
+                raise unknown_key_error(path, key, allowed)
+        for key in ("type", "program"):
+            if key not in raw:
+                raise ScenarioError(f"{path}.{key}", "(missing)", "required setting is missing")
+        mtype = unwrap(raw["type"])
+        if not isinstance(mtype, str):
+            raise ScenarioError(f"{path}.type", mtype, "expected the name of a muscle type")
+        prog_raw = raw["program"]
+        if isinstance(prog_raw, str):
+            if programs is None or prog_raw not in programs:
+                known = ", ".join(sorted(programs or {})) or "none defined"
+                raise ScenarioError(f"{path}.program", prog_raw,
+                                    f"must name a program in [programs] (known: {known}) or be a table")
+            program = programs[prog_raw]
+        else:
+            program = Program.from_raw(prog_raw, f"{path}.program")
+        motion = Motion.from_raw(raw.get("motion", {"kind": "stroke"}), f"{path}.motion")
+        p0 = None
+        if "initial_pressure_gauge" in raw:
+            p0 = parse_field(raw["initial_pressure_gauge"],
+                             dict(kind="pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar"),
+                             f"{path}.initial_pressure_gauge")
+        return cls(mtype, program, motion, p0)
+
+
+@dataclass(frozen=True)
+class Controller:
+    """The microcontroller loop that samples commands: valve states change only at its samples."""
+    rate: float = quantity("frequency", gt=0.0, le=1e6, display="Hz", default=1000.0)
+
+
+@dataclass(frozen=True)
+class Solver:
+    """Integration tolerances."""
+    rtol: float = quantity("dimensionless", gt=1e-13, le=1e-2, default=1e-7)
+    max_step: float = quantity("time", gt=0.0, display="ms", default=0.05)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Everything about one run: parameters of the robot's circuit plus the run's own settings."""
+    name: str
+    parameters: str
+    duration: float
+    output_interval: float
+    controller: Controller
+    solver: Solver
+    air: Air
+    source: Chamber
+    exhaust: Chamber
+    pump: Pump
+    valves: Valves
+    supply: Supply
+    muscle_types: dict
+    muscles: dict
+    programs: dict = field(default_factory=dict)
+    base_dir: str = "."
+    raw: dict = field(default_factory=dict, repr=False, compare=False)

@@ -1,0 +1,1 @@
+"""Engines: the pneumatic model alone (prescribed muscle lengths) and, later, coupled bodies."""

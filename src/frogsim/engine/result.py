@@ -1,0 +1,231 @@
+"""Result of a run: time series on the output grid, data first; tables and plots are made from it."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from frogsim.circuit import layout as L
+
+
+@dataclass
+class Result:
+    """Time series of one pneumatic run (SI inside).
+
+    Attributes: ``t`` [s], ``y`` (state at each output time, see :mod:`frogsim.circuit.layout`),
+    ``u`` (valve states and pump state at each output time), ``model`` (the built model), ``status``
+    ("ok"), ``stats`` (accepted steps, rejected steps, right-hand-side evaluations).
+    """
+    t: np.ndarray
+    y: np.ndarray
+    u: np.ndarray
+    model: object
+    stats: dict = field(default_factory=dict)
+    status: str = "ok"
+
+    # -- basic series -------------------------------------------------------------------------
+    @property
+    def names(self) -> list:
+        return self.model.names
+
+    @property
+    def n(self) -> int:
+        return len(self.model.names)
+
+    def index(self, muscle: str) -> int:
+        try:
+            return self.model.names.index(muscle)
+        except ValueError:
+            raise KeyError(f"no muscle {muscle!r}; muscles: {', '.join(self.model.names)}") from None
+
+    @property
+    def atmospheric_pressure(self) -> float:
+        return float(self.model.g[L.G_PATM])
+
+    @property
+    def source_pressure(self) -> np.ndarray:
+        """Source chamber pressure [Pa abs]."""
+        return self.y[:, L.Y_PS]
+
+    @property
+    def exhaust_pressure(self) -> np.ndarray:
+        """Exhaust chamber pressure [Pa abs]."""
+        return self.y[:, L.Y_PE]
+
+    def muscle_pressure(self, muscle: str) -> np.ndarray:
+        """Pressure in a muscle [Pa abs]."""
+        return self.y[:, L.Y_MUSCLE0 + 2 * self.index(muscle) + 1]
+
+    def muscle_mass(self, muscle: str) -> np.ndarray:
+        """Air mass in a muscle [kg]."""
+        return self.y[:, L.Y_MUSCLE0 + 2 * self.index(muscle)]
+
+    def charged_mass(self, muscle: str) -> np.ndarray:
+        """Mass that has entered the muscle through its charge valve since t = 0 [kg]."""
+        return self.y[:, L.charged_index(self.index(muscle), self.n)]
+
+    def vented_mass(self, muscle: str) -> np.ndarray:
+        """Mass that has left the muscle through its discharge valve since t = 0 [kg]."""
+        return self.y[:, L.vented_index(self.index(muscle), self.n)]
+
+    @property
+    def pumped_mass(self) -> np.ndarray:
+        """Mass moved by the pump from exhaust to source since t = 0 [kg]."""
+        return self.y[:, L.pump_index(self.n)]
+
+    @property
+    def total_air_mass(self) -> np.ndarray:
+        """Air in source, exhaust and all muscles [kg]: constant in the closed circuit."""
+        n = self.n
+        return (self.y[:, L.Y_MS] + self.y[:, L.Y_ME]
+                + self.y[:, L.Y_MUSCLE0:L.Y_MUSCLE0 + 2 * n:2].sum(axis=1))
+
+    @property
+    def reference_density(self) -> float:
+        return float(self.model.g[L.G_RHOREF])
+
+    def temperature(self, which: str) -> np.ndarray:
+        """Temperature [K] of "source", "exhaust" or a muscle, from T = p V/(m R)."""
+        R = self.model.g[L.G_R]
+        if which == "source":
+            return self.y[:, L.Y_PS] * self.model.g[L.G_VS] / (self.y[:, L.Y_MS] * R)
+        if which == "exhaust":
+            return self.y[:, L.Y_PE] * self.model.g[L.G_VE] / (self.y[:, L.Y_ME] * R)
+        i = self.index(which)
+        return self.muscle_pressure(which) * self.volumes[:, i] / (self.muscle_mass(which) * R)
+
+    @cached_property
+    def _diagnostics(self):
+        from frogsim.engine.integrator import flows_at
+        m = self.model
+        return flows_at(self.t, self.y, self.u, m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n)
+
+    @property
+    def volumes(self) -> np.ndarray:
+        """Muscle volumes [m^3], shape (time, muscle)."""
+        return self._diagnostics[1]
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """Muscle lengths [m], shape (time, muscle)."""
+        return self._diagnostics[2]
+
+    def charge_flow(self, muscle: str) -> np.ndarray:
+        """Mass flow through the muscle's charge valve [kg/s] (negative: back to the source)."""
+        return self._diagnostics[0][:, 2 * self.index(muscle)]
+
+    def discharge_flow(self, muscle: str) -> np.ndarray:
+        """Mass flow through the muscle's discharge valve [kg/s]."""
+        return self._diagnostics[0][:, 2 * self.index(muscle) + 1]
+
+    @property
+    def pump_flow(self) -> np.ndarray:
+        """Pump mass flow [kg/s]."""
+        return self._diagnostics[0][:, 2 * self.n]
+
+    # -- derived figures -------------------------------------------------------------------------
+    def charge_open_times(self, muscle: str) -> np.ndarray:
+        """Times at which the muscle's charge valve actually opens [s] (command + dead time)."""
+        return self.model.charge_open_times[self.index(muscle)]
+
+    def aeration_volume(self, muscle: str, stroke: int = 0) -> float:
+        """Standard volume [m^3] (ISO 8778) charged into the muscle during one pressurise phase.
+
+        The paper's aeration volume (Sec. 4.2): the flow of Eq. (8) integrated while the charge
+        valve is open, expressed at the standard state.
+        """
+        opens = self.charge_open_times(muscle)
+        if stroke >= len(opens):
+            raise IndexError(f"muscle {muscle!r} has {len(opens)} pressurise phases")
+        t0 = opens[stroke]
+        u_ch = self.u[:, 2 * self.index(muscle)]
+        closes = np.nonzero((self.t > t0) & (u_ch < 0.5))[0]
+        k1 = closes[0] if closes.size else self.t.size - 1
+        k0 = np.searchsorted(self.t, t0)
+        q = self.charged_mass(muscle)
+        return float((q[k1] - q[k0]) / self.reference_density)
+
+    def rise_time(self, muscle: str, fraction: float = 0.9, stroke: int = 0) -> float:
+        """Time [s] from the charge valve opening until the muscle pressure first reaches
+        ``fraction`` of its final rise (final = pressure when the charge valve closes, or at the
+        end of the run). Linear interpolation between output points."""
+        opens = self.charge_open_times(muscle)
+        t0 = opens[stroke]
+        p = self.muscle_pressure(muscle)
+        u_ch = self.u[:, 2 * self.index(muscle)]
+        k0 = int(np.searchsorted(self.t, t0))
+        closes = np.nonzero((self.t > t0) & (u_ch < 0.5))[0]
+        k1 = int(closes[0]) - 1 if closes.size else self.t.size - 1
+        p0, p1 = p[k0], p[k1]
+        target = p0 + fraction * (p1 - p0)
+        seg = p[k0:k1 + 1]
+        hit = np.nonzero(seg >= target)[0]
+        if not hit.size or p1 <= p0:
+            return float("nan")
+        j = k0 + int(hit[0])
+        if j == k0:
+            return float(self.t[j] - t0)
+        ta, tb, pa, pb = self.t[j - 1], self.t[j], p[j - 1], p[j]
+        return float(ta + (target - pa) / (pb - pa) * (tb - ta) - t0)
+
+    # -- tables ----------------------------------------------------------------------------------
+    def to_dataframe(self, units: str = "SI"):
+        """All series as a pandas DataFrame.
+
+        units="SI": pressures [Pa abs], temperatures [K], volumes [m^3], lengths [m], mass flows
+        [kg/s], masses [kg]; units="display": bar gauge, cm^3, mm, L/min and L at standard state
+        (ISO 8778). Column names carry the unit; ``df.attrs["units"]`` maps each column to it.
+        """
+        import pandas as pd
+        if units not in ("SI", "display"):
+            raise ValueError(f"units must be 'SI' or 'display', not {units!r}")
+        patm = self.atmospheric_pressure
+        rho = self.reference_density
+        cols, unit_of = {}, {}
+
+        def put(name, values, unit):
+            cols[name] = np.asarray(values, float)
+            unit_of[name] = unit
+
+        disp = units == "display"
+        put("time_s", self.t, "s")
+        series = [("source", self.source_pressure), ("exhaust", self.exhaust_pressure)]
+        for who, p in series:
+            if disp:
+                put(f"{who}_pressure_bar_gauge", (p - patm) / 1e5, "bar (gauge)")
+                put(f"{who}_temperature_K", self.temperature(who), "K")
+            else:
+                put(f"{who}_pressure_Pa_abs", p, "Pa (absolute)")
+                put(f"{who}_temperature_K", self.temperature(who), "K")
+                put(f"{who}_mass_kg", self.y[:, L.Y_MS if who == "source" else L.Y_ME], "kg")
+        put("pump_on", self.u[:, 2 * self.n], "1 = running")
+        if disp:
+            put("pump_flow_L_per_min_std", self.pump_flow / rho * 6e4, "L/min (standard)")
+        else:
+            put("pump_flow_kg_per_s", self.pump_flow, "kg/s")
+        for i, m in enumerate(self.names):
+            p = self.muscle_pressure(m)
+            if disp:
+                put(f"{m}_pressure_bar_gauge", (p - patm) / 1e5, "bar (gauge)")
+                put(f"{m}_temperature_K", self.temperature(m), "K")
+                put(f"{m}_volume_cm3", self.volumes[:, i] * 1e6, "cm^3")
+                put(f"{m}_length_mm", self.lengths[:, i] * 1e3, "mm")
+                put(f"{m}_charge_flow_L_per_min_std", self.charge_flow(m) / rho * 6e4, "L/min (standard)")
+                put(f"{m}_discharge_flow_L_per_min_std", self.discharge_flow(m) / rho * 6e4,
+                    "L/min (standard)")
+                put(f"{m}_charged_L_std", self.charged_mass(m) / rho * 1e3, "L (standard)")
+            else:
+                put(f"{m}_pressure_Pa_abs", p, "Pa (absolute)")
+                put(f"{m}_temperature_K", self.temperature(m), "K")
+                put(f"{m}_mass_kg", self.muscle_mass(m), "kg")
+                put(f"{m}_volume_m3", self.volumes[:, i], "m^3")
+                put(f"{m}_length_m", self.lengths[:, i], "m")
+                put(f"{m}_charge_flow_kg_per_s", self.charge_flow(m), "kg/s")
+                put(f"{m}_discharge_flow_kg_per_s", self.discharge_flow(m), "kg/s")
+                put(f"{m}_charged_mass_kg", self.charged_mass(m), "kg")
+            put(f"{m}_charge_valve", self.u[:, 2 * i], "1 = open")
+            put(f"{m}_discharge_valve", self.u[:, 2 * i + 1], "1 = open")
+        df = pd.DataFrame(cols)
+        df.attrs["units"] = unit_of
+        return df

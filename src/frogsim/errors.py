@@ -1,0 +1,21 @@
+"""Errors frogsim raises on purpose, each with a message a user can act on."""
+from __future__ import annotations
+
+
+class FrogsimError(Exception):
+    """Base class of frogsim's own errors."""
+
+
+class ScenarioError(FrogsimError, ValueError):
+    """A scenario or parameter value that cannot be used: names the field, the value, what is allowed."""
+
+    def __init__(self, field: str, value, allowed: str):
+        self.field = field
+        self.value = value
+        self.allowed = allowed
+        shown = value if isinstance(value, (int, float)) and not isinstance(value, bool) else repr(value)
+        super().__init__(f"{field} = {shown}: {allowed}")
+
+
+class SimulationError(FrogsimError, RuntimeError):
+    """The integration could not continue (non-finite state, step-size underflow)."""

@@ -1,0 +1,58 @@
+"""Unit parsing at the boundary (pint). Everything returned is an SI float."""
+from __future__ import annotations
+
+import functools
+
+import pint
+
+from frogsim.errors import ScenarioError
+
+
+@functools.lru_cache(maxsize=1)
+def registry() -> pint.UnitRegistry:
+    """The shared pint registry (built once; about 0.2 s)."""
+    return pint.UnitRegistry()
+
+
+# SI unit for every kind of quantity a scenario may hold, with a readable name for messages
+SI_UNITS = {
+    "pressure": ("Pa", "a pressure such as \"6 bar\" or \"600 kPa\""),
+    "volume": ("m**3", "a volume such as \"4 L\" or \"50 cm^3\""),
+    "length": ("m", "a length such as \"4 mm\""),
+    "time": ("s", "a time such as \"1 s\" or \"2 ms\""),
+    "frequency": ("Hz", "a frequency such as \"1 kHz\""),
+    "temperature": ("K", "an absolute temperature such as \"293.15 K\""),
+    "angle": ("rad", "an angle such as \"25 deg\""),
+    "velocity": ("m/s", "a velocity such as \"343 m/s\""),
+    "volume_flow": ("m**3/s", "a volume flow such as \"45 L/min\""),
+    "conductance": ("m**3/(s*Pa)", "a sonic conductance such as \"0.4 L/(s*bar)\""),
+    "gas_constant": ("J/(kg*K)", "a specific gas constant such as \"287 J/(kg*K)\""),
+    "dimensionless": ("", "a plain number or a percentage such as \"25 %\""),
+}
+
+
+@functools.lru_cache(maxsize=4096)
+def parse_quantity(text: str, kind: str) -> float:
+    """Parse text such as "6 bar" into an SI float of the given kind; raise ValueError if not."""
+    unit, _ = SI_UNITS[kind]
+    q = registry().Quantity(text)
+    if kind == "dimensionless":
+        return float(q.to("dimensionless").magnitude)
+    return float(q.to(unit).magnitude)
+
+
+def to_si(value, kind: str, field: str) -> float:
+    """Turn a scenario value into SI, or raise ScenarioError naming the field."""
+    unit, what = SI_UNITS[kind]
+    if isinstance(value, bool):
+        raise ScenarioError(field, value, f"expected {what}")
+    if isinstance(value, (int, float)):
+        if kind == "dimensionless":
+            return float(value)
+        raise ScenarioError(field, value, f"expected {what}: write the unit out")
+    if not isinstance(value, str):
+        raise ScenarioError(field, value, f"expected {what}")
+    try:
+        return parse_quantity(value.strip(), kind)
+    except Exception:  # pint raises several error types for bad text or dimensions
+        raise ScenarioError(field, value, f"expected {what}") from None
