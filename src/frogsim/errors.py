@@ -2,6 +2,10 @@
 from __future__ import annotations
 
 
+UNKNOWN = "(unknown key)"     # value placeholder for a key that is not a setting
+MISSING = "(missing)"         # value placeholder for a required setting that is absent
+
+
 class FrogsimError(Exception):
     """Base class of frogsim's own errors."""
 
@@ -13,6 +17,9 @@ class ScenarioError(FrogsimError, ValueError):
         self.field = field
         self.value = value
         self.allowed = allowed
+        if value in (UNKNOWN, MISSING):
+            super().__init__(f"{field}: {allowed}")
+            return
         shown = value if isinstance(value, (int, float)) and not isinstance(value, bool) else repr(value)
         super().__init__(f"{field} = {shown}: {allowed}")
 

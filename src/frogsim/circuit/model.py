@@ -165,6 +165,24 @@ def build_schedule(scenario: Scenario):
     return np.array(times, float), sched_u.reshape(len(times), 2 * len(names)), np.zeros(2 * len(names)), opens
 
 
+def add_breakpoints(sched_t, sched_u, u0, times):
+    """Merge extra stop times into a schedule, carrying the valve states in force at each.
+
+    The prescribed motion's knots are kinks in dV/dt; stopping there keeps every step smooth.
+    """
+    times = np.asarray(times, float)
+    new = np.setdiff1d(times, sched_t)
+    if new.size == 0:
+        return sched_t, sched_u
+    all_t = np.concatenate([sched_t, new])
+    order = np.argsort(all_t, kind="stable")
+    states = np.empty((all_t.size, u0.size))
+    for k, t in enumerate(all_t):
+        idx = np.searchsorted(sched_t, t, side="right") - 1
+        states[k] = sched_u[idx] if idx >= 0 else u0
+    return all_t[order], states[order]
+
+
 def branch_limit_standard(scenario: Scenario) -> float:
     """Paper-mode per-branch limit as a standard volume flow [m^3/s]: the override or Eq. (9)."""
     s = scenario.supply
@@ -291,6 +309,9 @@ def build_model(scenario: Scenario) -> PneumaticModel:
     atol_scale[L.Y_PE] = patm
     atol_scale[L.pump_index(n)] = atol_scale[L.Y_MS]
     sched_t, sched_u, u0, opens = build_schedule(scenario)
+    knots = np.unique(np.concatenate([mk.t for mk in motions.values() if mk.fixed_volume <= 0]
+                                     + [np.zeros(0)]))
+    sched_t, sched_u = add_breakpoints(sched_t, sched_u, u0, knots[knots > 0])
     return PneumaticModel(scenario=scenario, names=names, g=g, mp=mp, mot_t=mot_t, mot_L=mot_L,
                           mot_d=mot_d, mot_n=mot_n, sched_t=sched_t, sched_u=sched_u, u0=u0,
                           charge_open_times=opens, y0=y0, atol=scenario.solver.rtol * atol_scale,

@@ -1,10 +1,11 @@
 """Right-hand side of the pneumatic circuit: Eqs. (2)-(9) assembled for n muscles.
 
-``rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux)`` writes dy/dt. ``u`` holds
+``rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)`` writes dy/dt. ``u`` holds
 the valve states (u[2i] charge, u[2i+1] discharge of muscle i, 1 = open), constant over the call's
 segment; muscle lengths come from the motion tables (cubic Hermite knots, see
 :func:`motion_length`). ``aux`` receives per-muscle charge and discharge mass flows [kg/s] (2n) and
-the pump flow (last entry) for diagnostics.
+the pump flow (last entry) for diagnostics; ``work`` is scratch space of length 3n (no allocation
+in the hot loop).
 """
 from __future__ import annotations
 
@@ -129,7 +130,7 @@ def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
 
 
 @njit(cache=True)
-def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux):
+def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     """dy/dt of the whole circuit (see the module docstring and :mod:`frogsim.circuit.layout`).
 
     Every transfer moves mass out of one volume at that volume's temperature and into another, so
@@ -154,22 +155,20 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux):
     hin_e = 0.0
     out_e = 0.0
     mode = int(g[G_SUPPLY_MODE])
-    T_mus = np.empty(n)
-    V_mus = np.empty(n)
-    dV_mus = np.empty(n)
+    # work holds muscle temperatures [0, n), volumes [n, 2n) and volume rates [2n, 3n)
     for i in range(n):
         V, dV = muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n)
-        V_mus[i] = V
-        dV_mus[i] = dV
-        T_mus[i] = y[Y_MUSCLE0 + 2 * i + 1] * V / (y[Y_MUSCLE0 + 2 * i] * R)
+        work[n + i] = V
+        work[2 * n + i] = dV
+        work[i] = y[Y_MUSCLE0 + 2 * i + 1] * V / (y[Y_MUSCLE0 + 2 * i] * R)
     p_up = p_s
     if mode == SUPPLY_PHYSICAL:
-        p_up = manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus)
+        p_up = manifold_pressure(p_s, T_s, y, u, g, mp, n, work)
     limit = g[G_BRANCH_LIMIT]
     for i in range(n):
         j = Y_MUSCLE0 + 2 * i
         p_i = y[j + 1]
-        T_i = T_mus[i]
+        T_i = work[i]
         hin_i = 0.0
         out_i = 0.0
         mc = 0.0
@@ -197,7 +196,7 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux):
                 out_e -= md
                 hin_i -= md * T_e
         dydt[j] = mc - md
-        dydt[j + 1] = pressure_rate(p_i, V_mus[i], dV_mus[i], hin_i, out_i, T_i, R, k)
+        dydt[j + 1] = pressure_rate(p_i, work[n + i], work[2 * n + i], hin_i, out_i, T_i, R, k)
         dydt[Y_MUSCLE0 + 2 * n + i] = mc
         dydt[Y_MUSCLE0 + 3 * n + i] = md
         aux[2 * i] = mc

@@ -12,7 +12,7 @@ import difflib
 import typing
 from dataclasses import MISSING, field
 
-from frogsim.errors import ScenarioError
+from frogsim.errors import MISSING, UNKNOWN, ScenarioError
 from frogsim.io.units import SI_UNITS, parse_quantity, to_si
 
 _NO_DEFAULT = object()
@@ -107,7 +107,7 @@ def unknown_key_error(path: str, key: str, known) -> ScenarioError:
     close = difflib.get_close_matches(key, list(known), n=2)
     hint = f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
     allowed = ", ".join(sorted(known))
-    return ScenarioError(where, "(unknown key)", f"not a known setting{hint} (known here: {allowed})")
+    return ScenarioError(where, UNKNOWN, f"unknown setting{hint} (known here: {allowed})")
 
 
 def build(cls, raw, path: str = ""):
@@ -133,7 +133,7 @@ def build(cls, raw, path: str = ""):
             if typing.get_origin(hint) is typing.Union and type(None) in typing.get_args(hint):
                 values[name] = None
                 continue
-            raise ScenarioError(sub, "(missing)", "required setting is missing")
+            raise ScenarioError(sub, MISSING, "required setting is missing")
         values[name] = build_value(hint, raw[name], f.metadata, sub)
     return cls(**values)
 

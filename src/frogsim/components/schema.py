@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass, field
 
 from frogsim.components.builder import build, choice, flag, integer, parse_field, quantity, unwrap
-from frogsim.errors import ScenarioError
+from frogsim.errors import MISSING, ScenarioError
 
 BAR = 1e5
 MAX_BRAID_ANGLE = math.acos(1.0 / math.sqrt(3.0))  # 54.7 deg: the ideal muscle's force vanishes
@@ -216,7 +216,7 @@ class Motion:
                 raise unknown_key_error(path, key, allowed)
         for key in required:
             if key not in raw:
-                raise ScenarioError(f"{path}.{key}", "(missing)", f"required for kind {kind!r}")
+                raise ScenarioError(f"{path}.{key}", MISSING, f"required for kind {kind!r}")
         kw = {"kind": kind}
         pct = dict(kind="dimensionless", ge=0.0, lt=1.0, display="%")
         if "contraction" in raw:
@@ -272,7 +272,7 @@ class Muscle:
                 raise unknown_key_error(path, key, allowed)
         for key in ("type", "program"):
             if key not in raw:
-                raise ScenarioError(f"{path}.{key}", "(missing)", "required setting is missing")
+                raise ScenarioError(f"{path}.{key}", MISSING, "required setting is missing")
         mtype = unwrap(raw["type"])
         if not isinstance(mtype, str):
             raise ScenarioError(f"{path}.type", mtype, "expected the name of a muscle type")

@@ -8,7 +8,9 @@ over from one segment to the next.
 
 Method: Dormand and Prince (1980), coefficients as in Hairer, Norsett and Wanner, Solving ODEs I,
 Table 5.2; error norm and step control as in Hairer's DOPRI5 (safety 0.9, factor limits 0.2..5).
-Dense output: cubic Hermite interpolation from the step's end values and slopes (FSAL).
+Step control: Hairer's PI controller (exponent 0.2 - 0.75 beta, beta = 0.04).
+Dense output: Dormand and Prince's continuous extension of order 4 (Hairer's DOPRI5 coefficients
+d1..d7), which needs no extra right-hand-side evaluations.
 """
 from __future__ import annotations
 
@@ -18,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from frogsim.circuit.layout import G_PUMP_ENABLED, G_PUMP_OFF, G_PUMP_ON, Y_PS
-from frogsim.circuit.rhs import motion_length, muscle_volume_state, rhs
+from frogsim.circuit.rhs import rhs
 
 STATUS_OK = 0
 STATUS_STEP_UNDERFLOW = 1
@@ -35,16 +37,23 @@ B1, B3, B4, B5, B6 = 35.0 / 384.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784
 E1, E3, E4, E5, E6, E7 = (71.0 / 57600.0, -71.0 / 16695.0, 71.0 / 1920.0, -17253.0 / 339200.0,
                           22.0 / 525.0, -1.0 / 40.0)
 C2, C3, C4, C5 = 0.2, 0.3, 0.8, 8.0 / 9.0
+D1, D3, D4, D5, D6, D7 = (-12715105075.0 / 11282082432.0, 87487479700.0 / 32700410799.0,
+                          -10690763975.0 / 1880347072.0, 701980252875.0 / 199316789632.0,
+                          -1453857185.0 / 822651844.0, 69997945.0 / 29380423.0)
+SAFETY = 0.9
+BETA = 0.04                  # PI step control (Hairer's DOPRI5 default)
+EXPO = 0.2 - 0.75 * BETA
 
 
 @njit(cache=True)
 def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n,
-                   rtol, atol, max_step, out_t, out_y, out_u, out_i, stats):
+                   rtol, atol, max_step, out_t, out_y, out_u, out_i, stats, work):
     """Advance y from t to exactly t_end with valve states u held constant.
 
     ``f`` must hold dy/dt at (t, y) on entry and holds it at the end on return (FSAL). Output
     times out_t[out_i:] that fall inside (t, t_end] are filled into out_y/out_u by dense output.
-    ``stats`` accumulates [accepted steps, rejected steps, rhs evaluations].
+    ``stats`` accumulates [accepted steps, rejected steps, rhs evaluations]; ``work`` is scratch
+    for the right-hand side (3n) and the PI controller's previous error (its last entry).
 
     Returns (h_next, out_i, status).
     """
@@ -60,6 +69,7 @@ def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mo
     aux = np.empty(2 * mp.shape[0] + 1)
     n_out = out_t.size
     nu = u.size
+    err_old = work[work.size - 1]
     while t < t_end:
         if h > max_step:
             h = max_step
@@ -70,23 +80,23 @@ def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mo
             last = True
         for j in range(ny):
             yt[j] = y[j] + h_try * A21 * f[j]
-        rhs(t + C2 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux)
+        rhs(t + C2 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)
         for j in range(ny):
             yt[j] = y[j] + h_try * (A31 * f[j] + A32 * k2[j])
-        rhs(t + C3 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux)
+        rhs(t + C3 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux, work)
         for j in range(ny):
             yt[j] = y[j] + h_try * (A41 * f[j] + A42 * k2[j] + A43 * k3[j])
-        rhs(t + C4 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux)
+        rhs(t + C4 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux, work)
         for j in range(ny):
             yt[j] = y[j] + h_try * (A51 * f[j] + A52 * k2[j] + A53 * k3[j] + A54 * k4[j])
-        rhs(t + C5 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux)
+        rhs(t + C5 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux, work)
         for j in range(ny):
             yt[j] = y[j] + h_try * (A61 * f[j] + A62 * k2[j] + A63 * k3[j] + A64 * k4[j] + A65 * k5[j])
-        rhs(t + h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux)
+        rhs(t + h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux, work)
         for j in range(ny):
             yn[j] = y[j] + h_try * (B1 * f[j] + B3 * k3[j] + B4 * k4[j] + B5 * k5[j] + B6 * k6[j])
         t_new = t_end if last else t + h_try
-        rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux)
+        rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
         stats[2] += 6
         err = 0.0
         for j in range(ny):
@@ -102,17 +112,17 @@ def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mo
                 return h, out_i, STATUS_NOT_FINITE
             continue
         if err <= 1.0:
-            # dense output on (t, t_new]
+            # dense output on (t, t_new]: the 4th-order continuous extension
             while out_i < n_out and out_t[out_i] <= t_new:
-                s = (out_t[out_i] - t) / h_try
-                s2 = s * s
-                s3 = s2 * s
-                h00 = 2 * s3 - 3 * s2 + 1
-                h10 = s3 - 2 * s2 + s
-                h01 = -2 * s3 + 3 * s2
-                h11 = s3 - s2
+                th = (out_t[out_i] - t) / h_try
+                th1 = 1.0 - th
                 for j in range(ny):
-                    out_y[out_i, j] = h00 * y[j] + h10 * h_try * f[j] + h01 * yn[j] + h11 * h_try * k7[j]
+                    ydiff = yn[j] - y[j]
+                    bspl = h_try * f[j] - ydiff
+                    r4 = ydiff - h_try * k7[j] - bspl
+                    r5 = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j] + D6 * k6[j]
+                                  + D7 * k7[j])
+                    out_y[out_i, j] = y[j] + th * (ydiff + th1 * (bspl + th * (r4 + th1 * r5)))
                 for j in range(nu):
                     out_u[out_i, j] = u[j]
                 out_u[out_i, nu] = pump_on
@@ -122,16 +132,21 @@ def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mo
                 f[j] = k7[j]
             t = t_new
             stats[0] += 1
-            fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
+            e = max(err, 1e-4)
+            fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
+            err_old = e
             h_next = h_try * fac
             h = max(h, h_next) if last else h_next
         else:
             stats[1] += 1
-            h = h_try * max(0.2, 0.9 * err ** -0.2)
+            h = h_try * max(0.2, SAFETY * err ** -EXPO)
             if h < 1e-14 * max(1.0, abs(t)):
+                work[work.size - 1] = err_old
                 return h, out_i, STATUS_STEP_UNDERFLOW
         if stats[0] + stats[1] > 50_000_000:
+            work[work.size - 1] = err_old
             return h, out_i, STATUS_MAX_STEPS
+    work[work.size - 1] = err_old
     return h, out_i, STATUS_OK
 
 
@@ -153,7 +168,8 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
     """Integrate from t0 to t_end under an open-loop valve schedule.
 
     ``sched_t`` (sorted) are the times at which valve states become ``sched_u[k]``; before the
-    first, ``u0`` holds. With the pump band active the run also stops at every controller sample
+    first, ``u0`` holds. Entries may repeat the current state: they only make the integrator stop
+    there (used for kinks in the prescribed motion). With the pump band active the run also stops at every controller sample
     (multiples of ctrl_dt) to apply the band rule.
 
     Returns (out_y, out_u, y_end, stats, status, t_reached).
@@ -168,6 +184,8 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
     u = u0.copy()
     f = np.empty(ny)
     aux = np.empty(2 * mp.shape[0] + 1)
+    work = np.empty(3 * mp.shape[0] + 1)
+    work[work.size - 1] = 1e-4
     t = t0
     si = 0
     while si < sched_t.size and sched_t[si] <= t0:
@@ -185,7 +203,7 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
         out_u[out_i, nu] = pump_on
         out_i += 1
     k_sample = int(math.floor(t0 / ctrl_dt + 1e-9))
-    rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux)
+    rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
     stats[2] += 1
     h = h0
     status = 0
@@ -201,7 +219,7 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
                 at_sample = True
         h, out_i, status = integrate_span(y, f, t, t_seg, h, u, pump_on, g, mp, mot_t, mot_L,
                                           mot_d, mot_n, rtol, atol, max_step, out_t, out_y,
-                                          out_u, out_i, stats)
+                                          out_u, out_i, stats, work)
         if status != 0:
             return out_y, out_u, y, stats, status, t
         t = t_seg
@@ -219,32 +237,6 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
                 changed = True
                 pump_on = new_on
         if changed:
-            rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux)
+            rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
             stats[2] += 1
     return out_y, out_u, y, stats, status, t
-
-
-@njit(cache=True)
-def flows_at(out_t, out_y, out_u, g, mp, mot_t, mot_L, mot_d, mot_n):
-    """Diagnostics at the output points: per-muscle charge/discharge mass flows and pump flow,
-    muscle volumes [m^3] and lengths [m]. Returns (aux (n_out, 2n+1), V (n_out, n), L (n_out, n))."""
-    n = mp.shape[0]
-    n_out = out_t.size
-    ny = out_y.shape[1]
-    nu = 2 * n
-    aux_all = np.empty((n_out, 2 * n + 1))
-    V = np.empty((n_out, n))
-    L = np.empty((n_out, n))
-    dydt = np.empty(ny)
-    aux = np.empty(2 * n + 1)
-    u = np.empty(nu)
-    for k in range(n_out):
-        for j in range(nu):
-            u[j] = out_u[k, j]
-        rhs(out_t[k], out_y[k], u, out_u[k, nu], g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux)
-        for j in range(2 * n + 1):
-            aux_all[k, j] = aux[j]
-        for i in range(n):
-            V[k, i], _ = muscle_volume_state(out_t[k], i, mp, mot_t, mot_L, mot_d, mot_n)
-            L[k, i], _ = motion_length(out_t[k], i, mot_t, mot_L, mot_d, mot_n)
-    return aux_all, V, L

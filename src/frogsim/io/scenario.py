@@ -15,7 +15,7 @@ from frogsim.components.builder import build, parse_field, unknown_key_error
 from frogsim.components.schema import (
     Air, Chamber, Controller, Muscle, MuscleType, Program, Pump, Scenario, Solver, Supply, Valves,
 )
-from frogsim.errors import ScenarioError
+from frogsim.errors import MISSING, ScenarioError
 
 PARAMS_DIR = Path(__file__).resolve().parent.parent / "params"
 SCENARIOS_DIR = Path(__file__).resolve().parent.parent / "scenarios"
@@ -108,7 +108,7 @@ def scenario_from_raw(raw: dict, base_dir: str = ".") -> Scenario:
     if not isinstance(name, str):
         raise ScenarioError("name", name, "expected text")
     if "duration" not in raw:
-        raise ScenarioError("duration", "(missing)", "required setting is missing")
+        raise ScenarioError("duration", MISSING, "required setting is missing")
     duration = parse_field(raw["duration"], dict(kind="time", gt=0.0, le=1e6, display="s"), "duration")
     interval = parse_field(raw.get("output_interval", "1 ms"),
                            dict(kind="time", gt=0.0, display="ms"), "output_interval")
@@ -122,7 +122,7 @@ def scenario_from_raw(raw: dict, base_dir: str = ".") -> Scenario:
     for key, cls in (("air", Air), ("source", Chamber), ("exhaust", Chamber), ("pump", Pump),
                      ("valves", Valves), ("supply", Supply)):
         if key not in raw:
-            raise ScenarioError(key, "(missing)", "required section is missing (parameter set incomplete?)")
+            raise ScenarioError(key, MISSING, "required section is missing (parameter set incomplete?)")
         sections[key] = build(cls, raw[key], key)
     controller = build(Controller, raw.get("controller", {}), "controller")
     solver = build(Solver, raw.get("solver", {}), "solver")
@@ -159,7 +159,7 @@ def scenario_from_raw(raw: dict, base_dir: str = ".") -> Scenario:
                                 f"must name a muscle type ({', '.join(sorted(muscle_types))})")
         mt = muscle_types[m.type]
         if m.motion.contraction is not None and m.motion.contraction > mt.max_contraction:
-            raise ScenarioError(f"{path}.motion.contraction", f"{m.motion.contraction:.4g} (fraction)",
+            raise ScenarioError(f"{path}.motion.contraction", mraw["motion"]["contraction"],
                                 f"must be <= the muscle's max_contraction ({mt.max_contraction:.0%})")
         for c in m.motion.contraction_percent:
             if c / 100.0 > mt.max_contraction:

@@ -33,9 +33,17 @@ def iso6358_flow_function(sigma: float, b: float, m: float, r_lam: float) -> flo
         return 0.0
     if sigma > r_lam:
         x = (r_lam - b) / (1.0 - b)
-        return (1.0 - sigma) / (1.0 - r_lam) * (1.0 - x * x) ** m
+        return (1.0 - sigma) / (1.0 - r_lam) * _power(1.0 - x * x, m)
     x = (sigma - b) / (1.0 - b)
-    return (1.0 - x * x) ** m
+    return _power(1.0 - x * x, m)
+
+
+@njit(cache=True)
+def _power(x: float, m: float) -> float:
+    """x**m, with the usual m = 0.5 (Eq. (8)'s square root) taken by sqrt, several times faster."""
+    if m == 0.5:
+        return math.sqrt(x)
+    return x ** m
 
 
 @njit(cache=True)

@@ -1,0 +1,6 @@
+"""Studies registered by name: each is a function returning data plus a function drawing it.
+
+``STUDIES[name]`` is a :class:`Study`; ``run_study(name)`` returns its :class:`StudyData`.
+"""
+from frogsim.studies.registry import STUDIES, Study, StudyData, register, run_study  # noqa: F401
+from frogsim.studies import paper  # noqa: F401,E402  (registers the paper's studies)

@@ -1,0 +1,323 @@
+"""The paper's studies (Sec. 4.2-4.3, Figs. 13-17), the aeration volumes, and the tube modes.
+
+All start from the shipped scenario ``paper-cycle`` (six driving muscles, 6 bar source, 1 s
+pressurise / 1 s release) and change one thing at a time by dotted path.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from frogsim.circuit.model import branch_limit_standard
+from frogsim.engine.pneumatic import simulate
+from frogsim.io.scenario import load_scenario, scenario_from_raw, with_overrides
+from frogsim.studies.calibration import PAPER_AERATION_L
+from frogsim.studies.plotting import figure, save, shade_valve_phases
+from frogsim.studies.registry import StudyData, register
+
+BASE = "paper-cycle"
+HIP = "hip_left"
+BAR = 1e5
+SOURCE_PRESSURES_BAR = (3, 4, 5, 6)                       # paper Fig. 15
+VOLUME_CONSTANTS_PERCENT = (0, 25, 50, 75, 100)            # paper Fig. 16: 0 %..100 %
+BRANCH_LIMITS_L_PER_MIN = (15, 30, 45, 60, 90, 120, 180)   # paper Fig. 17: several saturations
+L_PER_MIN = 1e-3 / 60.0
+NOTE = "frogsim, parameter set fan2017; pressures gauge"
+
+
+def _base_raw() -> dict:
+    return load_scenario(BASE).raw
+
+
+def run(overrides: dict | None = None):
+    """Simulate the base scenario with dotted-path overrides."""
+    return simulate(scenario_from_raw(with_overrides(_base_raw(), overrides or {})))
+
+
+def gauge_bar(result, p):
+    return (p - result.atmospheric_pressure) / BAR
+
+
+def pressurise_window(result, muscle=HIP):
+    """(valve opening time, valve closing time) of the first pressurise phase [s]."""
+    t_open = float(result.charge_open_times(muscle)[0])
+    u = result.u[:, 2 * result.index(muscle)]
+    closes = np.nonzero((result.t > t_open) & (u < 0.5))[0]
+    return t_open, float(result.t[closes[0]]) if closes.size else float(result.t[-1])
+
+
+def final_pressure_bar(result, muscle=HIP) -> float:
+    """Muscle pressure when the charge valve closes [bar gauge]."""
+    _, t_close = pressurise_window(result, muscle)
+    k = int(np.searchsorted(result.t, t_close)) - 1
+    return float(gauge_bar(result, result.muscle_pressure(muscle)[k]))
+
+
+# --- Figures 13 and 14: the cycle ------------------------------------------------------------------
+@register("fig13", "Hip muscle pressure over the 1 s pressurise / 1 s release cycle (paper Fig. 13)")
+def fig13() -> StudyData:
+    r = run()
+    table = pd.DataFrame({
+        "time_s": r.t,
+        "hip_pressure_bar_gauge": gauge_bar(r, r.muscle_pressure(HIP)),
+        "hip_volume_cm3": r.volumes[:, r.index(HIP)] * 1e6,
+        "hip_charge_flow_L_per_min_std": r.charge_flow(HIP) / r.reference_density / L_PER_MIN,
+        "hip_charge_valve": r.u[:, 2 * r.index(HIP)],
+        "hip_discharge_valve": r.u[:, 2 * r.index(HIP) + 1],
+        "exhaust_pressure_bar_gauge": gauge_bar(r, r.exhaust_pressure),
+    })
+    return StudyData(table, {"hip_cycle": {
+        "rise_time_90_s": r.rise_time(HIP),
+        "final_muscle_pressure_bar_gauge": final_pressure_bar(r),
+        "end_pressure_after_release_bar_gauge": float(table.hip_pressure_bar_gauge.iloc[-1]),
+        "exhaust_pressure_end_bar_gauge": float(table.exhaust_pressure_bar_gauge.iloc[-1]),
+    }}, {"window": pressurise_window(r)})
+
+
+@fig13.draws
+def _draw13(data: StudyData, path: str) -> None:
+    d = data.table
+    fig, ax = figure(2, 1, height=5.6, sharex=True)
+    a, b = ax[0, 0], ax[1, 0]
+    shade_valve_phases(a, *data.extras["window"])
+    a.plot(d.time_s, d.hip_pressure_bar_gauge, lw=2, label="hip muscle")
+    a.plot(d.time_s, d.exhaust_pressure_bar_gauge, lw=1, ls="--", label="exhaust chamber")
+    a.set_ylabel("pressure [bar gauge]")
+    a.set_title("Hip muscle pressure, 1 s pressurise / 1 s release from 6 bar (cf. paper Fig. 13)")
+    a.legend(loc="upper right")
+    b.plot(d.time_s, d.hip_charge_flow_L_per_min_std, color="tab:green", label="charge flow")
+    b.set_ylabel("charge flow [L/min standard]")
+    b2 = b.twinx()
+    b2.plot(d.time_s, d.hip_volume_cm3, color="tab:purple", lw=1, label="muscle volume")
+    b2.set_ylabel("volume [cm$^3$]", color="tab:purple")
+    b.set_xlabel("time [s]")
+    b.legend(loc="upper right")
+    save(fig, path, NOTE)
+
+
+@register("fig14", "Source chamber pressure over the cycle (paper Fig. 14)")
+def fig14() -> StudyData:
+    r = run()
+    ps = gauge_bar(r, r.source_pressure)
+    table = pd.DataFrame({"time_s": r.t, "source_pressure_bar_gauge": ps,
+                          "source_temperature_K": r.temperature("source")})
+    return StudyData(table, {"source_chamber": {
+        "pressure_drop_bar": float(ps[0] - ps.min()),
+        "initial_pressure_bar_gauge": float(ps[0]),
+        "final_pressure_bar_gauge": float(ps[-1]),
+        "temperature_drop_K": float(table.source_temperature_K.iloc[0] - table.source_temperature_K.min()),
+    }}, {"window": pressurise_window(r)})
+
+
+@fig14.draws
+def _draw14(data: StudyData, path: str) -> None:
+    d = data.table
+    fig, ax = figure()
+    a = ax[0, 0]
+    shade_valve_phases(a, *data.extras["window"])
+    a.plot(d.time_s, d.source_pressure_bar_gauge, lw=2, label="source chamber (4 L)")
+    a.set_xlabel("time [s]")
+    a.set_ylabel("pressure [bar gauge]")
+    drop = data.summary["source_chamber"]["pressure_drop_bar"]
+    a.set_title(f"Source chamber pressure: six muscles charged at once, drop {drop:.2f} bar (cf. Fig. 14)")
+    a2 = a.twinx()
+    a2.plot(d.time_s, d.source_temperature_K, color="tab:red", lw=1, ls="--", label="temperature")
+    a2.set_ylabel("temperature [K]", color="tab:red")
+    a.legend(loc="lower left")
+    save(fig, path, NOTE)
+
+
+# --- Figure 15: source pressure ----------------------------------------------------------------------
+@register("fig15", "Hip muscle pressure for source pressures 3-6 bar, with and without saturation (Fig. 15)")
+def fig15() -> StudyData:
+    cols = {}
+    summary = {"saturated": [], "unsaturated": []}
+    for label, mode in (("saturated", "paper"), ("unsaturated", "none")):
+        for ps in SOURCE_PRESSURES_BAR:
+            r = run({"source.initial_pressure_gauge": f"{ps} bar", "supply.mode": mode})
+            cols.setdefault("time_s", r.t)
+            cols[f"hip_pressure_bar_gauge_{ps}bar_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
+            summary[label].append({"source_pressure_bar_gauge": ps,
+                                   "rise_time_90_s": r.rise_time(HIP),
+                                   "final_muscle_pressure_bar_gauge": final_pressure_bar(r)})
+    return StudyData(pd.DataFrame(cols), {"source_pressure_sweep": summary})
+
+
+@fig15.draws
+def _draw15(data: StudyData, path: str) -> None:
+    d = data.table
+    fig, ax = figure(1, 2, width=11, sharey=True)
+    for a, label, title in ((ax[0, 0], "saturated", "(a) with saturation (Eq. 9 branch limit)"),
+                            (ax[0, 1], "unsaturated", "(b) without saturation")):
+        for entry in data.summary["source_pressure_sweep"][label]:
+            ps = entry["source_pressure_bar_gauge"]
+            a.plot(d.time_s, d[f"hip_pressure_bar_gauge_{ps}bar_{label}"],
+                   label=f"source {ps} bar: 90 % rise {entry['rise_time_90_s']:.2f} s")
+        a.set_xlim(0, 1.05)
+        a.set_title(title)
+        a.set_xlabel("time [s]")
+        a.legend(loc="lower right", fontsize=8)
+    ax[0, 0].set_ylabel("hip muscle pressure [bar gauge]")
+    fig.suptitle("Hip muscle pressurising under various source pressures (cf. paper Fig. 15)")
+    save(fig, path, NOTE)
+
+
+# --- Figure 16: muscle volume ------------------------------------------------------------------------
+@register("fig16", "Hip muscle pressure for muscle volume constants 0-100 % (paper Fig. 16)")
+def fig16() -> StudyData:
+    cols = {}
+    entries = []
+    for frac in VOLUME_CONSTANTS_PERCENT:
+        entry = {"volume_constant_percent": frac}
+        for label, mode in (("saturated", "paper"), ("unsaturated", "none")):
+            over = {"supply.mode": mode}
+            for m, mraw in _base_raw()["muscles"].items():
+                over[f"muscles.{m}.motion"] = {"kind": "volume_constant", "fraction": f"{frac} %"}
+            r = run(over)
+            cols.setdefault("time_s", r.t)
+            cols[f"hip_pressure_bar_gauge_{frac}pct_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
+            key = "rise_time_90_s" if label == "saturated" else "unsaturated_rise_time_90_s"
+            entry[key] = r.rise_time(HIP)
+            if label == "saturated":
+                entry["muscle_volume_cm3"] = float(r.volumes[0, r.index(HIP)] * 1e6)
+        entries.append(entry)
+    return StudyData(pd.DataFrame(cols), {"muscle_volume_sweep": entries})
+
+
+@fig16.draws
+def _draw16(data: StudyData, path: str) -> None:
+    d = data.table
+    fig, ax = figure(1, 2, width=11, sharey=True)
+    for a, label, title in ((ax[0, 0], "saturated", "(a) with saturation"),
+                            (ax[0, 1], "unsaturated", "(b) without saturation")):
+        key = "rise_time_90_s" if label == "saturated" else "unsaturated_rise_time_90_s"
+        for e in data.summary["muscle_volume_sweep"]:
+            f = e["volume_constant_percent"]
+            a.plot(d.time_s, d[f"hip_pressure_bar_gauge_{f}pct_{label}"],
+                   label=f"{f} % ({e['muscle_volume_cm3']:.0f} cm$^3$): rise {e[key]:.3f} s")
+        a.set_xlim(0, 1.05)
+        a.set_title(title)
+        a.set_xlabel("time [s]")
+        a.legend(loc="lower right", fontsize=8)
+    ax[0, 0].set_ylabel("hip muscle pressure [bar gauge]")
+    fig.suptitle("Hip muscle pressurising at fixed muscle volumes, 6 bar source (cf. paper Fig. 16)")
+    save(fig, path, NOTE)
+
+
+# --- Figure 17: saturation level ---------------------------------------------------------------------
+@register("fig17", "Hip muscle pressure for several branch saturation limits (paper Fig. 17)")
+def fig17() -> StudyData:
+    cols = {}
+    entries = []
+    for q in BRANCH_LIMITS_L_PER_MIN:
+        r = run({"supply.branch_limit": f"{q} L/min"})
+        cols.setdefault("time_s", r.t)
+        cols[f"hip_pressure_bar_gauge_{q}Lpm"] = gauge_bar(r, r.muscle_pressure(HIP))
+        entries.append({"branch_limit_L_per_min": q, "rise_time_90_s": r.rise_time(HIP),
+                        "final_muscle_pressure_bar_gauge": final_pressure_bar(r)})
+    return StudyData(pd.DataFrame(cols), {"saturation_sweep": entries})
+
+
+@fig17.draws
+def _draw17(data: StudyData, path: str) -> None:
+    d = data.table
+    fig, ax = figure(1, 2, width=11, gridspec_kw={"width_ratios": [1.6, 1]})
+    a, b = ax[0, 0], ax[0, 1]
+    entries = data.summary["saturation_sweep"]
+    for e in entries:
+        q = e["branch_limit_L_per_min"]
+        a.plot(d.time_s, d[f"hip_pressure_bar_gauge_{q}Lpm"], label=f"{q} L/min")
+    a.set_xlim(0, 1.05)
+    a.set_xlabel("time [s]")
+    a.set_ylabel("hip muscle pressure [bar gauge]")
+    a.set_title("Pressure response under various saturations (cf. Fig. 17)")
+    a.legend(loc="lower right", fontsize=8, title="branch limit")
+    b.plot([e["branch_limit_L_per_min"] for e in entries], [e["rise_time_90_s"] for e in entries], "o-")
+    b.set_xlabel("branch saturation limit [L/min standard]")
+    b.set_ylabel("90 % rise time [s]")
+    b.set_title("Rise time falls as the limit rises")
+    save(fig, path, NOTE)
+
+
+# --- Aeration volumes -------------------------------------------------------------------------------
+@register("aeration", "Aeration volumes of hip, knee and ankle muscles at standard state (paper Sec. 4.2)")
+def aeration() -> StudyData:
+    r = run()
+    rows = []
+    for joint in ("hip", "knee", "ankle"):
+        sim = r.aeration_volume(f"{joint}_left") * 1e3
+        paper = PAPER_AERATION_L[joint]
+        rows.append({"joint": joint, "simulated_L_std": sim, "paper_L_std": paper,
+                     "difference_percent": 100.0 * (sim - paper) / paper})
+    table = pd.DataFrame(rows)
+    return StudyData(table, {"aeration_volume_L": {row["joint"]: row["simulated_L_std"] for row in rows}})
+
+
+@aeration.draws
+def _draw_aeration(data: StudyData, path: str) -> None:
+    d = data.table
+    fig, ax = figure(width=6.5)
+    a = ax[0, 0]
+    x = np.arange(len(d))
+    a.bar(x - 0.18, d.simulated_L_std, 0.36, label="frogsim")
+    a.bar(x + 0.18, d.paper_L_std, 0.36, label="paper Sec. 4.2")
+    for xi, (s, diff) in enumerate(zip(d.simulated_L_std, d.difference_percent)):
+        a.text(xi - 0.18, s + 0.005, f"{s:.3f} L\n({diff:+.1f} %)", ha="center", fontsize=8)
+    a.set_xticks(x, d.joint)
+    a.set_ylabel("aeration volume [L at standard state]")
+    a.set_ylim(0, 0.6)
+    a.set_title("Air charged per pressurise phase (ISO 8778 standard litres)")
+    a.legend(loc="lower right")
+    save(fig, path, NOTE)
+
+
+# --- Tube modes -------------------------------------------------------------------------------------
+def _one_branch_overrides() -> dict:
+    """Only the left hip muscle is charged: the other five programs hold their valves closed."""
+    over = {"programs.idle": {"steps": [{"at": "0 s", "state": "hold"}]}}
+    for m in _base_raw()["muscles"]:
+        if m != HIP:
+            over[f"muscles.{m}.program"] = "idle"
+    return over
+
+
+@register("tube-modes", "Eq. (9) per-branch limit vs a physical shared main tube, 1 and 6 open branches")
+def tube_modes() -> StudyData:
+    cols = {}
+    summary = {}
+    for mode in ("paper", "physical"):
+        summary[mode] = {}
+        for label, over in (("one_branch", _one_branch_overrides()), ("six_branches", {})):
+            r = run({"supply.mode": mode, **over})
+            q = r.charge_flow(HIP) / r.reference_density / L_PER_MIN
+            cols.setdefault("time_s", r.t)
+            cols[f"hip_charge_flow_L_per_min_std_{mode}_{label}"] = q
+            cols[f"hip_pressure_bar_gauge_{mode}_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
+            summary[mode][f"{label}_L_per_min"] = float(q.max())
+            summary[mode][f"{label}_rise_time_90_s"] = r.rise_time(HIP)
+    sc = load_scenario(BASE)
+    limit = branch_limit_standard(sc) / L_PER_MIN
+    return StudyData(pd.DataFrame(cols), {"tube_modes": summary, "branch_saturation_L_per_min": limit})
+
+
+@tube_modes.draws
+def _draw_tubes(data: StudyData, path: str) -> None:
+    d = data.table
+    fig, ax = figure(1, 2, width=11)
+    a, b = ax[0, 0], ax[0, 1]
+    styles = {"paper": "-", "physical": "--"}
+    for mode in ("paper", "physical"):
+        for label, color in (("one_branch", "tab:blue"), ("six_branches", "tab:red")):
+            name = f"{mode}, {label.replace('_', ' ')} open"
+            a.plot(d.time_s, d[f"hip_charge_flow_L_per_min_std_{mode}_{label}"], styles[mode], color=color, label=name)
+            b.plot(d.time_s, d[f"hip_pressure_bar_gauge_{mode}_{label}"], styles[mode], color=color, label=name)
+    a.set_xlim(0, 0.8)
+    b.set_xlim(0, 1.05)
+    a.set_xlabel("time [s]")
+    b.set_xlabel("time [s]")
+    a.set_ylabel("hip charge flow [L/min standard]")
+    b.set_ylabel("hip muscle pressure [bar gauge]")
+    a.set_title(f"Eq. (9) limit {data.summary['branch_saturation_L_per_min']:.1f} L/min per branch vs shared tube")
+    b.set_title("Pressure response")
+    a.legend(fontsize=8)
+    save(fig, path, NOTE)

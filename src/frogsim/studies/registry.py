@@ -1,0 +1,44 @@
+"""The study registry: name -> (compute data, draw figure, contribute to summary.json)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import pandas as pd
+
+
+@dataclass
+class StudyData:
+    """What a study computes: a tidy table (written as CSV), summary entries, and extras for plots."""
+    table: pd.DataFrame
+    summary: dict
+    extras: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Study:
+    name: str
+    title: str
+    compute: Callable[[], StudyData]
+    draw: Callable[[StudyData, str], None]
+
+
+STUDIES: dict[str, Study] = {}
+
+
+def register(name: str, title: str):
+    """Decorator pairing a compute function with a draw function under a study name."""
+    def deco(compute):
+        def with_draw(draw):
+            STUDIES[name] = Study(name, title, compute, draw)
+            return draw
+        compute.draws = with_draw
+        return compute
+    return deco
+
+
+def run_study(name: str) -> StudyData:
+    """Compute a registered study's data."""
+    if name not in STUDIES:
+        raise KeyError(f"unknown study {name!r}; studies: {', '.join(STUDIES)}")
+    return STUDIES[name].compute()

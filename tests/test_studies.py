@@ -1,0 +1,123 @@
+"""The paper's studies: figures the paper states (Sec. 4.2-4.3) and the trends of Figs. 15-17."""
+import math
+
+import numpy as np
+import pytest
+
+from frogsim.studies import STUDIES, run_study
+
+
+@pytest.fixture(scope="module")
+def summaries():
+    out = {}
+    for name in STUDIES:
+        out.update(run_study(name).summary)
+    return out
+
+
+def test_aeration_volumes_match_paper(summaries):
+    # paper Sec. 4.2: 0.455 L (hip), 0.401 L (knee and ankle) at standard state; acceptance: 5 %
+    aer = summaries["aeration_volume_L"]
+    assert aer["hip"] == pytest.approx(0.455, rel=0.05)
+    assert aer["knee"] == pytest.approx(0.401, rel=0.05)
+    assert aer["ankle"] == pytest.approx(0.401, rel=0.05)
+
+
+def test_paper_branch_limit(summaries):
+    # paper Sec. 4.3: "saturation for each branch pipe ... set at 45 L/min"; Eq. (9) on a 4 mm bore
+    # at the speed of sound over six branches gives 43.1 L/min; acceptance window 42-46 L/min
+    assert 42.0 <= summaries["branch_saturation_L_per_min"] <= 46.0
+
+
+def test_unsaturated_rise_under_0p2s_and_saturated_clearly_slower(summaries):
+    sweep = summaries["source_pressure_sweep"]
+    uns = {e["source_pressure_bar_gauge"]: e for e in sweep["unsaturated"]}
+    sat = {e["source_pressure_bar_gauge"]: e for e in sweep["saturated"]}
+    # paper Sec. 4.3: without saturation "the pressure response ... fell within 0.2 s"
+    assert uns[6]["rise_time_90_s"] < 0.2
+    # with saturation clearly slower: at least twice as long
+    assert sat[6]["rise_time_90_s"] > 2 * uns[6]["rise_time_90_s"]
+
+
+def test_fig15_final_pressure_rises_with_source_pressure(summaries):
+    for label in ("saturated", "unsaturated"):
+        entries = sorted(summaries["source_pressure_sweep"][label],
+                         key=lambda e: e["source_pressure_bar_gauge"])
+        finals = [e["final_muscle_pressure_bar_gauge"] for e in entries]
+        assert all(b > a for a, b in zip(finals, finals[1:])), finals
+        # the muscle cannot end above its source
+        for e in entries:
+            assert e["final_muscle_pressure_bar_gauge"] < e["source_pressure_bar_gauge"]
+
+
+def test_fig15_saturated_curves_identical_before_balance():
+    # paper Sec. 4.3: under saturation "the pressurizing process was identical before the balanced
+    # state": the flow is capped by the branch limit, not by the source pressure
+    d = run_study("fig15").table
+    early = d.time_s <= 0.1
+    p3 = d.loc[early, "hip_pressure_bar_gauge_3bar_saturated"].to_numpy()
+    p6 = d.loc[early, "hip_pressure_bar_gauge_6bar_saturated"].to_numpy()
+    assert np.max(np.abs(p3 - p6)) < 0.01 * p6.max()
+
+
+def test_fig16_rise_time_grows_with_muscle_volume(summaries):
+    entries = sorted(summaries["muscle_volume_sweep"], key=lambda e: e["volume_constant_percent"])
+    for key in ("rise_time_90_s", "unsaturated_rise_time_90_s", "muscle_volume_cm3"):
+        vals = [e[key] for e in entries]
+        assert all(b > a for a, b in zip(vals, vals[1:])), (key, vals)
+
+
+def test_fig17_rise_time_falls_as_limit_rises(summaries):
+    entries = sorted(summaries["saturation_sweep"], key=lambda e: e["branch_limit_L_per_min"])
+    rises = [e["rise_time_90_s"] for e in entries]
+    assert all(b < a for a, b in zip(rises, rises[1:])), rises
+
+
+def test_source_drop_matches_adiabatic_mass_balance(summaries):
+    # Eq. (2) integrated with Eq. (3): a rigid adiabatic source that gives away mass dm follows
+    # p/p0 = (m/m0)^k. Six muscles take 2 x 0.455 + 4 x 0.401 L standard (the paper's aeration
+    # volumes), i.e. dm = rho_ref * 2.514 L from m0 = p0 V/(R T0) in the 4 L source at 7.013 bar.
+    R, T0, V, k = 287.0, 293.15, 4e-3, 1.4
+    p0 = 6e5 + 101325.0
+    rho_ref = 1e5 / (R * 293.15)
+    m0 = p0 * V / (R * T0)
+    dm = rho_ref * (2 * 0.455 + 4 * 0.401) * 1e-3
+    expected_drop = (p0 - p0 * ((m0 - dm) / m0) ** k) / 1e5
+    assert summaries["source_chamber"]["pressure_drop_bar"] == pytest.approx(expected_drop, rel=0.03)
+
+
+def test_tube_modes_physical_exceeds_eq9_and_is_shared(summaries):
+    t = summaries["tube_modes"]
+    limit = summaries["branch_saturation_L_per_min"]
+    # paper mode: each branch is capped at Eq. (9)'s share whether one or six are open
+    assert t["paper"]["one_branch_L_per_min"] == pytest.approx(limit, rel=1e-3)
+    assert t["paper"]["six_branches_L_per_min"] == pytest.approx(limit, rel=1e-3)
+    # physical mode, one branch: the valve is the restriction. MHJ9 choked flow (paper Sec. 3.3):
+    # C p1 = 0.4 L/(s bar) x 7.013 bar = 168.3 L/min; the tube in series takes a little of it
+    assert 0.9 * 168.3 < t["physical"]["one_branch_L_per_min"] <= 168.3 * 1.001
+    # six branches share one 4 mm tube: less per branch than one alone, still above Eq. (9)
+    assert t["physical"]["six_branches_L_per_min"] < t["physical"]["one_branch_L_per_min"]
+    assert t["physical"]["six_branches_L_per_min"] > 2 * limit
+
+
+def test_every_study_is_finite_and_documented(tmp_path):
+    # contract over the registry: deterministic, finite, with a title, a table and a drawing
+    for name, study in STUDIES.items():
+        assert study.title
+        a = study.compute()
+        b = study.compute()
+        assert len(a.table) > 0
+        num = a.table.select_dtypes("number").to_numpy()
+        assert np.all(np.isfinite(num)), name
+        assert np.array_equal(num, b.table.select_dtypes("number").to_numpy()), name
+
+        def finite(x):
+            if isinstance(x, dict):
+                return all(finite(v) for v in x.values())
+            if isinstance(x, list):
+                return all(finite(v) for v in x)
+            return not isinstance(x, float) or math.isfinite(x)
+        assert finite(a.summary), name
+        png = tmp_path / f"{name}.png"
+        study.draw(a, str(png))
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
