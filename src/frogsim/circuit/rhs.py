@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from frogsim._jit import jit
 
 from frogsim.circuit.layout import (
     G_BRANCH_LIMIT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF, G_SUPPLY_MODE, G_TAMB,
@@ -25,7 +25,7 @@ from frogsim.physics.gas import pressure_rate
 from frogsim.physics.muscle import muscle_volume, muscle_volume_slope
 
 
-@njit(cache=True)
+@jit
 def motion_length(t, i, mot_t, mot_L, mot_d, mot_n):
     """Muscle i's length L(t) [m] and rate dL/dt [m/s] from its cubic Hermite knots.
 
@@ -57,7 +57,7 @@ def motion_length(t, i, mot_t, mot_L, mot_d, mot_n):
     return L, dLds / h
 
 
-@njit(cache=True)
+@jit
 def muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n):
     """Total volume V [m^3] (Eq. (5) plus dead volume, or the fixed volume) and dV/dt [m^3/s]."""
     if mp[i, M_FIXEDV] > 0.0:
@@ -68,7 +68,7 @@ def muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n):
     return muscle_volume(L, b0, nt) + mp[i, M_DEAD], muscle_volume_slope(L, b0, nt) * dL
 
 
-@njit(cache=True)
+@jit
 def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
     """Main-tube inflow minus the open branches' outflow at manifold pressure pm [kg/s]."""
     R = g[G_R]
@@ -84,7 +84,7 @@ def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
     return f
 
 
-@njit(cache=True)
+@jit
 def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
     """Physical tube mode: pressure where the main tube feeds the open branches [Pa abs].
 
@@ -129,7 +129,7 @@ def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
     return pm
 
 
-@njit(cache=True)
+@jit
 def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     """dy/dt of the whole circuit (see the module docstring and :mod:`frogsim.circuit.layout`).
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from frogsim._jit import jit
 
 from frogsim.circuit.layout import G_PUMP_ENABLED, G_PUMP_OFF, G_PUMP_ON, Y_PS
 from frogsim.circuit.rhs import rhs
@@ -45,7 +45,7 @@ BETA = 0.04                  # PI step control (Hairer's DOPRI5 default)
 EXPO = 0.2 - 0.75 * BETA
 
 
-@njit(cache=True)
+@jit
 def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n,
                    rtol, atol, max_step, out_t, out_y, out_u, out_i, stats, work):
     """Advance y from t to exactly t_end with valve states u held constant.
@@ -66,6 +66,10 @@ def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mo
     k7 = np.empty(ny)
     yt = np.empty(ny)
     yn = np.empty(ny)
+    rc1 = np.empty(ny)
+    rc2 = np.empty(ny)
+    rc3 = np.empty(ny)
+    rc4 = np.empty(ny)
     aux = np.empty(2 * mp.shape[0] + 1)
     n_out = out_t.size
     nu = u.size
@@ -112,17 +116,23 @@ def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mo
                 return h, out_i, STATUS_NOT_FINITE
             continue
         if err <= 1.0:
-            # dense output on (t, t_new]: the 4th-order continuous extension
-            while out_i < n_out and out_t[out_i] <= t_new:
-                th = (out_t[out_i] - t) / h_try
-                th1 = 1.0 - th
+            # dense output on (t, t_new]: the 4th-order continuous extension, its coefficients
+            # computed once per step that holds output points
+            if out_i < n_out and out_t[out_i] <= t_new:
                 for j in range(ny):
                     ydiff = yn[j] - y[j]
                     bspl = h_try * f[j] - ydiff
-                    r4 = ydiff - h_try * k7[j] - bspl
-                    r5 = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j] + D6 * k6[j]
-                                  + D7 * k7[j])
-                    out_y[out_i, j] = y[j] + th * (ydiff + th1 * (bspl + th * (r4 + th1 * r5)))
+                    rc1[j] = ydiff
+                    rc2[j] = bspl
+                    rc3[j] = ydiff - h_try * k7[j] - bspl
+                    rc4[j] = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j]
+                                      + D6 * k6[j] + D7 * k7[j])
+            while out_i < n_out and out_t[out_i] <= t_new:
+                th = (out_t[out_i] - t) / h_try
+                th1 = 1.0 - th
+                row = out_y[out_i]
+                for j in range(ny):
+                    row[j] = y[j] + th * (rc1[j] + th1 * (rc2[j] + th * (rc3[j] + th1 * rc4[j])))
                 for j in range(nu):
                     out_u[out_i, j] = u[j]
                 out_u[out_i, nu] = pump_on
@@ -150,7 +160,7 @@ def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mo
     return h, out_i, STATUS_OK
 
 
-@njit(cache=True)
+@jit
 def pump_band(p_s, pump_on, g):
     """Pump switching rule at a controller sample: on below the band, off above it."""
     if g[G_PUMP_ENABLED] < 0.5:
@@ -162,7 +172,7 @@ def pump_band(p_s, pump_on, g):
     return pump_on
 
 
-@njit(cache=True)
+@jit
 def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
                  ctrl_dt, out_t, rtol, atol, max_step, h0):
     """Integrate from t0 to t_end under an open-loop valve schedule.
@@ -177,14 +187,14 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
     ny = y0.size
     nu = u0.size
     n_out = out_t.size
-    out_y = np.full((n_out, ny), np.nan)
-    out_u = np.full((n_out, nu + 1), np.nan)
+    out_y = np.empty((n_out, ny))
+    out_u = np.empty((n_out, nu + 1))
     stats = np.zeros(3, dtype=np.int64)
     y = y0.copy()
     u = u0.copy()
     f = np.empty(ny)
     aux = np.empty(2 * mp.shape[0] + 1)
-    work = np.empty(3 * mp.shape[0] + 1)
+    work = np.zeros(3 * mp.shape[0] + 1)
     work[work.size - 1] = 1e-4
     t = t0
     si = 0

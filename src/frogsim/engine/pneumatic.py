@@ -48,9 +48,10 @@ def simulate(scenario, h0: float = 1e-4) -> Result:
     if status != STATUS_OK:
         raise SimulationError(f"scenario {sc.name!r}: integration stopped at t = {t_reached:.6g} s: "
                               f"{_STATUS_TEXT.get(status, status)} ({_describe_state(model, y_end)})")
-    if not np.all(np.isfinite(out_y)):
-        raise SimulationError(f"scenario {sc.name!r}: non-finite values in the output")
-    if np.any(out_y[:, [L.Y_PS, L.Y_PE]] <= 0):
-        raise SimulationError(f"scenario {sc.name!r}: a chamber pressure fell to zero")
+    # every output point interpolates accepted steps, whose error norm was finite: checking the
+    # end state is enough to catch a run that went non-physical without going non-finite
+    if not (np.all(np.isfinite(y_end)) and y_end[L.Y_PS] > 0 and y_end[L.Y_PE] > 0):
+        raise SimulationError(f"scenario {sc.name!r}: non-physical end state "
+                              f"({_describe_state(model, y_end)})")
     return Result(t=model.out_t, y=out_y, u=out_u, model=model,
                   stats={"steps": int(stats[0]), "rejected": int(stats[1]), "rhs_evaluations": int(stats[2])})

@@ -110,14 +110,15 @@ class Result:
         V = np.empty((nt, n))
         Lm = np.empty((nt, n))
         dydt = np.empty(self.y.shape[1])
-        work = np.empty(3 * n + 1)
+        work = np.zeros(3 * n + 1)
         args = (m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n)
         for k in range(nt):
             u = np.ascontiguousarray(self.u[k, :2 * n])
             rhs(float(self.t[k]), np.ascontiguousarray(self.y[k]), u, float(self.u[k, 2 * n]),
                 *args, dydt, flows[k], work)
             for i in range(n):
-                V[k, i] = muscle_volume_state(float(self.t[k]), i, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n)[0]
+                V[k, i] = muscle_volume_state(float(self.t[k]), i, m.mp, m.mot_t, m.mot_L, m.mot_d,
+                                              m.mot_n)[0]
                 Lm[k, i] = motion_length(float(self.t[k]), i, m.mot_t, m.mot_L, m.mot_d, m.mot_n)[0]
         return flows, V, Lm
 

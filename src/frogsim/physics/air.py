@@ -7,28 +7,28 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from frogsim._jit import jit
 
 
-@njit(cache=True)
+@jit
 def density(p: float, T: float, R: float) -> float:
     """Ideal-gas density rho = p / (R T)  [kg/m^3]; p [Pa abs], T [K], R [J/(kg K)]."""
     return p / (R * T)
 
 
-@njit(cache=True)
+@jit
 def speed_of_sound(T: float, R: float, k: float) -> float:
     """Speed of sound of an ideal gas a = sqrt(k R T)  [m/s]; 343.2 m/s for air at 293.15 K."""
     return math.sqrt(k * R * T)
 
 
-@njit(cache=True)
+@jit
 def critical_pressure_ratio(k: float) -> float:
     """Isentropic critical pressure ratio of a nozzle, (2/(k+1))^(k/(k-1)) [-]; 0.528 for k = 1.4."""
     return (2.0 / (k + 1.0)) ** (k / (k - 1.0))
 
 
-@njit(cache=True)
+@jit
 def choked_mass_flux_factor(R: float, k: float) -> float:
     """Factor psi in the ideal choked mass flow  m_dot = A p1 psi / sqrt(T1)  [s K^0.5 / m].
 

@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from frogsim._jit import jit
 
 from frogsim.physics.air import choked_mass_flux_factor, critical_pressure_ratio
 
 
-@njit(cache=True)
+@jit
 def iso6358_flow_function(sigma: float, b: float, m: float, r_lam: float) -> float:
     """The dimensionless factor omega(sigma) of Eq. (8), with the ISO 6358-1:2013 options  [-].
 
@@ -38,7 +38,7 @@ def iso6358_flow_function(sigma: float, b: float, m: float, r_lam: float) -> flo
     return _power(1.0 - x * x, m)
 
 
-@njit(cache=True)
+@jit
 def _power(x: float, m: float) -> float:
     """x**m, with the usual m = 0.5 (Eq. (8)'s square root) taken by sqrt, several times faster."""
     if m == 0.5:
@@ -46,7 +46,7 @@ def _power(x: float, m: float) -> float:
     return x ** m
 
 
-@njit(cache=True)
+@jit
 def iso6358_mass_flow(p_a: float, T_a: float, p_b: float, T_b: float, C: float, b: float,
                       m: float, r_lam: float, rho_ref: float, T_ref: float) -> float:
     """Eq. (8): ISO 6358 mass flow through a restriction from side a to side b  [kg/s].
@@ -71,7 +71,7 @@ def iso6358_mass_flow(p_a: float, T_a: float, p_b: float, T_b: float, C: float, 
     return -C * rho_ref * p_b * math.sqrt(T_ref / T_b) * iso6358_flow_function(p_a / p_b, b, m, r_lam)
 
 
-@njit(cache=True)
+@jit
 def main_pipe_branch_limit(inner_diameter: float, velocity: float, n_tubes: float,
                            n_branches: float) -> float:
     """Eq. (9): Q = pi r^2 v; the main pipe's flow shared evenly by its branches  [m^3/s standard].
@@ -84,7 +84,7 @@ def main_pipe_branch_limit(inner_diameter: float, velocity: float, n_tubes: floa
     return math.pi * r * r * velocity * n_tubes / n_branches
 
 
-@njit(cache=True)
+@jit
 def tube_sonic_conductance(inner_diameter: float, discharge_coefficient: float, R: float,
                            k: float, rho_ref: float, T_ref: float) -> float:
     """Sonic conductance of a tube bore taken as an isentropic nozzle  [m^3/(s Pa)].
@@ -98,13 +98,13 @@ def tube_sonic_conductance(inner_diameter: float, discharge_coefficient: float, 
     return discharge_coefficient * area * choked_mass_flux_factor(R, k) / (rho_ref * math.sqrt(T_ref))
 
 
-@njit(cache=True)
+@jit
 def tube_critical_ratio(k: float) -> float:
     """Critical pressure ratio used for a tube bore in the physical tube mode (isentropic)  [-]."""
     return critical_pressure_ratio(k)
 
 
-@njit(cache=True)
+@jit
 def pump_mass_flow(p_in: float, T_in: float, p_out: float, displacement: float,
                    max_ratio: float, R: float) -> float:
     """Micro pump from the exhaust (inlet) to the source (outlet)  [kg/s].

@@ -18,10 +18,10 @@ equation of the paper can be read and tested on its own.
 """
 from __future__ import annotations
 
-from numba import njit
+from frogsim._jit import jit
 
 
-@njit(cache=True)
+@jit
 def pressure_rate(p: float, V: float, dVdt: float, enthalpy_in: float, mdot_out: float,
                   T: float, R: float, k: float) -> float:
     """General adiabatic open-volume pressure rate, Eq. (*) above  [Pa/s].
@@ -35,7 +35,7 @@ def pressure_rate(p: float, V: float, dVdt: float, enthalpy_in: float, mdot_out:
     return (k * R * (enthalpy_in - mdot_out * T) - k * p * dVdt) / V
 
 
-@njit(cache=True)
+@jit
 def source_pressure_rate(mdot_out: float, T_s: float, V_s: float, R: float, k: float) -> float:
     """Eq. (2): dp_s/dt = -k R T_s (dM/dt) / V_s for the rigid source chamber  [Pa/s].
 
@@ -44,26 +44,26 @@ def source_pressure_rate(mdot_out: float, T_s: float, V_s: float, R: float, k: f
     return -k * R * T_s * mdot_out / V_s
 
 
-@njit(cache=True)
+@jit
 def adiabatic_temperature(p: float, p0: float, T0: float, k: float) -> float:
     """Eq. (3): T/T0 = (p/p0)^((k-1)/k) for a chamber that only discharges adiabatically  [K]."""
     return T0 * (p / p0) ** ((k - 1.0) / k)
 
 
-@njit(cache=True)
+@jit
 def exhaust_pressure_rate(mdot_in: float, T_in: float, V_e: float, R: float, k: float) -> float:
     """Eq. (4): V_e dp_e = k R T dm for the rigid exhaust chamber receiving air at T_in  [Pa/s]."""
     return k * R * T_in * mdot_in / V_e
 
 
-@njit(cache=True)
+@jit
 def muscle_charge_pressure_rate(p: float, V: float, dVdt: float, mdot_in: float, T_s: float,
                                 R: float, k: float) -> float:
     """Eq. (6): k R T_s dM = k P dV + V dP for a moving-volume muscle charged at T_s  [Pa/s]."""
     return (k * R * T_s * mdot_in - k * p * dVdt) / V
 
 
-@njit(cache=True)
+@jit
 def muscle_discharge_pressure_rate(p: float, V: float, dVdt: float, mdot_out: float, T: float,
                                    R: float, k: float) -> float:
     """Eq. (7): -k R T dm = k P dV + V dP for a muscle venting at its own temperature T  [Pa/s]."""

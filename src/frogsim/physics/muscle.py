@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from frogsim._jit import jit
 
 
-@njit(cache=True)
+@jit
 def braid_parameters(rest_length: float, rest_diameter: float, braid_angle: float):
     """Thread length b0 [m] and number of turns n [-] from rest length, diameter and braid angle.
 
@@ -22,7 +22,7 @@ def braid_parameters(rest_length: float, rest_diameter: float, braid_angle: floa
     return b0, n
 
 
-@njit(cache=True)
+@jit
 def muscle_volume(L: float, b0: float, n: float) -> float:
     """Eq. (5): V = (b0^2 - L^2) L / (4 pi n^2), internal volume of the braided cylinder  [m^3].
 
@@ -32,13 +32,13 @@ def muscle_volume(L: float, b0: float, n: float) -> float:
     return (b0 * b0 - L * L) * L / (4.0 * math.pi * n * n)
 
 
-@njit(cache=True)
+@jit
 def muscle_volume_slope(L: float, b0: float, n: float) -> float:
     """dV/dL of Eq. (5): (b0^2 - 3 L^2) / (4 pi n^2)  [m^2]; negative for L > b0/sqrt(3)."""
     return (b0 * b0 - 3.0 * L * L) / (4.0 * math.pi * n * n)
 
 
-@njit(cache=True)
+@jit
 def crank_muscle_length(theta: float, anchor_distance: float, crank_radius: float,
                         rest_angle: float, rest_length: float, side: float) -> float:
     """Active muscle length for a joint angle, muscle between a frame anchor and a crank pin  [m].
