@@ -3,7 +3,9 @@
 cache=True keeps the machine code between runs (the first run compiles, about 8 s).
 error_model="numpy" lets a division by zero give inf/NaN instead of raising, which removes a
 branch from every division in the hot loop; non-finite values are caught by the integrator's error
-norm and reported.
+norm and reported. fastmath is limited to "arcp" (x/y may become x*(1/y)) and "contract" (fused
+multiply-add): no reassociation, no assumptions about NaN or inf. nogil=True lets threads run
+compiled code side by side (the batched engine runs points on a thread pool).
 
 Numba checks a cached function only against its own source file, not the files of the functions
 it calls, so an edit to ``circuit/rhs.py`` would leave the integrator's cached machine code stale.
@@ -54,4 +56,10 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
 
 def jit(func):
     """Compile func with frogsim's Numba settings."""
-    return njit(cache=True, error_model="numpy", fastmath={"arcp", "contract"})(func)
+    return njit(cache=True, nogil=True, error_model="numpy", fastmath={"arcp", "contract"})(func)
+
+
+def cache_is_warm() -> bool:
+    """True if compiled engine code is already cached (the first run compiles, about 8 s)."""
+    d = numba.config.CACHE_DIR
+    return bool(d) and os.path.isdir(d) and any(n.endswith(".nbi") for _, _, fs in os.walk(d) for n in fs)

@@ -7,6 +7,7 @@ from functools import cached_property
 import numpy as np
 
 from frogsim.circuit import layout as L
+from frogsim.engine.measures import charged_in_phase, rise_time, value_at_close
 
 
 @dataclass
@@ -150,45 +151,33 @@ class Result:
         """Times at which the muscle's charge valve actually opens [s] (command + dead time)."""
         return self.model.charge_open_times[self.index(muscle)]
 
+    def _phase(self, muscle: str, stroke: int):
+        """(charge-valve state (1, T), opening time (1,)) of one pressurise phase."""
+        opens = self.charge_open_times(muscle)
+        if stroke >= len(opens):
+            raise IndexError(f"muscle {muscle!r} has {len(opens)} pressurise phases")
+        return self.u[None, :, 2 * self.index(muscle)], np.array([opens[stroke]])
+
     def aeration_volume(self, muscle: str, stroke: int = 0) -> float:
         """Standard volume [m^3] (ISO 8778) charged into the muscle during one pressurise phase.
 
         The paper's aeration volume (Sec. 4.2): the flow of Eq. (8) integrated while the charge
         valve is open, expressed at the standard state.
         """
-        opens = self.charge_open_times(muscle)
-        if stroke >= len(opens):
-            raise IndexError(f"muscle {muscle!r} has {len(opens)} pressurise phases")
-        t0 = opens[stroke]
-        u_ch = self.u[:, 2 * self.index(muscle)]
-        closes = np.nonzero((self.t > t0) & (u_ch < 0.5))[0]
-        k1 = closes[0] if closes.size else self.t.size - 1
-        k0 = np.searchsorted(self.t, t0)
-        q = self.charged_mass(muscle)
-        return float((q[k1] - q[k0]) / self.reference_density)
+        u, t_open = self._phase(muscle, stroke)
+        q = charged_in_phase(self.t, self.charged_mass(muscle)[None, :], u, t_open)
+        return float(q[0] / self.reference_density)
 
     def rise_time(self, muscle: str, fraction: float = 0.9, stroke: int = 0) -> float:
         """Time [s] from the charge valve opening until the muscle pressure first reaches
-        ``fraction`` of its final rise (final = pressure when the charge valve closes, or at the
-        end of the run). Linear interpolation between output points."""
-        opens = self.charge_open_times(muscle)
-        t0 = opens[stroke]
-        p = self.muscle_pressure(muscle)
-        u_ch = self.u[:, 2 * self.index(muscle)]
-        k0 = int(np.searchsorted(self.t, t0))
-        closes = np.nonzero((self.t > t0) & (u_ch < 0.5))[0]
-        k1 = int(closes[0]) - 1 if closes.size else self.t.size - 1
-        p0, p1 = p[k0], p[k1]
-        target = p0 + fraction * (p1 - p0)
-        seg = p[k0:k1 + 1]
-        hit = np.nonzero(seg >= target)[0]
-        if not hit.size or p1 <= p0:
-            return float("nan")
-        j = k0 + int(hit[0])
-        if j == k0:
-            return float(self.t[j] - t0)
-        ta, tb, pa, pb = self.t[j - 1], self.t[j], p[j - 1], p[j]
-        return float(ta + (target - pa) / (pb - pa) * (tb - ta) - t0)
+        ``fraction`` of its rise over the phase (see :func:`frogsim.engine.measures.rise_time`)."""
+        u, t_open = self._phase(muscle, stroke)
+        return float(rise_time(self.t, self.muscle_pressure(muscle)[None, :], u, t_open, fraction)[0])
+
+    def pressure_at_close(self, muscle: str, stroke: int = 0) -> float:
+        """Muscle pressure [Pa abs] at the last output point with the charge valve open."""
+        u, t_open = self._phase(muscle, stroke)
+        return float(value_at_close(self.t, self.muscle_pressure(muscle)[None, :], u, t_open)[0])
 
     # -- tables ----------------------------------------------------------------------------------
     def to_dataframe(self, units: str = "SI"):

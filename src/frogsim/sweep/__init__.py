@@ -1,0 +1,1 @@
+"""Design exploration: sweep specifications, batched runs, metrics, results as NetCDF."""

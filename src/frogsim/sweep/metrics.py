@@ -1,0 +1,129 @@
+"""Metrics recorded per sweep point: name -> vectorised function, with its unit and meaning.
+
+A metric receives a :class:`Chunk` (the stacked outputs of many runs on one time grid) and the
+index of the muscle it looks at, and returns one value per run. The per-run Result methods use
+the same measure functions (:mod:`frogsim.engine.measures`), so a sweep's numbers equal those of
+``frogsim.simulate`` point by point. Register more with :func:`register_metric`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from frogsim.circuit import layout as L
+from frogsim.engine.measures import charged_in_phase, rise_time, value_at_close
+
+BAR = 1e5
+
+
+class Chunk:
+    """Outputs of B runs sharing one time grid, stacked column by column on demand.
+
+    ``t`` (T,) is the grid; ``state(j)`` and ``valve(j)`` give state column j and valve column j
+    of every run as (B, T); ``t_open`` (B, n) are the first opening times of each charge valve;
+    ``patm`` and ``rho_ref`` (B,) the atmospheric pressure and reference density of each run.
+    Only the columns a metric asks for are copied.
+    """
+
+    def __init__(self, results):
+        self.results = results
+        self.t = results[0].t
+        self.n = results[0].n
+        self.t_open = np.array([[r.charge_open_times(m)[0] if len(r.charge_open_times(m)) else np.nan
+                                 for m in r.names] for r in results])
+        g = np.stack([r.model.g for r in results])
+        self.patm = g[:, L.G_PATM]
+        self.rho_ref = g[:, L.G_RHOREF]
+        self._cache = {}
+
+    def state(self, j):
+        key = ("y", j)
+        if key not in self._cache:
+            self._cache[key] = np.stack([r.y[:, j] for r in self.results])
+        return self._cache[key]
+
+    def valve(self, j):
+        key = ("u", j)
+        if key not in self._cache:
+            self._cache[key] = np.stack([r.u[:, j] for r in self.results])
+        return self._cache[key]
+
+    def final_state(self, j):
+        return np.array([r.y[-1, j] for r in self.results])
+
+    def pressure(self, i):
+        return self.state(L.Y_MUSCLE0 + 2 * i + 1)
+
+    def charge_valve(self, i):
+        return self.valve(2 * i)
+
+
+@dataclass(frozen=True)
+class Metric:
+    name: str
+    unit: str
+    description: str
+    compute: Callable  # (chunk, muscle index) -> (B,)
+
+
+METRICS: dict[str, Metric] = {}
+
+
+def register_metric(name: str, unit: str, description: str):
+    """Decorator adding a metric function (chunk, muscle index) -> array (B,) to the registry."""
+    def deco(fn):
+        METRICS[name] = Metric(name, unit, description, fn)
+        return fn
+    return deco
+
+
+@register_metric("rise_time", "s", "time from the charge valve opening to 90 % of the muscle's pressure rise")
+def _rise_time(c: Chunk, i: int):
+    return rise_time(c.t, c.pressure(i), c.charge_valve(i), c.t_open[:, i], 0.9)
+
+
+@register_metric("final_pressure", "bar (gauge)", "muscle pressure when the first pressurise phase ends")
+def _final_pressure(c: Chunk, i: int):
+    return (value_at_close(c.t, c.pressure(i), c.charge_valve(i), c.t_open[:, i]) - c.patm) / BAR
+
+
+@register_metric("aeration_volume", "L (standard)", "air charged into the muscle in its first pressurise phase")
+def _aeration(c: Chunk, i: int):
+    q = c.state(L.charged_index(i, c.n))
+    return charged_in_phase(c.t, q, c.charge_valve(i), c.t_open[:, i]) / c.rho_ref * 1e3
+
+
+@register_metric("source_drop", "bar", "largest fall of the source pressure below its initial value")
+def _source_drop(c: Chunk, i: int):
+    ps = c.state(L.Y_PS)
+    return (ps[:, 0] - ps.min(axis=1)) / BAR
+
+
+@register_metric("source_final", "bar (gauge)", "source pressure at the end of the run")
+def _source_final(c: Chunk, i: int):
+    return (c.final_state(L.Y_PS) - c.patm) / BAR
+
+
+@register_metric("air_used", "L (standard)", "air charged into all muscles over the run")
+def _air_used(c: Chunk, i: int):
+    q = sum(c.final_state(L.charged_index(j, c.n)) for j in range(c.n))
+    return q / c.rho_ref * 1e3
+
+
+@register_metric("pumped", "L (standard)", "air the pump returned to the source over the run")
+def _pumped(c: Chunk, i: int):
+    return c.final_state(L.pump_index(c.n)) / c.rho_ref * 1e3
+
+
+def evaluate(results, metrics: list[str], muscle: str | None = None) -> dict[str, np.ndarray]:
+    """Metric values for Results sharing one time grid: name -> array (one value per result)."""
+    unknown = [m for m in metrics if m not in METRICS]
+    if unknown:
+        raise KeyError(f"unknown metric {unknown[0]!r}; metrics: {', '.join(METRICS)}")
+    if not results:
+        return {m: np.empty(0) for m in metrics}
+    i = results[0].index(muscle) if muscle else 0
+    chunk = Chunk(results)
+    return {m: np.asarray(METRICS[m].compute(chunk, i), float) for m in metrics}
