@@ -2,6 +2,7 @@
 
     frogsim studies                         list the registered studies
     frogsim reproduce [STUDY ...] --out DIR reproduce the paper's studies (all by default)
+    frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
     frogsim simulate SCENARIO --out DIR     run one scenario (TOML path or shipped name)
     frogsim params [NAME]                   show a parameter set with the source of every value
 
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -25,20 +27,33 @@ def _progress(msg: str) -> None:
 
 
 def cmd_studies(args) -> int:
-    from frogsim.studies import STUDIES
+    from frogsim.studies import STUDIES, studies_in
     width = max(len(n) for n in STUDIES)
-    for name, study in STUDIES.items():
-        print(f"{name:<{width}}  {study.title}")
+    for group, command in (("paper", "frogsim reproduce"), ("design", "frogsim design")):
+        print(f"# {command}")
+        for name in studies_in(group):
+            print(f"{name:<{width}}  {STUDIES[name].title}")
     return 0
 
 
 def cmd_reproduce(args) -> int:
+    return _run_studies(args, "paper")
+
+
+def cmd_design(args) -> int:
+    return _run_studies(args, "design")
+
+
+def _run_studies(args, group: str) -> int:
+    from frogsim._jit import cache_is_warm
     from frogsim.io.results import write_csv, write_figure, write_json
-    from frogsim.studies import STUDIES
-    names = args.studies or list(STUDIES)
+    from frogsim.studies import STUDIES, studies_in
+    names = args.studies or studies_in(group)
     unknown = [n for n in names if n not in STUDIES]
     if unknown:
         return _err(f"study = {unknown[0]!r}: must be one of {', '.join(STUDIES)}", 2)
+    if not cache_is_warm():
+        _progress("first run: compiling the engine (about 8 s, cached afterwards)")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         return _err(f"--out = {str(out)!r}: exists and is not a directory", 2)
@@ -53,6 +68,10 @@ def cmd_reproduce(args) -> int:
         write_figure(out / f"{name}.png", lambda p, s=study, d=data: s.draw(d, p))
         summary.update(data.summary)
         _progress(f"      done in {time.perf_counter() - t0:.2f} s -> {out / name}.png, .csv")
+        for entry in data.summary.values():
+            if isinstance(entry, dict) and "conclusion" in entry:
+                _progress(textwrap.fill(entry["conclusion"], 100, initial_indent="      ",
+                                        subsequent_indent="      "))
     write_json(out / "summary.json", summary)
     _progress(f"{len(names)} studies in {time.perf_counter() - t_all:.1f} s; summary: {out / 'summary.json'}")
     return 0
@@ -109,6 +128,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("studies", nargs="*", metavar="STUDY", help="studies to run (default: all)")
     s.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     s.set_defaults(func=cmd_reproduce)
+    s = sub.add_parser("design", help="run the design studies (main tubes, endurance, valves): a PNG and "
+                                      "a CSV per study, DIR/summary.json with written conclusions")
+    s.add_argument("studies", nargs="*", metavar="STUDY", help="studies to run (default: all design studies)")
+    s.add_argument("--out", default="design", metavar="DIR", help="output folder (default: design)")
+    s.set_defaults(func=cmd_design)
     s = sub.add_parser("simulate", help="run one scenario: timeseries.csv, pressures.png, summary.json")
     s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file, or a shipped name (paper-cycle)")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder")

@@ -2,5 +2,6 @@
 
 ``STUDIES[name]`` is a :class:`Study`; ``run_study(name)`` returns its :class:`StudyData`.
 """
-from frogsim.studies.registry import STUDIES, Study, StudyData, register, run_study  # noqa: F401
+from frogsim.studies.registry import STUDIES, Study, StudyData, register, run_study, studies_in  # noqa: F401
 from frogsim.studies import paper  # noqa: F401,E402  (registers the paper's studies)
+from frogsim.studies import design  # noqa: F401,E402  (registers the design studies)

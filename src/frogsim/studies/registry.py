@@ -21,20 +21,26 @@ class Study:
     title: str
     compute: Callable[[], StudyData]
     draw: Callable[[StudyData, str], None]
+    group: str = "paper"     # "paper": frogsim reproduce; "design": frogsim design
 
 
 STUDIES: dict[str, Study] = {}
 
 
-def register(name: str, title: str):
+def register(name: str, title: str, group: str = "paper"):
     """Decorator pairing a compute function with a draw function under a study name."""
     def deco(compute):
         def with_draw(draw):
-            STUDIES[name] = Study(name, title, compute, draw)
+            STUDIES[name] = Study(name, title, compute, draw, group)
             return draw
         compute.draws = with_draw
         return compute
     return deco
+
+
+def studies_in(group: str) -> list[str]:
+    """Names of the registered studies of a group, in registration order."""
+    return [n for n, s in STUDIES.items() if s.group == group]
 
 
 def run_study(name: str) -> StudyData:

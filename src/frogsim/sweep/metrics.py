@@ -127,3 +127,31 @@ def evaluate(results, metrics: list[str], muscle: str | None = None) -> dict[str
     i = results[0].index(muscle) if muscle else 0
     chunk = Chunk(results)
     return {m: np.asarray(METRICS[m].compute(chunk, i), float) for m in metrics}
+
+
+def evaluate_models(models, metrics: list[str], muscle: str | None = None, threads: int | None = None,
+                    chunk: int = 64) -> dict[str, np.ndarray]:
+    """Run models and return only their metrics: name -> array, in the order of ``models``.
+
+    Each thread takes ``chunk`` points at a time, runs them (the same compiled engine as
+    ``frogsim.simulate``) and reduces them to metric values while their time series are still in
+    cache, so memory stays at a few chunks' worth whatever the number of points.
+    """
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    from frogsim.engine.batch import run_models
+    unknown = [m for m in metrics if m not in METRICS]
+    if unknown:
+        raise KeyError(f"unknown metric {unknown[0]!r}; metrics: {', '.join(METRICS)}")
+    pieces = [models[k:k + chunk] for k in range(0, len(models), chunk)]
+
+    def work(piece):
+        return evaluate(run_models(piece, threads=1), metrics, muscle)
+    threads = max(1, threads or os.cpu_count() or 1)
+    if threads == 1 or len(pieces) == 1:
+        parts = [work(p) for p in pieces]
+    else:
+        with ThreadPoolExecutor(threads) as pool:
+            parts = list(pool.map(work, pieces))
+    return {m: np.concatenate([p[m] for p in parts]) if parts else np.empty(0) for m in metrics}

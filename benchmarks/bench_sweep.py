@@ -1,0 +1,123 @@
+"""Sweep benchmark: 10,000 hip-muscle scenarios of 2 s each through the batched engine.
+
+Run:  python benchmarks/bench_sweep.py [--points 10000] [--threads 2] [--ref-points 8]
+
+Case
+    One hip muscle, the paper's 2 s cycle (charge at 0 s, vent at 1 s), paper supply mode. Varied
+    on a grid: source pressure 3..6 bar gauge (10 values) x branch saturation limit 20..200 L/min
+    (20 values) x the muscle's stroke contraction 0..20 % (50 values), which sets the volume the
+    muscle reaches through Eq. (5). Metrics per point: 90 % rise time, final pressure, aeration
+    volume, source drop.
+
+Measured in one run
+    * frogsim: building the 10,000 models (composed from per-value builds, see
+      frogsim.engine.batch), running them on the thread pool, computing the metrics: total wall time
+      (target <= 5 s on this 2-core machine; the engine's one-time compilation happens in a warm-up
+      call and is reported on its own);
+    * the same points one by one with a plain ``scipy.integrate.solve_ivp`` implementation of the
+      same equations (benchmarks/bench_engine.py's independent reference, RK45 at the scenario's
+      rtol) on a random subset, scaled to 10,000 points, and the speed-up;
+    * agreement of the rise times on that subset.
+
+Exit status: 0 when the time target is met and the subset agrees, 1 otherwise.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import frogsim  # noqa: E402
+from frogsim.engine.batch import compose_models, run_models  # noqa: E402
+from frogsim.sweep.metrics import evaluate_models  # noqa: E402
+
+TARGET_S = 5.0
+METRICS = ["rise_time", "final_pressure", "aeration_volume", "source_drop"]
+BASE = {"name": "bench-sweep", "parameters": "fan2017", "duration": "2 s", "output_interval": "1 ms",
+        "programs": {"stroke": {"pressurise": "1 s", "release": "1 s"}},
+        "muscles": {"hip": {"type": "hip", "program": "stroke",
+                            "motion": {"kind": "stroke", "delay": "0.1 s", "rise": "0.3 s", "fall": "0.3 s"}}}}
+
+
+def grid_points(n_points: int) -> list[dict]:
+    """The benchmark grid (10 x 20 x 50 = 10,000 points; a prefix of it for fewer)."""
+    pts = [{"source.initial_pressure_gauge": f"{ps:.4g} bar", "supply.branch_limit": f"{q:.4g} L/min",
+            "muscle_types.hip.stroke_contraction": f"{eps:.4g} %"}
+           for ps in np.linspace(3, 6, 10) for q in np.linspace(20, 200, 20) for eps in np.linspace(0, 20, 50)]
+    return pts[:n_points]
+
+
+def reference_rise_time(point: dict) -> tuple[float, float]:
+    """(rise time [s], wall time [s]) of one point with the plain solve_ivp reference."""
+    from bench_engine import params_from_scenario, simulate_reference
+    sc = frogsim.load_scenario(frogsim.with_overrides(frogsim.load_scenario(BASE).raw, point))
+    par = params_from_scenario(sc)
+    t_out = np.arange(2001) * 1e-3
+    t0 = time.perf_counter()
+    out = simulate_reference(par, t_out, "RK45", sc.solver.rtol)
+    wall = time.perf_counter() - t0
+    p = out[:, 5]
+    t_open = par.switches[0][0]
+    k0 = int(np.searchsorted(t_out, t_open))
+    k1 = int(np.searchsorted(t_out, 1.0 + par.charge.dead_time)) - 1    # last sample with valve open
+    target = p[k0] + 0.9 * (p[k1] - p[k0])
+    j = k0 + int(np.argmax(p[k0:k1 + 1] >= target))
+    t_hit = t_out[j] if j == k0 else t_out[j - 1] + (target - p[j - 1]) / (p[j] - p[j - 1]) * 1e-3
+    return float(t_hit - t_open), wall
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--points", type=int, default=10000, help="number of sweep points (default 10000)")
+    ap.add_argument("--threads", type=int, default=os.cpu_count(), help="engine threads (default: all cores)")
+    ap.add_argument("--ref-points", type=int, default=8, help="points run with the solve_ivp reference (default 8)")
+    args = ap.parse_args(argv)
+    raw = frogsim.load_scenario(BASE).raw
+    points = grid_points(args.points)
+    print(f"frogsim {frogsim.__version__} sweep benchmark: {len(points)} hip-muscle scenarios of 2 s, "
+          f"{args.threads} threads, {os.cpu_count()} CPUs")
+
+    t0 = time.perf_counter()
+    run_models(compose_models(raw, points[:2])[0])
+    print(f"  warm-up (engine load or compilation, once per machine): {time.perf_counter() - t0:.2f} s")
+
+    t0 = time.perf_counter()
+    models, method = compose_models(raw, points)
+    t1 = time.perf_counter()
+    values = evaluate_models(models, METRICS, "hip", threads=args.threads)
+    t2 = time.perf_counter()
+    total = t2 - t0
+    print(f"  build models ({method})  {t1 - t0:7.2f} s")
+    print(f"  run + metrics            {t2 - t1:7.2f} s   ({(t2 - t1) / len(points) * 1e6:.0f} us per point)")
+    print(f"  total                    {total:7.2f} s   (target <= {TARGET_S:g} s)")
+    finite = {m: int(np.isfinite(v).sum()) for m, v in values.items()}
+    print(f"  finite metric values: {finite}")
+
+    rng = np.random.default_rng(0)
+    subset = rng.choice(len(points), size=min(args.ref_points, len(points)), replace=False)
+    ref_walls, diffs = [], []
+    for i in subset:
+        rt, wall = reference_rise_time(points[i])
+        ref_walls.append(wall)
+        if np.isfinite(values["rise_time"][i]) and np.isfinite(rt):
+            diffs.append(abs(rt - values["rise_time"][i]))
+    per_point = float(np.mean(ref_walls))
+    scaled = per_point * len(points)
+    print(f"  plain solve_ivp loop (RK45, rtol {frogsim.load_scenario(BASE).solver.rtol:g}), "
+          f"{len(subset)} points: {per_point * 1e3:.1f} ms per point -> {scaled:.0f} s for {len(points)}")
+    print(f"  speed-up of the batched sweep: {scaled / total:.0f} x")
+    worst = max(diffs) if diffs else float("nan")
+    print(f"  rise time agreement on the subset: max |difference| {worst * 1e3:.3f} ms")
+    ok_time = total <= TARGET_S
+    ok_agree = bool(diffs) and worst < 2e-3
+    print(("PASS" if ok_time and ok_agree else "FAIL") + f": total {total:.2f} s, agreement {worst * 1e3:.3f} ms")
+    return 0 if ok_time and ok_agree else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

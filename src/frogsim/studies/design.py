@@ -1,0 +1,299 @@
+"""Design studies beyond the paper: the questions its conclusion raises, answered with numbers.
+
+* ``design-tubes``: main tube inner diameter x number of main tubes -> hip muscle 90 % rise time,
+  in the paper's Eq. (9) mode and in the physical tube mode, and the diameter from which the valve,
+  not the tube, limits the rise (the paper advises "extending the main pipe diameter and number of
+  main pipes" without saying how far that helps).
+* ``design-endurance``: source volume x pump displacement -> strokes until the source can no longer
+  fill a stroke, and the stroke rate the pump can sustain, for the robot's twelve muscles.
+* ``design-valve``: valve sonic conductance C x critical ratio b -> rise time.
+
+Each runs its points through the batched engine (:mod:`frogsim.engine.batch`).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from frogsim.circuit import layout as L
+from frogsim.engine.batch import compose_models, run_models
+from frogsim.io.scenario import load_scenario
+from frogsim.physics.flow import pump_mass_flow
+from frogsim.studies.paper import HIP, NOTE
+from frogsim.studies.plotting import figure, save
+from frogsim.studies.registry import StudyData, register
+from frogsim.sweep.metrics import evaluate
+
+VALVE_LIMITED_MARGIN = 0.05      # "the valve limits": rise time within 5 % of the valve-only value
+TUBE_DIAMETERS_MM = tuple(np.round(np.arange(2.0, 10.01, 0.5), 2))
+TUBE_COUNTS = (1, 2, 3)
+REQUIRED_SWING_BAR = 4.0         # chosen: a full stroke needs 4 bar between source and exhaust (a
+                                 # muscle cycles between the two): two thirds of the 6 bar force swing
+                                 # (Chou-Hannaford force ~ pressure)
+SOURCE_VOLUMES_L = (2, 4, 8, 16)
+PUMP_FLOWS_L_PER_MIN = (5, 10, 20, 40, 80, 160)
+VALVE_C = tuple(np.round(np.arange(0.1, 1.01, 0.1), 2))     # L/(s bar); MHJ9 is 0.4
+VALVE_B = tuple(np.round(np.arange(0.15, 0.61, 0.05), 2))   # MHJ9 is 0.38
+
+
+def _rise_times(base: str, points: list[dict]) -> np.ndarray:
+    raw = load_scenario(base).raw
+    models, _ = compose_models(raw, points)
+    return evaluate(run_models(models), ["rise_time"], HIP)["rise_time"]
+
+
+def _crossing(x, y, level):
+    """First x where the decreasing curve y(x) falls to level (linear interpolation), or NaN."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    below = np.nonzero(y <= level)[0]
+    if not below.size:
+        return float("nan")
+    k = below[0]
+    if k == 0:
+        return float(x[0])
+    return float(x[k - 1] + (level - y[k - 1]) / (y[k] - y[k - 1]) * (x[k] - x[k - 1]))
+
+
+# --- main tubes --------------------------------------------------------------------------------------
+@register("design-tubes", "Main tube diameter x number of tubes -> hip rise time; where the valve takes over",
+          group="design")
+def design_tubes() -> StudyData:
+    valve_only = float(_rise_times("paper-cycle", [{"supply.mode": "none"}])[0])
+    rows, points = [], []
+    for mode in ("paper", "physical"):
+        for count in TUBE_COUNTS:
+            for d in TUBE_DIAMETERS_MM:
+                points.append({"supply.mode": mode, "supply.main_tube_count": int(count),
+                               "supply.main_tube_inner_diameter": f"{d} mm"})
+                rows.append({"mode": mode, "main_tube_count": count, "inner_diameter_mm": d})
+    table = pd.DataFrame(rows)
+    table["rise_time_90_s"] = _rise_times("paper-cycle", points)
+    table["valve_only_rise_time_90_s"] = valve_only
+    level = valve_only * (1 + VALVE_LIMITED_MARGIN)
+    crossings = {}
+    for mode in ("paper", "physical"):
+        crossings[mode] = {}
+        for count in TUBE_COUNTS:
+            sub = table[(table["mode"] == mode) & (table["main_tube_count"] == count)]
+            crossings[mode][str(count)] = _crossing(sub.inner_diameter_mm, sub.rise_time_90_s, level)
+    paper_4mm = table[(table["mode"] == "paper") & (table.main_tube_count == 1)
+                      & (table.inner_diameter_mm == 4.0)].rise_time_90_s.iloc[0]
+    phys_4mm = table[(table["mode"] == "physical") & (table.main_tube_count == 1)
+                     & (table.inner_diameter_mm == 4.0)].rise_time_90_s.iloc[0]
+    conclusion = (
+        f"Six muscles charged at once from 6 bar. The valves alone (MHJ9, C = 0.4 L/(s bar)) give a "
+        f"hip rise time of {valve_only:.3f} s. With the paper's Eq. (9) limit, one 4 mm main tube "
+        f"gives {paper_4mm:.3f} s and the valve takes over (rise within 5 % of the valve-only value) "
+        f"from a {crossings['paper']['1']:.1f} mm bore with one tube, {crossings['paper']['2']:.1f} mm "
+        f"with two, {crossings['paper']['3']:.1f} mm with three. A physical tube, whose choked flow "
+        f"grows with the upstream density, gives {phys_4mm:.3f} s with one 4 mm tube and lets the "
+        f"valve take over from {crossings['physical']['1']:.1f} mm ({crossings['physical']['2']:.1f} mm "
+        f"with two tubes): Eq. (9) understates a 6 bar tube's capacity several times, so the paper's "
+        f"advice to widen the main pipe matters far less than Eq. (9) suggests.")
+    return StudyData(table, {"design_tubes": {
+        "valve_only_rise_time_90_s": valve_only,
+        "valve_limited_from_inner_diameter_mm": crossings,
+        "criterion": f"rise time within {VALVE_LIMITED_MARGIN:.0%} of the valve-only rise time",
+        "conclusion": conclusion}}, {"level": level})
+
+
+@design_tubes.draws
+def _draw_tubes(data: StudyData, path: str) -> None:
+    d = data.table
+    fig, ax = figure(1, 2, width=11.5, sharey=True)
+    vo = data.summary["design_tubes"]["valve_only_rise_time_90_s"]
+    for a, mode, title in ((ax[0, 0], "paper", "paper mode: Eq. (9) per-branch limit"),
+                           (ax[0, 1], "physical", "physical mode: shared choked tube")):
+        for count in TUBE_COUNTS:
+            sub = d[(d["mode"] == mode) & (d.main_tube_count == count)]
+            a.plot(sub.inner_diameter_mm, sub.rise_time_90_s, "o-", ms=3, label=f"{count} main tube(s)")
+            x = data.summary["design_tubes"]["valve_limited_from_inner_diameter_mm"][mode][str(count)]
+            if np.isfinite(x):
+                a.axvline(x, color=f"C{count - 1}", ls=":", lw=1)
+        a.axhline(vo, color="k", ls="--", lw=1, label=f"valves only: {vo:.3f} s")
+        a.axhspan(vo, data.extras["level"], color="0.85", alpha=0.6, lw=0, label="valve-limited (within 5 %)")
+        a.set_xlabel("main tube inner diameter [mm]")
+        a.set_title(title)
+        a.legend(fontsize=8)
+    ax[0, 0].set_ylabel("hip muscle 90 % rise time [s]")
+    fig.suptitle("Where does the valve, not the tube, limit the pressurising? (six muscles at once, 6 bar)")
+    save(fig, path, NOTE + "; dotted lines: diameter from which the valve limits")
+
+
+# --- source volume and pump -------------------------------------------------------------------------
+def _steady_pressures(model, swing: float) -> tuple[float, float]:
+    """(source, exhaust) pressures [Pa abs] when the source is exactly ``swing`` above the exhaust.
+
+    The closed circuit's air is conserved; with source and exhaust back at ambient temperature and
+    the muscles at their initial state, p_s V_s + p_e V_e = (m_s0 + m_e0) R T and p_s - p_e = swing.
+    """
+    g = model.g
+    R, T = g[L.G_R], g[L.G_TAMB]
+    Vs, Ve = g[L.G_VS], g[L.G_VE]
+    total = model.y0[L.Y_MS] + model.y0[L.Y_ME]
+    ps = (total * R * T + swing * Ve) / (Vs + Ve)
+    return ps, ps - swing
+
+
+def _air_per_stroke_at(raw: dict, source_gauge_bar: float) -> float:
+    """Air [kg] one stroke of all muscles takes with the source held at the given pressure above an
+    atmospheric exhaust (a 1000 L source, pump off, one 2 s cycle)."""
+    from frogsim.engine.pneumatic import simulate
+    from frogsim.io.scenario import scenario_from_raw, with_overrides
+    sc = scenario_from_raw(with_overrides(raw, {"source.volume": "1000 L", "pump.enabled": False,
+                                                "source.initial_pressure_gauge": f"{source_gauge_bar} bar",
+                                                "duration": "2 s"}))
+    r = simulate(sc)
+    return float(sum(r.charged_mass(n)[-1] for n in r.names))
+
+
+def _at(table: pd.DataFrame, source_L: float, pump_L_per_min: float) -> int:
+    row = table[(table.source_volume_L == source_L) & (table.pump_displacement_L_per_min == pump_L_per_min)]
+    return int(row.strokes_before_short.iloc[0])
+
+
+def _pump_for_rate(sub: pd.DataFrame, rate: float) -> float:
+    """Pump displacement [L/min] at which the sustainable rate reaches ``rate`` (log interpolation)."""
+    q = np.log(sub.pump_displacement_L_per_min.to_numpy(float))
+    r = np.log(sub.sustainable_strokes_per_min.to_numpy(float))
+    if rate > np.exp(r).max():
+        return float("nan")
+    return float(np.exp(np.interp(np.log(rate), r, q)))
+
+
+@register("design-endurance", "Source volume x pump flow -> strokes before the source runs short, "
+          "sustainable stroke rate (12 muscles)", group="design")
+def design_endurance() -> StudyData:
+    raw = load_scenario("robot-12").raw
+    points, rows = [], []
+    for vs in SOURCE_VOLUMES_L:
+        for q in PUMP_FLOWS_L_PER_MIN:
+            points.append({"source.volume": f"{vs} L", "pump.displacement": f"{q} L/min"})
+            rows.append({"source_volume_L": vs, "pump_displacement_L_per_min": q})
+    models, _ = compose_models(raw, points)
+    results = run_models(models)
+    swing = REQUIRED_SWING_BAR * 1e5
+    period = 2.0
+    air_req = _air_per_stroke_at(raw, REQUIRED_SWING_BAR)
+    rho_ref = results[0].reference_density
+    for row, r, m in zip(rows, results, models):
+        patm = r.atmospheric_pressure
+        starts = np.arange(0.0, r.t[-1] - 1e-9, period)
+        swing_at_start = np.interp(starts, r.t, r.source_pressure - r.exhaust_pressure)
+        short = np.nonzero(swing_at_start < swing)[0]
+        row["strokes_before_short"] = int(short[0]) if short.size else len(starts)
+        row["endurance_censored"] = not short.size
+        g = m.g
+        ps, pe = _steady_pressures(m, swing)
+        row["steady_source_pressure_bar_gauge"] = (ps - patm) / 1e5
+        row["steady_exhaust_pressure_bar_gauge"] = (pe - patm) / 1e5
+        pump = pump_mass_flow(pe, g[L.G_TAMB], ps, g[L.G_PUMP_DISP], g[L.G_PUMP_RMAX], g[L.G_R])
+        row["sustainable_strokes_per_min"] = 60.0 * pump / air_req
+        row["source_after_run_bar_gauge"] = float((r.source_pressure[-1] - patm) / 1e5)
+    table = pd.DataFrame(rows)
+    base = table[(table.source_volume_L == 4) & (table.pump_displacement_L_per_min == 10)].iloc[0]
+    paper_rate = 60.0 / period
+    need = {vs: _pump_for_rate(table[table.source_volume_L == vs], paper_rate) for vs in SOURCE_VOLUMES_L}
+    n_strokes = int(round(results[0].t[-1] / period))
+    conclusion = (
+        f"Twelve muscles, a stroke every {period:g} s (the paper's 1 s pressurise / 1 s release), a "
+        f"stroke needing {REQUIRED_SWING_BAR:g} bar or more between source and exhaust; one such stroke "
+        f"takes {air_req / rho_ref * 1e3:.2f} L of air (standard). The paper's robot (4 L source, "
+        f"10 L/min pump) manages {int(base.strokes_before_short)} full strokes before the source runs "
+        f"short, and its pump sustains {base.sustainable_strokes_per_min:.1f} strokes per minute against "
+        f"the {paper_rate:g} the paper's timing asks. To sustain that timing the pump needs about "
+        f"{need[4]:.0f} L/min displacement with the 4 L source ({need[2]:.0f} L/min with 2 L, "
+        f"{need[16]:.0f} L/min with 16 L; more air in the closed circuit raises the exhaust pressure "
+        f"the pump draws from, so each pump stroke moves more mass). A larger source alone adds few "
+        f"strokes: with a 10 L/min pump, 16 L gives {_at(table, 16, 10)} full strokes against "
+        f"{_at(table, 4, 10)} with 4 L, because the muscles vent into the 6 L exhaust and the swing, "
+        f"not the source pressure, runs out first; the exhaust volume and the pump are the levers. "
+        f"Endurance is counted over {n_strokes} simulated strokes (more is reported as {n_strokes}).")
+    return StudyData(table, {"design_endurance": {
+        "required_swing_bar": REQUIRED_SWING_BAR,
+        "stroke_period_s": period,
+        "air_per_stroke_at_required_swing_L_std": air_req / rho_ref * 1e3,
+        "paper_robot": {"strokes_before_short": int(base.strokes_before_short),
+                        "sustainable_strokes_per_min": float(base.sustainable_strokes_per_min)},
+        "pump_for_paper_timing_L_per_min": {f"source_{vs}_L": need[vs] for vs in SOURCE_VOLUMES_L},
+        "conclusion": conclusion}})
+
+
+@design_endurance.draws
+def _draw_endurance(data: StudyData, path: str) -> None:
+    d = data.table
+    fig, ax = figure(1, 2, width=11.5)
+    a, b = ax[0, 0], ax[0, 1]
+    for k, vs in enumerate(SOURCE_VOLUMES_L):
+        sub = d[d.source_volume_L == vs]
+        a.plot(sub.pump_displacement_L_per_min, sub.strokes_before_short, "o-", label=f"source {vs} L")
+        cens = sub[sub.endurance_censored]
+        a.plot(cens.pump_displacement_L_per_min, cens.strokes_before_short, "^", color=f"C{k}", ms=9)
+    a.set_xscale("log")
+    a.set_xlabel("pump displacement [L/min]")
+    a.set_ylabel("full strokes before the source runs short")
+    a.set_title("Endurance (triangles: never ran short in the simulated strokes)")
+    a.legend(fontsize=8)
+    for vs in SOURCE_VOLUMES_L:
+        sub = d[d.source_volume_L == vs]
+        b.plot(sub.pump_displacement_L_per_min, sub.sustainable_strokes_per_min, "o-", label=f"source {vs} L")
+    b.axhline(30, color="k", ls="--", lw=1, label="paper's timing: 30 strokes/min")
+    b.set_xscale("log")
+    b.set_yscale("log")
+    b.set_xlabel("pump displacement [L/min]")
+    b.set_ylabel("strokes per minute")
+    b.set_title(f"Stroke rate the pump sustains at a {REQUIRED_SWING_BAR:g} bar swing (12 muscles)")
+    b.legend(fontsize=8)
+    save(fig, path, NOTE + f"; a full stroke needs >= {REQUIRED_SWING_BAR:g} bar between source and exhaust")
+
+
+# --- valve characteristics --------------------------------------------------------------------------
+@register("design-valve", "Valve sonic conductance C x critical ratio b -> hip rise time", group="design")
+def design_valve() -> StudyData:
+    points, rows = [], []
+    for c in VALVE_C:
+        for b in VALVE_B:
+            points.append({"supply.mode": "none",
+                           "valves.charge.sonic_conductance": f"{c} L/(s*bar)",
+                           "valves.charge.critical_ratio": float(b),
+                           "valves.discharge.sonic_conductance": f"{c} L/(s*bar)",
+                           "valves.discharge.critical_ratio": float(b)})
+            rows.append({"sonic_conductance_L_per_s_bar": c, "critical_ratio": b})
+    table = pd.DataFrame(rows)
+    table["rise_time_90_s"] = _rise_times("paper-cycle", points)
+    at_b = table[np.isclose(table.critical_ratio, 0.4)]
+    slope = np.polyfit(np.log(at_b.sonic_conductance_L_per_s_bar), np.log(at_b.rise_time_90_s), 1)[0]
+    at_c = table[np.isclose(table.sonic_conductance_L_per_s_bar, 0.4)]
+    spread = (at_c.rise_time_90_s.max() - at_c.rise_time_90_s.min()) / at_c.rise_time_90_s.mean()
+    t_lo = at_b.rise_time_90_s.iloc[0]
+    t_hi = at_b.rise_time_90_s.iloc[-1]
+    conclusion = (
+        f"Valve-limited charging (no tube limit), six muscles from 6 bar. At b = 0.4 the hip rise time "
+        f"falls from {t_lo:.3f} s at C = {VALVE_C[0]:g} to {t_hi:.3f} s at C = {VALVE_C[-1]:g} "
+        f"L/(s bar), a fitted rise time ~ C^{slope:.2f}: steeper than the 1/C of a choked fill into a "
+        f"fixed volume, because a slow valve is still filling while the muscle contracts (0.1 to "
+        f"0.4 s after the command) and its volume grows. At C = 0.4 L/(s bar) the critical ratio b "
+        f"from {VALVE_B[0]:g} to {VALVE_B[-1]:g} changes the rise time by {spread:.0%}: choose "
+        f"valves by C first.")
+    return StudyData(table, {"design_valve": {"rise_time_exponent_in_C": float(slope),
+                                              "rise_time_spread_over_b_at_C_0p4": float(spread),
+                                              "conclusion": conclusion}})
+
+
+@design_valve.draws
+def _draw_valve(data: StudyData, path: str) -> None:
+    d = data.table
+    grid = d.pivot(index="critical_ratio", columns="sonic_conductance_L_per_s_bar", values="rise_time_90_s")
+    fig, ax = figure(width=7.5, height=5)
+    a = ax[0, 0]
+    cs = a.contourf(grid.columns, grid.index, grid.values, levels=14, cmap="viridis")
+    lines = a.contour(grid.columns, grid.index, grid.values, levels=[0.05, 0.075, 0.1, 0.15, 0.2, 0.3],
+                      colors="w", linewidths=0.8)
+    a.clabel(lines, fmt="%.3g s", fontsize=8)
+    a.plot([0.4], [0.38], "r*", ms=12, label="MHJ9 (paper): C = 0.4, b = 0.38")
+    fig.colorbar(cs, ax=a, label="hip muscle 90 % rise time [s]")
+    a.set_xlabel("sonic conductance C [L/(s bar)]")
+    a.set_ylabel("critical pressure ratio b [-]")
+    a.set_title("Valve characteristics vs response (valve-limited, 6 bar)")
+    a.legend(loc="upper right", fontsize=8)
+    save(fig, path, NOTE)
