@@ -95,9 +95,19 @@ def test_reproduce_summary_contract(tmp_path):
     assert all({"branch_limit_L_per_min", "rise_time_90_s"} <= set(r) for r in s["saturation_sweep"])
     for mode in ("paper", "physical"):
         assert {"one_branch_L_per_min", "six_branches_L_per_min"} <= set(s["tube_modes"][mode])
-    from frogsim.studies import STUDIES
-    for name in STUDIES:
+    from frogsim.studies import studies_in
+    for name in studies_in("paper"):
         assert (out / f"{name}.png").exists() and (out / f"{name}.csv").exists()
+    for name in studies_in("design"):           # the design studies belong to `frogsim design`
+        assert not (out / f"{name}.png").exists()
+
+
+def test_design_command_writes_conclusions(tmp_path):
+    out = tmp_path / "d"
+    assert main(["design", "design-valve", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert "C^" in s["design_valve"]["conclusion"]
+    assert (out / "design-valve.png").read_bytes()[:4] == b"\x89PNG"
 
 
 def test_studies_and_params_listing(capsys):
