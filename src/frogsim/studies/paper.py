@@ -143,23 +143,34 @@ def fig15() -> StudyData:
     return StudyData(pd.DataFrame(cols), {"source_pressure_sweep": summary})
 
 
-@fig15.draws
-def _draw15(data: StudyData, path: str) -> None:
-    d = data.table
+def _draw_saturation_panels(d, curves, suptitle: str, path: str) -> None:
+    """Hip pressure curves in two panels, (a) with and (b) without the Eq. (9) saturation.
+
+    ``curves(label)`` yields (column of d, legend text) for label "saturated" or "unsaturated".
+    """
     fig, ax = figure(1, 2, width=11, sharey=True)
     for a, label, title in ((ax[0, 0], "saturated", "(a) with saturation (Eq. 9 branch limit)"),
                             (ax[0, 1], "unsaturated", "(b) without saturation")):
-        for entry in data.summary["source_pressure_sweep"][label]:
-            ps = entry["source_pressure_bar_gauge"]
-            a.plot(d.time_s, d[f"hip_pressure_bar_gauge_{ps}bar_{label}"],
-                   label=f"source {ps} bar: 90 % rise {entry['rise_time_90_s']:.2f} s")
+        for column, text in curves(label):
+            a.plot(d.time_s, d[column], label=text)
         a.set_xlim(0, 1.05)
         a.set_title(title)
         a.set_xlabel("time [s]")
         a.legend(loc="lower right", fontsize=8)
     ax[0, 0].set_ylabel("hip muscle pressure [bar gauge]")
-    fig.suptitle("Hip muscle pressurising under various source pressures (cf. paper Fig. 15)")
+    fig.suptitle(suptitle)
     save(fig, path, NOTE)
+
+
+@fig15.draws
+def _draw15(data: StudyData, path: str) -> None:
+    def curves(label):
+        for e in data.summary["source_pressure_sweep"][label]:
+            ps = e["source_pressure_bar_gauge"]
+            yield (f"hip_pressure_bar_gauge_{ps}bar_{label}",
+                   f"source {ps} bar: 90 % rise {e['rise_time_90_s']:.2f} s")
+    _draw_saturation_panels(data.table, curves,
+                            "Hip muscle pressurising under various source pressures (cf. paper Fig. 15)", path)
 
 
 # --- Figure 16: muscle volume ------------------------------------------------------------------------
@@ -171,7 +182,7 @@ def fig16() -> StudyData:
         entry = {"volume_constant_percent": frac}
         for label, mode in (("saturated", "paper"), ("unsaturated", "none")):
             over = {"supply.mode": mode}
-            for m, mraw in _base_raw()["muscles"].items():
+            for m in _base_raw()["muscles"]:
                 over[f"muscles.{m}.motion"] = {"kind": "volume_constant", "fraction": f"{frac} %"}
             r = run(over)
             cols.setdefault("time_s", r.t)
@@ -186,22 +197,15 @@ def fig16() -> StudyData:
 
 @fig16.draws
 def _draw16(data: StudyData, path: str) -> None:
-    d = data.table
-    fig, ax = figure(1, 2, width=11, sharey=True)
-    for a, label, title in ((ax[0, 0], "saturated", "(a) with saturation"),
-                            (ax[0, 1], "unsaturated", "(b) without saturation")):
+    def curves(label):
         key = "rise_time_90_s" if label == "saturated" else "unsaturated_rise_time_90_s"
         for e in data.summary["muscle_volume_sweep"]:
             f = e["volume_constant_percent"]
-            a.plot(d.time_s, d[f"hip_pressure_bar_gauge_{f}pct_{label}"],
-                   label=f"{f} % ({e['muscle_volume_cm3']:.0f} cm$^3$): rise {e[key]:.3f} s")
-        a.set_xlim(0, 1.05)
-        a.set_title(title)
-        a.set_xlabel("time [s]")
-        a.legend(loc="lower right", fontsize=8)
-    ax[0, 0].set_ylabel("hip muscle pressure [bar gauge]")
-    fig.suptitle("Hip muscle pressurising at fixed muscle volumes, 6 bar source (cf. paper Fig. 16)")
-    save(fig, path, NOTE)
+            yield (f"hip_pressure_bar_gauge_{f}pct_{label}",
+                   f"{f} % ({e['muscle_volume_cm3']:.0f} cm$^3$): rise {e[key]:.3f} s")
+    _draw_saturation_panels(data.table, curves,
+                            "Hip muscle pressurising at fixed muscle volumes, 6 bar source (cf. paper Fig. 16)",
+                            path)
 
 
 # --- Figure 17: saturation level ---------------------------------------------------------------------
