@@ -75,3 +75,10 @@ def test_overlapping_parameters_fall_back_to_full_builds(raw):
 def test_bad_point_is_refused_before_running(raw):
     with pytest.raises(frogsim.ScenarioError, match="source.volume"):
         compose_models(raw, [{"source.volume": "4 L"}, {"source.volume": "-1 L"}])
+
+
+def test_metrics_refuse_mixed_time_grids(raw):
+    a = frogsim.simulate(frogsim.load_scenario(raw))
+    b = frogsim.simulate(frogsim.load_scenario(frogsim.with_overrides(raw, {"duration": "1.5 s"})))
+    with pytest.raises(ValueError, match="one time grid"):
+        evaluate([a, b], ["rise_time"], "hip")

@@ -82,3 +82,14 @@ def test_joint_angles_beyond_limit_refused(tmp_path):
                                                                    "column": "hip_deg"}})
     with pytest.raises(ScenarioError, match="max_contraction"):
         frogsim.load_scenario(raw)
+
+
+def test_override_creates_optional_table_but_not_through_a_value():
+    raw = frogsim.load_scenario({"name": "x", "duration": "1 s",
+                                 "programs": {"s": {"pressurise": "0.5 s", "release": "0.5 s"}},
+                                 "muscles": {"hip": {"type": "hip", "program": "s"}}}).raw
+    assert "solver" not in raw
+    sc = frogsim.load_scenario(frogsim.with_overrides(raw, {"solver.rtol": "1e-9"}))
+    assert sc.solver.rtol == pytest.approx(1e-9)
+    with pytest.raises(ScenarioError, match="duration"):
+        frogsim.with_overrides(raw, {"duration.value": "2 s"})

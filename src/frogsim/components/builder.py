@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import typing
 from dataclasses import MISSING, field
 
@@ -110,11 +111,18 @@ def unknown_key_error(path: str, key: str, known) -> ScenarioError:
     return ScenarioError(where, UNKNOWN, f"unknown setting{hint} (known here: {allowed})")
 
 
+@functools.lru_cache(maxsize=None)
+def _type_hints(cls) -> dict:
+    """typing.get_type_hints, once per class (it re-evaluates the string annotations on every call,
+    which was 40 % of loading a scenario; sweeps validate thousands)."""
+    return typing.get_type_hints(cls)
+
+
 def build(cls, raw, path: str = ""):
     """Build dataclass cls from the dict raw, validating every field (see module docstring)."""
     if not isinstance(raw, dict):
         raise ScenarioError(path or cls.__name__, raw, f"expected a table of {cls.__name__} settings")
-    hints = typing.get_type_hints(cls)
+    hints = _type_hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init and not f.name.startswith("_")}
     for key in raw:
         if key not in fields:

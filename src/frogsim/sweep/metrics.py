@@ -124,6 +124,9 @@ def evaluate(results, metrics: list[str], muscle: str | None = None) -> dict[str
         raise KeyError(f"unknown metric {unknown[0]!r}; metrics: {', '.join(METRICS)}")
     if not results:
         return {m: np.empty(0) for m in metrics}
+    t0 = results[0].t
+    if any(r.t.shape != t0.shape or not np.array_equal(r.t, t0) for r in results[1:]):
+        raise ValueError("evaluate needs results on one time grid; group them by duration and output interval")
     i = results[0].index(muscle) if muscle else 0
     chunk = Chunk(results)
     return {m: np.asarray(METRICS[m].compute(chunk, i), float) for m in metrics}

@@ -1,0 +1,628 @@
+"""Run a sweep: chunks of points through the batched engine, locally or on a Dask cluster, written
+to NetCDF as they finish, resumable after any interruption.
+
+Execution
+    The points are split into a fixed chunk plan (:meth:`SweepSpec.chunks`, from the spec alone).
+    A chunk is built (:func:`frogsim.engine.batch.compose_models`, or one full build per point
+    when composing would cost more), run (:func:`frogsim.engine.batch.run_models`, in sub-batches
+    so that memory stays small) and reduced to metrics (:func:`frogsim.sweep.metrics.evaluate`) by
+    :func:`run_chunk`. Locally the chunks run one after the other on ``workers`` threads; with a
+    Dask scheduler each chunk is a task. Same plan, same code: the results are identical.
+
+Files (``out = results.nc``)
+    ``results.nc``        the whole dataset, with a boolean ``completed`` per point; replaced
+                          atomically (written beside it, then ``os.replace``), so it is never half
+                          written; rewritten at the start, every few seconds and at the end.
+    ``results.nc.parts/`` while the sweep runs: ``manifest.json`` (the spec hash) and one
+                          ``chunk-NNNNNN.npz`` per finished chunk, each written atomically the
+                          moment the chunk ends (a kill loses at most the chunks in flight); a lock.
+                          Removed once ``results.nc`` holds everything.
+    Rerunning the same command reads both and runs only the chunks not yet finished. A results
+    file or journal from a different spec (hash of base scenario + points + what is recorded)
+    is refused unless ``overwrite``.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from frogsim.circuit import layout as L
+from frogsim.errors import ScenarioError, SimulationError
+from frogsim.sweep.spec import SweepSpec, _toml_value, dumps_toml, load_spec
+
+FORMAT = 1                      # version of the results layout, stored in the file
+NC_ENGINE = "netcdf4"
+_FLUSH_SECONDS = 5.0            # rewrite results.nc at most this often while running
+_SUB_BATCH = 64                 # points per thread held in memory at once within a chunk
+_COMPOSE_POINTS = 20_000        # a local run builds the models of up to this many points at once
+
+
+@dataclass(frozen=True)
+class State:
+    """A time series that a sweep can store per point: unit, meaning, and how to read it from a
+    Result (``get(result, muscle name)``). Muscle states are those of ``record.muscle``."""
+    unit: str
+    description: str
+    get: Callable
+
+
+STATES: dict[str, State] = {
+    "muscle_pressure": State("Pa", "muscle pressure (absolute)", lambda r, m: r.muscle_pressure(m)),
+    "muscle_mass": State("kg", "air mass in the muscle", lambda r, m: r.muscle_mass(m)),
+    "charged_mass": State("kg", "mass that entered the muscle through its charge valve since t = 0",
+                          lambda r, m: r.charged_mass(m)),
+    "vented_mass": State("kg", "mass that left the muscle through its discharge valve since t = 0",
+                         lambda r, m: r.vented_mass(m)),
+    "charge_valve": State("1", "charge valve state (1 = open)", lambda r, m: r.u[:, 2 * r.index(m)]),
+    "discharge_valve": State("1", "discharge valve state (1 = open)",
+                             lambda r, m: r.u[:, 2 * r.index(m) + 1]),
+    "source_pressure": State("Pa", "source chamber pressure (absolute)", lambda r, m: r.source_pressure),
+    "source_temperature": State("K", "source chamber temperature", lambda r, m: r.temperature("source")),
+    "source_mass": State("kg", "air mass in the source chamber", lambda r, m: r.y[:, L.Y_MS]),
+    "exhaust_pressure": State("Pa", "exhaust chamber pressure (absolute)", lambda r, m: r.exhaust_pressure),
+    "exhaust_mass": State("kg", "air mass in the exhaust chamber", lambda r, m: r.y[:, L.Y_ME]),
+    "pumped_mass": State("kg", "mass the pump moved from exhaust to source since t = 0",
+                         lambda r, m: r.pumped_mass),
+    "pump_on": State("1", "pump running (1) or not (0)", lambda r, m: r.u[:, 2 * r.n]),
+}
+
+
+# --- one chunk (runs locally or as a Dask task) -----------------------------------------------------
+def build_chunk_models(base_raw: dict, base_dir: str, points: list[dict]):
+    """Models of a chunk: composed from one build per distinct value when that is cheaper than
+    one build per point (grids), else built point by point (random and LHS points, whose values
+    are all distinct). Returns (models, "composed" | "built")."""
+    from frogsim.circuit.model import build_model
+    from frogsim.engine.batch import compose_models
+    from frogsim.io.scenario import scenario_from_raw, with_overrides
+    paths = sorted({p for pt in points for p in pt})
+    distinct = sum(len({json.dumps(pt[p]) for pt in points}) for p in paths)
+    if distinct + 3 < len(points):            # compose_models checks 3 points with full builds
+        return compose_models(base_raw, points, base_dir)
+    return [build_model(scenario_from_raw(with_overrides(base_raw, pt, share=True), base_dir)) for pt in points], "built"
+
+
+def _run_isolating(models, threads: int) -> list:
+    """Results in order; a point whose integration fails gets its error text instead."""
+    from frogsim.engine.batch import run_models
+    try:
+        return run_models(models, threads=threads)
+    except SimulationError:
+        out = []
+        for m in models:
+            try:
+                out.append(run_models([m], threads=1)[0])
+            except SimulationError as exc:
+                out.append(str(exc))
+        return out
+
+
+def _evaluate(results: list, metrics, muscle) -> dict[str, np.ndarray]:
+    """Metrics of results that may not share one time grid (swept duration): grid by grid."""
+    from frogsim.sweep.metrics import evaluate
+    out = {m: np.full(len(results), np.nan) for m in metrics}
+    groups: dict[tuple, list[int]] = {}
+    for j, r in enumerate(results):
+        groups.setdefault((r.t.size, float(r.t[-1])), []).append(j)
+    for idx in groups.values():
+        vals = evaluate([results[j] for j in idx], list(metrics), muscle)
+        for m in metrics:
+            out[m][idx] = vals[m]
+    return out
+
+
+def _run_piece(models, metrics, muscle, timeseries) -> dict:
+    """Run a few models on this thread and reduce them at once (their time series are dropped)."""
+    results = _run_isolating(models, 1)
+    B = len(models)
+    res = {"metrics": {m: np.full(B, np.nan) for m in metrics}, "timeseries": {},
+           "failed": np.array([isinstance(r, str) for r in results], bool),
+           "errors": {j: r for j, r in enumerate(results) if isinstance(r, str)}}
+    ok = [j for j, r in enumerate(results) if not isinstance(r, str)]
+    if timeseries:
+        states, step, n_t = timeseries
+        for s in states:
+            arr = np.full((B, n_t), np.nan)
+            for j in ok:
+                series = np.asarray(STATES[s].get(results[j], muscle), float)[::step][:n_t]
+                arr[j, :series.size] = series
+            res["timeseries"][s] = arr
+    if ok:
+        vals = _evaluate([results[j] for j in ok], metrics, muscle)
+        for m in metrics:
+            res["metrics"][m][ok] = vals[m]
+    return res
+
+
+def run_built(models, metrics, muscle: str, timeseries: tuple | None = None, threads: int = 1,
+              on_progress=None) -> dict:
+    """Run built models and reduce them to metrics (and time series), in order.
+
+    Each of ``threads`` threads takes a few points at a time, runs them (the compiled engine,
+    without the GIL) and reduces them while their outputs are fresh, so memory stays at a few
+    points' time series per thread. Returns {"metrics": name -> (B,), "timeseries": state ->
+    (B, samples), "failed": (B,) bool, "errors": {row: text}}.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+    B = len(models)
+    threads = max(1, int(threads or 1))
+    size = max(1, min(_SUB_BATCH, -(-B // threads)))
+    starts = list(range(0, B, size))
+
+    lock = threading.Lock()
+
+    def work(a):
+        res = _run_piece(models[a:a + size], metrics, muscle, timeseries)
+        if on_progress is not None:
+            with lock:
+                on_progress(len(res["failed"]))
+        return res
+    if threads == 1 or len(starts) == 1:
+        parts = [work(a) for a in starts]
+    else:
+        with ThreadPoolExecutor(threads) as pool:
+            parts = list(pool.map(work, starts))
+    out = {"metrics": {m: np.concatenate([p["metrics"][m] for p in parts]) if parts else np.empty(0)
+                       for m in metrics},
+           "timeseries": {}, "failed": np.concatenate([p["failed"] for p in parts]) if parts else np.zeros(0, bool),
+           "errors": {a + j: text for a, p in zip(starts, parts) for j, text in p["errors"].items()}}
+    if timeseries:
+        out["timeseries"] = {s: np.concatenate([p["timeseries"][s] for p in parts]) for s in timeseries[0]}
+    return out
+
+
+def run_chunk(base_raw: dict, base_dir: str, points: list[dict], metrics, muscle: str,
+              timeseries: tuple | None = None, threads: int = 1, on_progress=None) -> dict:
+    """Build, run and reduce one chunk of points (a Dask task; see :func:`run_built`).
+
+    ``timeseries`` is (state names, step, samples) or None. Returns plain data only (so a Dask
+    worker can send it back): the dict of :func:`run_built` plus "method" ("composed" or "built").
+    """
+    models, how = build_chunk_models(base_raw, base_dir, points)
+    res = run_built(models, metrics, muscle, timeseries, threads, on_progress)
+    res["method"] = how
+    return res
+
+
+# --- the sweep's data in memory ---------------------------------------------------------------------
+class _Store:
+    """Flat per-point arrays of a sweep (C order for a grid), filled chunk by chunk."""
+
+    def __init__(self, spec: SweepSpec):
+        n = spec.n_points
+        self.spec = spec
+        self.metrics = {m: np.full(n, np.nan) for m in spec.metrics}
+        ts = spec.timeseries
+        self.ts = {s: np.full((n, len(ts.times)), np.nan) for s in ts.states} if ts else {}
+        self.completed = np.zeros(n, bool)
+        self.failed = np.zeros(n, bool)
+        self.errors: dict[int, str] = {}
+        self.methods: set = set()
+
+    def put(self, idx: np.ndarray, res: dict) -> None:
+        for m in self.metrics:
+            self.metrics[m][idx] = res["metrics"][m]
+        for s in self.ts:
+            self.ts[s][idx] = res["timeseries"][s]
+        self.failed[idx] = res["failed"]
+        for row, text in res["errors"].items():
+            self.errors[int(idx[int(row)])] = text
+        self.completed[idx] = True
+        if res.get("method"):
+            self.methods.add(res["method"])
+
+    def load_dataset(self, ds) -> None:
+        """Take the completed points of a results file of the same spec."""
+        spec = self.spec
+        n = spec.n_points
+
+        def flat(name, extra=()):
+            return ds[name].transpose(*spec.dims, *extra).values.reshape((n,) + tuple(ds.sizes[e] for e in extra))
+        done = flat("completed").astype(bool)
+        for m in self.metrics:
+            self.metrics[m][done] = flat(m)[done]
+        for s in self.ts:
+            self.ts[s][done] = flat(s, ("time",))[done]
+        self.failed[done] = flat("failed").astype(bool)[done]
+        self.completed |= done
+        errors = json.loads(ds.attrs.get("failures", "{}"))
+        self.errors.update({int(k): v for k, v in errors.items()})
+
+
+def _written_text(value) -> str:
+    return value if isinstance(value, str) else _toml_value(value)
+
+
+def to_dataset(spec: SweepSpec, store: _Store):
+    """The xarray Dataset of a sweep (see docs/sweeps.md for the layout)."""
+    import xarray as xr
+    from frogsim.sweep.metrics import METRICS
+    shape, dims = spec.shape, spec.dims
+    coords = {}
+
+    def param_attrs(p):
+        a = {"long_name": p.path, "kind": p.info.kind}
+        if p.info.numeric:
+            a["units"] = p.info.si_unit
+            if p.display_unit:
+                a["display_units"] = p.display_unit
+                a["display_factor"] = float(p.display_factor)
+            if p.path.endswith("_gauge"):
+                a["note"] = "gauge pressure: relative to the atmosphere"
+        if p.range:
+            a.update({"range_min": f"{_fmt_range(p.range['min'])} {p.range['unit']}".strip(),
+                      "range_max": f"{_fmt_range(p.range['max'])} {p.range['unit']}".strip(),
+                      "range_scale": p.range["scale"]})
+        return a
+
+    def values(p, col):
+        if p.info.numeric:
+            return np.asarray(col, float)
+        return np.array([_written_text(v) for v in col], dtype=str)
+
+    if spec.method == "grid":
+        for p in spec.parameters:
+            coords[p.path] = (p.path, values(p, p.si if p.info.numeric else p.written), param_attrs(p))
+            coords[f"{p.path}_as_written"] = (p.path, np.array([_written_text(v) for v in p.written], dtype=str),
+                                              {"long_name": f"{p.path} as written in the scenario"})
+    else:
+        coords["point"] = ("point", np.arange(spec.n_points),
+                           {"long_name": "sweep point (index into the sampled points)"})
+        for j, p in enumerate(spec.parameters):
+            col = spec.si[:, j] if p.info.numeric else [w[j] for w in spec.written]
+            coords[p.path] = ("point", values(p, col), param_attrs(p))
+            coords[f"{p.path}_as_written"] = ("point", np.array([_written_text(w[j]) for w in spec.written], dtype=str),
+                                              {"long_name": f"{p.path} as written in the scenario"})
+    data = {}
+    for m in spec.metrics:
+        data[m] = (dims, store.metrics[m].reshape(shape),
+                   {"units": METRICS[m].unit, "description": METRICS[m].description, "muscle": spec.muscle})
+    data["completed"] = (dims, store.completed.reshape(shape),
+                         {"description": "the point has run (its values are final; NaN where failed)"})
+    data["failed"] = (dims, store.failed.reshape(shape),
+                      {"description": "the point's integration failed (see the global attribute failures)"})
+    if spec.timeseries:
+        coords["time"] = ("time", np.asarray(spec.timeseries.times), {"units": "s", "long_name": "time"})
+        for s in spec.timeseries.states:
+            st = STATES[s]
+            desc = st.description + (f" ({spec.muscle})" if s.split("_")[0] in ("muscle", "charged", "vented",
+                                                                                "charge", "discharge") else "")
+            data[s] = (dims + ("time",), store.ts[s].reshape(shape + (-1,)), {"units": st.unit, "description": desc})
+    from frogsim import __version__
+    attrs = {
+        "title": f"frogsim sweep {spec.name}",
+        "frogsim_sweep_format": FORMAT,
+        "frogsim_version": __version__,
+        "sweep_name": spec.name,
+        "sweep_description": spec.description,
+        "sweep_method": spec.method,
+        "sweep_hash": spec.hash,
+        "sweep_parameters": ", ".join(spec.paths),
+        "spec_toml": spec.text or dumps_toml(spec.raw),
+        "base_scenario": spec.base,
+        "base_scenario_toml": spec.base_toml(),
+        "muscle": spec.muscle,
+        "metrics": ", ".join(spec.metrics),
+        "n_points": spec.n_points,
+        "n_completed": int(store.completed.sum()),
+        "n_failed": int(store.failed.sum()),
+        "complete": int(store.completed.all()),
+        "chunk_size": spec.chunk_size,
+        "model_building": ", ".join(sorted(store.methods)),
+        "failures": json.dumps({str(k): v[:300] for k, v in sorted(store.errors.items())[:1000]}),
+        "updated": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+    }
+    if spec.samples is not None:
+        attrs["samples"] = spec.samples
+        attrs["seed"] = spec.seed
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _fmt_range(x: float) -> str:
+    return f"{x:.12g}"
+
+
+# --- files ------------------------------------------------------------------------------------------
+def _fsync_replace(tmp: Path, path: Path) -> None:
+    fd = os.open(tmp, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+    os.replace(tmp, path)
+
+
+def write_dataset(ds, path: Path, tmp_dir: Path) -> None:
+    """Write the dataset beside ``path`` (in tmp_dir, same filesystem) and move it into place."""
+    tmp = tmp_dir / f"tmp-{os.getpid()}-{time.monotonic_ns()}.nc"
+    encoding = {v: {"zlib": True, "complevel": 1} for v in ds.data_vars if "time" in ds[v].dims}
+    try:
+        ds.to_netcdf(tmp, engine=NC_ENGINE, encoding=encoding)
+        _fsync_replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def read_results(path) :
+    """Open a sweep results file fully into memory (the file is closed afterwards)."""
+    import xarray as xr
+    with xr.open_dataset(path, engine=NC_ENGINE) as ds:
+        return ds.load()
+
+
+class _Journal:
+    """The sidecar folder of a running sweep: manifest, one file per finished chunk, a lock."""
+
+    def __init__(self, out: Path):
+        self.out = out
+        self.dir = out.parent / f"{out.name}.parts"
+        self._lock_fd = None
+
+    def manifest_hash(self) -> str | None:
+        try:
+            return json.loads((self.dir / "manifest.json").read_text())["hash"]
+        except (OSError, ValueError, KeyError):
+            return None
+
+    def open(self, spec: SweepSpec, fresh: bool) -> None:
+        import fcntl
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self._lock_fd = os.open(self.dir / "lock", os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(self._lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(self._lock_fd)
+            self._lock_fd = None
+            raise ScenarioError("--out", str(self.out),
+                                "another frogsim sweep is writing this file right now") from None
+        stale = fresh or self.manifest_hash() != spec.hash
+        for f in self.dir.iterdir():
+            if f.name.startswith("tmp-") or (stale and f.name != "lock"):
+                f.unlink()
+        if stale:
+            tmp = self.dir / f"tmp-manifest-{os.getpid()}"
+            tmp.write_text(json.dumps({"hash": spec.hash, "n_points": spec.n_points,
+                                       "chunk_size": spec.chunk_size, "name": spec.name}))
+            _fsync_replace(tmp, self.dir / "manifest.json")
+
+    def chunks(self):
+        """(chunk number, flat indices, result dict) of every chunk file."""
+        for f in sorted(self.dir.glob("chunk-*.npz")):
+            try:
+                with np.load(f, allow_pickle=False) as z:
+                    res = {"metrics": {k[2:]: z[k] for k in z.files if k.startswith("m_")},
+                           "timeseries": {k[3:]: z[k] for k in z.files if k.startswith("ts_")},
+                           "failed": z["failed"], "errors": json.loads(str(z["errors"])),
+                           "method": str(z["method"])}
+                    yield int(f.stem.split("-")[1]), z["idx"], res
+            except (OSError, ValueError, KeyError):
+                f.unlink()          # cannot happen with atomic writes; rerun that chunk
+
+    def write_chunk(self, k: int, idx: np.ndarray, res: dict) -> None:
+        tmp = self.dir / f"tmp-chunk-{k}-{os.getpid()}.npz"
+        arrays = {f"m_{m}": v for m, v in res["metrics"].items()}
+        arrays.update({f"ts_{s}": v for s, v in res["timeseries"].items()})
+        with open(tmp, "wb") as fh:
+            np.savez(fh, idx=idx, failed=res["failed"], errors=np.array(json.dumps(res["errors"])),
+                     method=np.array(res["method"]), **arrays)
+        _fsync_replace(tmp, self.dir / f"chunk-{k:06d}.npz")
+
+    def remove(self) -> None:
+        shutil.rmtree(self.dir, ignore_errors=True)
+        self.close()
+
+    def close(self) -> None:
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)
+            self._lock_fd = None
+
+
+# --- the sweep --------------------------------------------------------------------------------------
+def _connect(scheduler, timeout: float):
+    """A Dask client for a scheduler address (or a Client / LocalCluster passed in)."""
+    try:
+        from distributed import Client
+    except ImportError:  # pragma: no cover - a pinned dependency
+        raise ScenarioError("--scheduler", scheduler, "needs the 'distributed' package") from None
+    if isinstance(scheduler, Client):
+        return scheduler, False
+    address = getattr(scheduler, "scheduler_address", scheduler)
+    if not isinstance(address, str) or not address:
+        raise ScenarioError("--scheduler", scheduler, "expected a Dask scheduler address such as tcp://host:8786")
+    try:
+        _probe(address, timeout)         # fail fast, and without a half-made Client complaining at exit
+        return Client(address, timeout=f"{timeout}s", set_as_default=False), True
+    except Exception as exc:  # refused, timed out, or something that is not a Dask scheduler answered
+        msg = " ".join(str(exc).split())[:200] or type(exc).__name__
+    import gc
+    hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: None      # a half-made Client complains when collected
+    try:
+        gc.collect()
+    finally:
+        sys.unraisablehook = hook
+    raise ScenarioError("--scheduler", address, f"no Dask scheduler reachable within {timeout:g} s ({msg})")
+
+
+def _probe(address: str, timeout: float) -> None:
+    """Open (and close) a TCP connection to a tcp:// or tls:// scheduler address; raise OSError or
+    ValueError if it cannot be parsed or reached."""
+    import socket
+    from distributed.comm import parse_address, parse_host_port
+    scheme, location = parse_address(address)
+    if scheme in ("tcp", "tls"):
+        host, port = parse_host_port(location)
+        socket.create_connection((host, port), timeout=timeout).close()
+
+
+def _bar(spec: SweepSpec, done: int, progress: bool):
+    from tqdm import tqdm
+    return tqdm(total=spec.n_points, initial=done, desc=f"sweep {spec.name}", unit="pt", file=sys.stderr,
+                disable=not progress, mininterval=0.5, smoothing=0.1, dynamic_ncols=True)
+
+
+def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None, progress: bool = True,
+              overwrite: bool = False, connect_timeout: float = 5.0):
+    """Run a sweep and return its results as an xarray Dataset.
+
+    spec_or_path: a spec TOML path, a dict, or a SweepSpec (:func:`frogsim.sweep.load_spec`).
+    out: a NetCDF path written as the sweep goes and resumed from if it exists (None: nothing is
+    written). workers: threads of the local run (default: all cores); with a scheduler, threads
+    per Dask task (default 1: the worker's own threads run tasks side by side). scheduler: a Dask
+    scheduler address, Client or cluster. overwrite: replace results of a different spec instead
+    of refusing.
+
+    Everything is validated first (spec, every point's scenario, the scheduler, the output file);
+    a ScenarioError then means nothing was written.
+    """
+    spec = load_spec(spec_or_path)
+    spec.validate_points()
+    out = Path(out) if out is not None else None
+    existing = None
+    journal = None
+    if out is not None:
+        if out.is_dir():
+            raise ScenarioError("--out", str(out), "is a folder; expected a .nc file name")
+        if out.exists():
+            try:
+                existing = read_results(out)
+            except Exception as exc:  # netCDF4/xarray raise many types for foreign files
+                if not overwrite:
+                    raise ScenarioError("--out", str(out), f"exists and is not a readable frogsim sweep "
+                                                           f"file ({type(exc).__name__}); use --overwrite "
+                                                           "to replace it") from None
+            if existing is not None and existing.attrs.get("sweep_hash") != spec.hash:
+                if not overwrite:
+                    what = "another spec" if "sweep_hash" in existing.attrs else "something that is not a frogsim sweep"
+                    raise ScenarioError("--out", str(out), f"holds the results of {what} (or of another base "
+                                                           "scenario); use --overwrite to replace it, or "
+                                                           "another --out")
+                existing = None
+        journal = _Journal(out)
+        jh = journal.manifest_hash() if journal.dir.exists() else None
+        if jh is not None and jh != spec.hash and not overwrite:
+            raise ScenarioError("--out", str(out), f"an interrupted sweep of another spec left {journal.dir.name}; "
+                                                   "use --overwrite to discard it, or another --out")
+        if overwrite:
+            existing = None
+    client, own_client = (None, False)
+    if scheduler is not None:
+        client, own_client = _connect(scheduler, connect_timeout)
+    # --- from here on files are written ---
+    store = _Store(spec)
+    try:
+        if journal is not None:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            journal.open(spec, fresh=overwrite)
+            if existing is not None:
+                store.load_dataset(existing)
+            plan = spec.chunks()
+            for k, idx, res in journal.chunks():
+                if k < len(plan) and np.array_equal(idx, plan[k]):
+                    store.put(idx, res)
+        plan = spec.chunks()
+        pending = [k for k, idx in enumerate(plan) if not store.completed[idx].all()]
+        done = int(store.completed.sum())
+        if progress and out is not None and done:
+            print(f"resuming {out}: {done} of {spec.n_points} points already done", file=sys.stderr, flush=True)
+        last = [time.monotonic(), 0.0]
+
+        def flush(force=False):
+            if out is None:
+                return
+            now = time.monotonic()
+            if force or now - last[0] >= max(_FLUSH_SECONDS, 10 * last[1]):
+                t0 = time.monotonic()
+                write_dataset(to_dataset(spec, store), out, journal.dir)
+                last[0], last[1] = time.monotonic(), time.monotonic() - t0
+
+        if pending and (existing is None or not existing.attrs.get("complete")):
+            flush(force=True)
+        ts = None
+        if spec.timeseries:
+            ts = (spec.timeseries.states, spec.timeseries.step, len(spec.timeseries.times))
+        bar = _bar(spec, done, progress)
+        try:
+            def finished(k, res):
+                if journal is not None:
+                    journal.write_chunk(k, plan[k], res)
+                store.put(plan[k], res)
+                flush()
+
+            if client is None:
+                _run_local(spec, plan, pending, ts, max(1, workers or os.cpu_count() or 1), bar, finished)
+            else:
+                _run_dask(client, spec, plan, pending, ts, workers or 1, bar, finished)
+        except BaseException:
+            bar.close()
+            if out is not None:          # the journal has every finished chunk; bring the file up to date
+                try:
+                    flush(force=True)
+                except Exception:
+                    pass                 # the journal is enough to resume
+            raise
+        finally:
+            bar.close()
+        if out is not None:
+            if pending or existing is None or not existing.attrs.get("complete"):
+                flush(force=True)
+            journal.remove()
+            journal = None
+        return to_dataset(spec, store)
+    finally:
+        if journal is not None:
+            journal.close()
+        if own_client:
+            client.close()
+
+
+def _run_local(spec: SweepSpec, plan, pending, ts, threads: int, bar, finished) -> None:
+    """Pending chunks in order; models are built for several consecutive chunks at once (up to
+    _COMPOSE_POINTS points), since composing costs one build per distinct value, not per point."""
+    limit = max(_COMPOSE_POINTS, spec.chunk_size)
+    k = 0
+    while k < len(pending):
+        group, n = [], 0
+        while k + len(group) < len(pending) and (not group or n + len(plan[pending[k + len(group)]]) <= limit):
+            n += len(plan[pending[k + len(group)]])
+            group.append(pending[k + len(group)])
+        idx = np.concatenate([plan[c] for c in group])
+        models, how = build_chunk_models(spec.base_raw, spec.base_dir, spec.points(idx))
+        a = 0
+        for c in group:
+            m = len(plan[c])
+            res = run_built(models[a:a + m], spec.metrics, spec.muscle, ts, threads, on_progress=bar.update)
+            res["method"] = how
+            finished(c, res)
+            a += m
+        del models
+        k += len(group)
+
+
+def _run_dask(client, spec: SweepSpec, plan, pending, ts, threads: int, bar, finished) -> None:
+    """One task per pending chunk; results handled in the order they finish."""
+    from distributed import as_completed
+    base = client.scatter([spec.base_raw], broadcast=True)[0]
+    futures = {}
+    for k in pending:
+        fut = client.submit(run_chunk, base, spec.base_dir, spec.points(plan[k]), spec.metrics, spec.muscle,
+                            ts, threads, key=f"frogsim-sweep-{spec.hash[:12]}-{k}-{time.time_ns()}", pure=False)
+        futures[fut] = k
+    try:
+        for fut in as_completed(list(futures), loop=client.loop):
+            k = futures[fut]
+            finished(k, fut.result())
+            bar.update(len(plan[k]))
+    finally:
+        client.cancel(list(futures))

@@ -1,0 +1,816 @@
+"""Sweep specifications: which base scenario, which parameters over which values, what to record.
+
+A sweep spec is a TOML file (or a dict of the same shape)::
+
+    name = "source-saturation"
+
+    [base]
+    scenario = "paper-cycle"            # a shipped scenario, or a path relative to this file
+    [base.overrides]                    # optional: dotted path = value, laid over the base
+    duration = "1 s"
+    "muscles.hip_left.motion" = { kind = "volume_constant", fraction = 0.5 }
+
+    [sweep]
+    method = "grid"                     # "grid", "list", "random" or "lhs"
+    [sweep.parameters]
+    "source.initial_pressure_gauge" = { start = "3 bar", stop = "6 bar", num = 4 }
+    "supply.branch_limit" = { values = ["15 L/min", "45 L/min", "180 L/min"] }
+    "muscles.hip_left.motion.fraction" = [0.0, 0.5, 1.0]
+
+    [record]
+    metrics = ["rise_time", "final_pressure", "aeration_volume"]   # frogsim.sweep.metrics.METRICS
+    muscle = "hip_left"
+    timeseries = { states = ["muscle_pressure"], interval = "10 ms" }   # optional
+
+    [run]
+    chunk_size = 500                    # optional: points per chunk (the unit of resume)
+
+Parameters are addressed by the dotted paths of :func:`frogsim.with_overrides`. A parameter is a
+list of values (as a scenario file would write them), ``{ values = [...], unit = "bar" }``,
+``{ start, stop, num }`` (evenly spaced; ``scale = "log"`` for geometric spacing), or, for the
+``random`` and ``lhs`` methods, a range ``{ min, max }`` sampled ``sweep.samples`` times with
+``sweep.seed``. ``grid`` takes every combination; ``list`` zips equal-length lists point by point.
+
+Everything is checked here, before any run: unknown paths and keys (with "did you mean"), values
+that are not numbers of the right kind, empty ranges, unknown metrics or muscles. Each error is a
+one-line :class:`frogsim.ScenarioError` naming the spec field, the value and what is allowed.
+:meth:`SweepSpec.validate_points` then validates every point's scenario.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import itertools
+import json
+import math
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from frogsim.components import schema
+from frogsim.components.builder import unknown_key_error, unwrap
+from frogsim.errors import MISSING, UNKNOWN, ScenarioError
+from frogsim.io.scenario import merged_raw, read_toml, scenario_from_raw, with_overrides
+from frogsim.io.units import SI_UNITS, parse_quantity
+
+METHODS = ("grid", "list", "random", "lhs")
+MAX_POINTS = 2_000_000
+_SPEC_KEYS = ("name", "description", "base", "sweep", "record", "run")
+_PARAM_KEYS = ("values", "start", "stop", "num", "min", "max", "unit", "scale")
+_RANGE_KEYS = ("values", "start", "stop", "num", "min", "max")
+
+
+# --- what a dotted path is --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class FieldInfo:
+    """How the scenario reads one setting: a quantity kind, an integer, a flag or a choice."""
+    kind: str                      # a key of frogsim.io.units.SI_UNITS, "integer", "flag" or "choice"
+    choices: tuple = ()
+
+    @property
+    def numeric(self) -> bool:
+        return self.kind not in ("flag", "choice")
+
+    @property
+    def si_unit(self) -> str:
+        if self.kind in SI_UNITS:
+            return SI_UNITS[self.kind][0].replace("**", "^")
+        return "1" if self.kind == "integer" else ""
+
+
+def _dataclass_fields(cls) -> dict[str, FieldInfo]:
+    out = {}
+    for f in dataclasses.fields(cls):
+        meta = f.metadata or {}
+        if "kind" in meta:
+            out[f.name] = FieldInfo(meta["kind"])
+        elif meta.get("integer"):
+            out[f.name] = FieldInfo("integer")
+        elif meta.get("boolean"):
+            out[f.name] = FieldInfo("flag")
+        elif "choices" in meta:
+            out[f.name] = FieldInfo("choice", tuple(meta["choices"]))
+    return out
+
+
+_SECTIONS = {"air": schema.Air, "source": schema.Chamber, "exhaust": schema.Chamber, "pump": schema.Pump,
+             "supply": schema.Supply, "controller": schema.Controller, "solver": schema.Solver}
+_TIME = FieldInfo("time")
+_FRACTION = FieldInfo("dimensionless")
+_MOTION = {"contraction": _FRACTION, "fraction": _FRACTION, "delay": _TIME, "rise": _TIME, "fall": _TIME,
+           "kind": FieldInfo("choice", tuple(schema.MOTION_KINDS))}
+
+
+def field_info(path: str, base_raw: dict) -> FieldInfo:
+    """How the setting at a dotted path is read, or ScenarioError if no setting lives there."""
+    keys = path.split(".")
+    where = f"sweep.parameters.{path}"
+
+    def unknown(known, key):
+        err = unknown_key_error("", key, known)
+        return ScenarioError(where, UNKNOWN, f"no scenario setting at this path: {err.allowed}")
+
+    if not all(keys):
+        raise ScenarioError(where, UNKNOWN, "expected a dotted path such as source.initial_pressure_gauge")
+    top = keys[0]
+    tops = ("duration", "output_interval", *_SECTIONS, "valves", "muscle_types", "muscles", "programs")
+    if top not in tops:
+        raise unknown(tops, top)
+    if len(keys) == 1:
+        if top in ("duration", "output_interval"):
+            return _TIME
+        raise ScenarioError(where, UNKNOWN, f"{top!r} is a table; sweep one of its settings, "
+                                            f"e.g. {top}.<name>")
+    if top in _SECTIONS and len(keys) == 2:
+        fields = _dataclass_fields(_SECTIONS[top])
+        if keys[1] not in fields:
+            raise unknown(fields, keys[1])
+        return fields[keys[1]]
+    if top == "valves" and len(keys) == 3:
+        if keys[1] not in ("charge", "discharge"):
+            raise unknown(("charge", "discharge"), keys[1])
+        fields = _dataclass_fields(schema.Valve)
+        if keys[2] not in fields:
+            raise unknown(fields, keys[2])
+        return fields[keys[2]]
+    if top in ("muscle_types", "muscles", "programs") and len(keys) >= 3:
+        names = base_raw.get(top, {})
+        if keys[1] not in names:
+            raise ScenarioError(where, UNKNOWN, f"the base scenario has no {top}.{keys[1]} "
+                                                f"(it has: {', '.join(names) or 'none'})")
+        if top == "muscle_types" and len(keys) == 3:
+            fields = _dataclass_fields(schema.MuscleType)
+        elif top == "programs" and len(keys) == 3:
+            fields = _dataclass_fields(schema._Cycle)
+        elif top == "muscles" and len(keys) == 3:
+            fields = {"initial_pressure_gauge": FieldInfo("pressure"),
+                      "type": FieldInfo("choice", tuple(base_raw.get("muscle_types", {})))}
+            if keys[2] in ("motion", "program"):
+                raise ScenarioError(where, UNKNOWN, f"{keys[2]!r} is a table; sweep one of its "
+                                                    f"settings, e.g. {path}.{'fraction' if keys[2] == 'motion' else 'pressurise'}")
+        elif top == "muscles" and len(keys) == 4 and keys[2] == "motion":
+            fields = _MOTION
+        else:
+            raise ScenarioError(where, UNKNOWN, "no scenario setting at this path")
+        key = keys[-1]
+        if key not in fields:
+            raise unknown(fields, key)
+        return fields[key]
+    raise ScenarioError(where, UNKNOWN, "no scenario setting at this path")
+
+
+def validation_group(path: str) -> str:
+    """Settings the scenario loader checks together (a check never reads two groups).
+
+    Each section of the parameter set is built and checked on its own (pump band, valve ratios,
+    ...); the run settings (duration, output interval, controller, programs, muscles, muscle
+    types) meet in the muscle motions and are one group.
+    """
+    keys = path.split(".")
+    if keys[0] == "valves":
+        return ".".join(keys[:2])
+    if keys[0] in ("air", "source", "exhaust", "pump", "supply", "solver"):
+        return keys[0]
+    return "run"
+
+
+# --- values -----------------------------------------------------------------------------------------
+def _split_unit(text: str) -> tuple[float, str] | None:
+    """("3.5 bar") -> (3.5, "bar"); None if text does not start with a number."""
+    m = re.fullmatch(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*", text)
+    if not m:
+        return None
+    return float(m.group(1)), m.group(2)
+
+
+def _fmt(x: float, digits: int = 12) -> str:
+    """A number as it would be written by hand: ``digits`` significant digits, no trailing noise."""
+    s = f"{x:.{digits}g}"
+    return "0" if s == "-0" else s
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One swept setting: its dotted path, how it is read, and its values (grid and list) or range.
+
+    ``written`` are the values as they go into the scenario (text with units, numbers, choices);
+    ``si`` the same values in SI (``info.si_unit``; NaN for choices and flags).
+    ``display_unit``/``display_factor``: the unit the values were written in and its size in SI,
+    when all share one (plots use it).
+    """
+    path: str
+    info: FieldInfo
+    written: tuple
+    si: tuple
+    display_unit: str = ""
+    display_factor: float = 1.0
+    range: dict | None = None        # random/lhs: {"min": SI, "max": SI, "unit": str, "scale": str}
+
+
+def _to_si(value, info: FieldInfo, where: str) -> float:
+    """SI float of one value as written, or ScenarioError naming the spec field."""
+    if info.kind == "flag":
+        if not isinstance(value, bool):
+            raise ScenarioError(where, value, "expected true or false")
+        return math.nan
+    if info.kind == "choice":
+        if value not in info.choices:
+            raise ScenarioError(where, value, f"must be one of {', '.join(map(repr, info.choices))}")
+        return math.nan
+    if info.kind == "integer":
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ScenarioError(where, value, "expected a whole number")
+        return float(value)
+    unit, what = SI_UNITS[info.kind]
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise ScenarioError(where, value, f"expected {what}")
+    if isinstance(value, (int, float)):
+        if info.kind != "dimensionless":
+            raise ScenarioError(where, value, f"expected {what}: write the unit out (or give unit = ...)")
+        x = float(value)
+    else:
+        try:
+            x = parse_quantity(value.strip(), info.kind)
+        except Exception:  # pint raises several error types for bad text or dimensions
+            raise ScenarioError(where, value, f"expected {what}") from None
+    if not math.isfinite(x):
+        raise ScenarioError(where, value, "must be a finite number")
+    return x
+
+
+def _with_unit(x, unit: str | None, info: FieldInfo, where: str):
+    """A number given with a separate unit = "bar" -> the text "3 bar"."""
+    if unit is None:
+        return x
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        raise ScenarioError(where, x, f"expected a number (the unit {unit!r} is given separately)")
+    return f"{_fmt(float(x))} {unit}" if unit else float(x)
+
+
+def _unit_of(value) -> str | None:
+    if isinstance(value, str):
+        split = _split_unit(value)
+        return split[1] if split else None
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        return ""
+    return None
+
+
+def _range_value(text, unit, info: FieldInfo, where: str) -> tuple[float, str]:
+    """A range end as (number in its written unit, that unit); checks it is the right kind."""
+    value = _with_unit(text, unit, info, where)
+    _to_si(value, info, where)
+    if isinstance(value, (int, float)):
+        return float(value), ""
+    split = _split_unit(value)
+    if split is None:
+        raise ScenarioError(where, text, "expected a number followed by its unit, such as \"3 bar\"")
+    return split
+
+
+def _generated(mags, unit: str, info: FieldInfo, where: str, digits: int = 12) -> tuple[tuple, tuple]:
+    """Values generated in a written unit -> (as written with ``digits`` significant digits, SI)."""
+    if info.kind == "integer":
+        if any(abs(m - round(m)) > 1e-9 for m in mags):
+            raise ScenarioError(where, [_fmt(m) for m in mags], "must be whole numbers for this setting")
+        written = tuple(int(round(m)) for m in mags)
+    elif unit:
+        written = tuple(f"{_fmt(m, digits)} {unit}" for m in mags)
+    else:
+        written = tuple(float(_fmt(m, digits)) for m in mags)
+    return written, tuple(_to_si(w, info, where) for w in written)
+
+
+def _display(written: tuple, si: tuple, info: FieldInfo) -> tuple[str, float]:
+    if not info.numeric or info.kind == "integer":
+        return "", 1.0
+    units = {_unit_of(w) for w in written}
+    if len(units) == 1:
+        unit = units.pop()
+        if unit:
+            return unit, parse_quantity(f"1 {unit}", info.kind)
+    return info.si_unit, 1.0
+
+
+def _parameter(path: str, raw, method: str, base_raw: dict) -> Parameter:
+    where = f"sweep.parameters.{path}"
+    info = field_info(path, base_raw)
+    if isinstance(raw, list):
+        raw = {"values": raw}
+    if not isinstance(raw, dict):
+        raise ScenarioError(where, raw, "expected a list of values, { values = [...] }, "
+                                        "{ start, stop, num } or { min, max }")
+    for key in raw:
+        if key not in _PARAM_KEYS:
+            raise unknown_key_error(where, key, _PARAM_KEYS)
+    unit = raw.get("unit")
+    if unit is not None:
+        if not isinstance(unit, str):
+            raise ScenarioError(f"{where}.unit", unit, "expected a unit as text, such as \"bar\"")
+        if not info.numeric or info.kind == "integer":
+            raise ScenarioError(f"{where}.unit", unit, f"this setting takes no unit ({info.kind})")
+        try:
+            parse_quantity(f"1 {unit}", info.kind)
+        except Exception:
+            raise ScenarioError(f"{where}.unit", unit, f"expected a unit of {SI_UNITS[info.kind][1]}") from None
+    scale = raw.get("scale", "linear")
+    if scale not in ("linear", "log"):
+        raise ScenarioError(f"{where}.scale", scale, "must be 'linear' or 'log'")
+    given = [k for k in _RANGE_KEYS if k in raw]
+    sampled = method in ("random", "lhs")
+    if sampled:
+        if set(given) != {"min", "max"}:
+            raise ScenarioError(where, {k: raw[k] for k in given} or raw,
+                                f"method {method!r} takes a range {{ min = ..., max = ... }}")
+        if not info.numeric:
+            raise ScenarioError(where, UNKNOWN, f"a {info.kind} setting cannot be sampled over a range; "
+                                                "use method = \"grid\" or \"list\" with values")
+        lo, lo_unit = _range_value(raw["min"], unit, info, f"{where}.min")
+        hi_text = _with_unit(raw["max"], unit, info, f"{where}.max")
+        hi_si = _to_si(hi_text, info, f"{where}.max")
+        factor = parse_quantity(f"1 {lo_unit}", info.kind) if lo_unit else 1.0
+        hi = hi_si / factor
+        if not hi > lo:
+            raise ScenarioError(f"{where}.max", raw["max"], f"must be above min ({raw['min']!r}): the range is empty")
+        if scale == "log" and lo <= 0:
+            raise ScenarioError(f"{where}.min", raw["min"], "must be > 0 for scale = \"log\"")
+        if info.kind == "integer" and (lo != int(lo) or hi != int(hi)):
+            raise ScenarioError(where, raw, "min and max must be whole numbers for this setting")
+        return Parameter(path, info, (), (), lo_unit or ("" if info.kind == "integer" else info.si_unit), factor,
+                         {"min": lo, "max": hi, "unit": lo_unit, "scale": scale})
+    if "values" in raw:
+        if set(given) != {"values"}:
+            extra = sorted(set(given) - {"values"})[0]
+            raise ScenarioError(f"{where}.{extra}", raw[extra], "give either values or start/stop/num, not both")
+        values = raw["values"]
+        if not isinstance(values, list) or not values:
+            raise ScenarioError(f"{where}.values", values, "expected a non-empty list of values")
+        written = []
+        for j, v in enumerate(values):
+            v = unwrap(v)
+            if isinstance(v, (dict, list)):
+                raise ScenarioError(f"{where}.values[{j}]", v, "expected a single value, not a table or list")
+            written.append(_with_unit(v, unit, info, f"{where}.values[{j}]"))
+        si = tuple(_to_si(w, info, f"{where}.values[{j}]") for j, w in enumerate(written))
+        if len({json.dumps(w) for w in written}) < len(written) and method == "grid":
+            raise ScenarioError(f"{where}.values", values, "values repeat; a grid takes each value once")
+        written = tuple(written)
+    elif set(given) == {"start", "stop", "num"}:
+        if not info.numeric:
+            raise ScenarioError(where, UNKNOWN, f"a {info.kind} setting takes a list of values, not a range")
+        num = raw["num"]
+        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+            raise ScenarioError(f"{where}.num", num, "expected a whole number >= 1")
+        a, a_unit = _range_value(raw["start"], unit, info, f"{where}.start")
+        b_text = _with_unit(raw["stop"], unit, info, f"{where}.stop")
+        factor = parse_quantity(f"1 {a_unit}", info.kind) if a_unit else 1.0
+        b = _to_si(b_text, info, f"{where}.stop") / factor
+        if num > 1 and a == b:
+            raise ScenarioError(f"{where}.stop", raw["stop"], "equals start: the range is empty (or use num = 1)")
+        if scale == "log":
+            if a <= 0 or b <= 0:
+                raise ScenarioError(f"{where}.start", raw["start"], "start and stop must be > 0 for scale = \"log\"")
+            mags = np.geomspace(a, b, num)
+        else:
+            mags = np.linspace(a, b, num)
+        written, si = _generated(mags, a_unit, info, where, digits=6)     # readable: "28.7091 L/min"
+        if len(set(written)) < len(written):
+            written, si = _generated(mags, a_unit, info, where)
+        if len(set(written)) < len(written):
+            raise ScenarioError(where, raw, "the range gives repeated values once written with 12 digits")
+    else:
+        raise ScenarioError(where, raw, "expected values = [...], or start, stop and num")
+    unit_d, factor = _display(written, si, info)
+    return Parameter(path, info, written, si, unit_d, factor)
+
+
+def _flatten_parameters(node: dict, prefix: str = "") -> dict:
+    """{"source": {"volume": [...]}} or {"source.volume": [...]} -> {"source.volume": [...]}."""
+    out = {}
+    for key, val in node.items():
+        path = f"{prefix}.{key}" if prefix else key
+        if isinstance(val, dict) and not (set(val) & set(_PARAM_KEYS)) and val:
+            out.update(_flatten_parameters(val, path))
+        else:
+            out[path] = val
+    return out
+
+
+def _apply_overrides(raw: dict, overrides: dict, prefix: str = "") -> dict:
+    """Base overrides: a key with a dot is a path whose value replaces what is there; a plain
+    key holding a table descends into it (so unquoted dotted TOML keys merge key by key)."""
+    for key, val in overrides.items():
+        path = f"{prefix}.{key}" if prefix else key
+        if "." not in key and isinstance(val, dict) and val and "value" not in val and \
+                isinstance(_get(raw, path), dict):
+            raw = _apply_overrides(raw, val, path)
+        else:
+            raw = with_overrides(_ensure_section(raw, path), {path: val})
+    return raw
+
+
+def _ensure_section(raw: dict, path: str) -> dict:
+    """A copy of raw with an empty table for the path's section if the scenario left it out
+    (an empty [solver] or [controller] means the defaults, as a missing one does)."""
+    top = path.split(".")[0]
+    if "." in path and top in _SECTIONS and top not in raw:
+        raw = dict(raw)
+        raw[top] = {}
+    return raw
+
+
+def _get(raw: dict, path: str):
+    node = raw
+    for key in path.split("."):
+        if not isinstance(node, dict) or key not in node:
+            return None
+        node = node[key]
+    return node
+
+
+# --- the spec ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TimeSeries:
+    """Time series to store per point: state names (see :data:`frogsim.sweep.runner.STATES`), every
+    ``step`` output samples of the base scenario (``interval`` [s])."""
+    states: tuple
+    interval: float
+    step: int
+    times: tuple
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep: the base scenario (merged raw dict), the parameters, the points, what to
+    record. Build it with :func:`load_spec`."""
+    name: str
+    description: str
+    method: str
+    base: str                        # the base as given (shipped name or path)
+    base_raw: dict                   # merged raw scenario, overrides applied
+    base_dir: str
+    parameters: tuple                # Parameter, in the spec's order
+    written: tuple                   # per point: tuple of values as written (one per parameter)
+    si: np.ndarray                   # (points, parameters) SI values (NaN for choices)
+    metrics: tuple
+    muscle: str
+    timeseries: TimeSeries | None
+    chunk_size: int
+    samples: int | None = None
+    seed: int | None = None
+    text: str = ""                   # the spec file as written ("" for a dict)
+    raw: dict = dataclasses.field(default_factory=dict, repr=False)
+
+    @property
+    def paths(self) -> list[str]:
+        return [p.path for p in self.parameters]
+
+    @property
+    def shape(self) -> tuple:
+        """Grid: one length per parameter; otherwise (points,)."""
+        if self.method == "grid":
+            return tuple(len(p.written) for p in self.parameters)
+        return (len(self.written),)
+
+    @property
+    def dims(self) -> tuple:
+        return tuple(self.paths) if self.method == "grid" else ("point",)
+
+    @property
+    def n_points(self) -> int:
+        return len(self.written)
+
+    def point(self, k: int) -> dict:
+        """Overrides of point k (flat index, C order for a grid): dotted path -> value as written."""
+        return dict(zip(self.paths, self.written[k]))
+
+    def points(self, indices=None) -> list[dict]:
+        idx = range(self.n_points) if indices is None else indices
+        return [self.point(int(k)) for k in idx]
+
+    def chunks(self) -> list[np.ndarray]:
+        """The fixed chunk plan (flat point indices); it depends on the spec only, so a resumed or
+        distributed run groups points exactly as an uninterrupted local one."""
+        n = self.n_points
+        return [np.arange(a, min(a + self.chunk_size, n)) for a in range(0, n, self.chunk_size)]
+
+    @functools.cached_property
+    def hash(self) -> str:
+        """SHA-256 of what determines the results: base scenario, points, metrics, muscle, time
+        series, chunk plan (not the name, description or comments)."""
+        key = {"base": self.base_raw, "method": self.method,
+               "paths": self.paths, "points": [list(w) for w in self.written],
+               "metrics": list(self.metrics), "muscle": self.muscle,
+               "timeseries": None if self.timeseries is None else
+               [list(self.timeseries.states), self.timeseries.step], "chunk_size": self.chunk_size}
+        blob = json.dumps(key, sort_keys=True, default=str).encode()
+        return hashlib.sha256(blob).hexdigest()
+
+    def base_toml(self) -> str:
+        """The merged base scenario (parameter set + scenario + overrides) as TOML text."""
+        return dumps_toml({k: v for k, v in self.base_raw.items()})
+
+    def validate_points(self) -> int:
+        """Validate every point's scenario (raises ScenarioError naming the point); returns the
+        number of scenarios checked.
+
+        The loader checks each validation group (see :func:`validation_group`) on its own, so it is
+        enough to check every combination of values met within each group, the rest at base
+        values: for a grid that is far fewer than the points. Point sweeps (list, random, lhs)
+        whose combinations are no fewer are checked point by point.
+        """
+        groups: dict[str, list[int]] = {}
+        for j, p in enumerate(self.parameters):
+            groups.setdefault(validation_group(p.path), []).append(j)
+        combos = {g: sorted({tuple(w[j] for j in cols) for w in self.written}, key=repr)
+                  for g, cols in groups.items()}
+        todo: list[tuple[dict, int | None]] = []
+        if sum(len(c) for c in combos.values()) < self.n_points:
+            for g, cols in groups.items():
+                for combo in combos[g]:
+                    todo.append(({self.paths[j]: v for j, v in zip(cols, combo)}, None))
+        else:
+            todo = [(self.point(k), k) for k in range(self.n_points)]
+        if not todo:
+            todo = [({}, None)]
+        for overrides, k in todo:
+            try:
+                scenario_from_raw(with_overrides(self.base_raw, overrides, share=True), self.base_dir)
+            except ScenarioError as exc:
+                where = f"sweep point {k}" if k is not None else "a sweep point"
+                raise ScenarioError(exc.field, exc.value,
+                                    f"{exc.allowed} (in {where}: {_show(overrides)})") from None
+        return len(todo)
+
+
+def _show(overrides: dict) -> str:
+    return ", ".join(f"{k} = {v!r}" for k, v in overrides.items()) or "the base scenario"
+
+
+def _sample(method: str, n: int, seed: int, params: list[Parameter]) -> np.ndarray:
+    """(n, d) numbers in [0, 1): Latin hypercube (one sample per stratum in every dimension) or
+    independent uniform."""
+    d = len(params)
+    if method == "lhs":
+        from scipy.stats import qmc
+        return qmc.LatinHypercube(d=d, rng=seed).random(n)
+    return np.random.default_rng(seed).random((n, d))
+
+
+def _sampled_values(p: Parameter, u: np.ndarray, where: str) -> tuple[tuple, tuple]:
+    r = p.range
+    lo, hi = r["min"], r["max"]
+    if p.info.kind == "integer":
+        mags = np.minimum(np.floor(lo + u * (hi - lo + 1.0)), hi)
+    elif r["scale"] == "log":
+        mags = np.exp(np.log(lo) + u * (np.log(hi) - np.log(lo)))
+    else:
+        mags = lo + u * (hi - lo)
+    written, si = _generated(mags, r["unit"], p.info, where)
+    return written, si
+
+
+def _check_keys(node, allowed, where):
+    if not isinstance(node, dict):
+        raise ScenarioError(where, node, "expected a table")
+    for key in node:
+        if key not in allowed:
+            raise unknown_key_error(where, key, allowed)
+
+
+def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
+    """Read and validate a sweep spec from a TOML path or a dict (see the module docstring).
+
+    A dict's relative base scenario path is resolved against ``base_dir`` (default: the current
+    folder). Raises ScenarioError (field, value, what is allowed) on anything wrong. Does not
+    validate the points' scenarios: :meth:`SweepSpec.validate_points` does (run_sweep calls it).
+    """
+    from frogsim.sweep.metrics import METRICS
+    text = ""
+    if isinstance(source, SweepSpec):
+        return source
+    if isinstance(source, (str, os.PathLike)):
+        path = Path(source)
+        if path.is_dir():
+            raise ScenarioError("spec", str(source), "is a folder, expected a sweep spec TOML file")
+        raw = read_toml(path, "spec")
+        text = path.read_text()
+        spec_dir = path.resolve().parent
+    elif isinstance(source, dict):
+        raw = json.loads(json.dumps(source))
+        spec_dir = Path(base_dir or ".").resolve()
+    else:
+        raise ScenarioError("spec", source, "expected a path to a sweep spec TOML file or a dict")
+    _check_keys(raw, _SPEC_KEYS, "")
+    name = raw.get("name", Path(source).stem if isinstance(source, (str, os.PathLike)) else "sweep")
+    description = raw.get("description", "")
+    for key, val in (("name", name), ("description", description)):
+        if not isinstance(val, str):
+            raise ScenarioError(key, val, "expected text")
+
+    # base scenario
+    base = raw.get("base", MISSING)
+    if base is MISSING:
+        raise ScenarioError("base", MISSING, "required: a shipped scenario name (paper-cycle) or a path, "
+                                             "or a table { scenario = ..., overrides = { ... } }")
+    if isinstance(base, str):
+        base = {"scenario": base}
+    _check_keys(base, ("scenario", "overrides"), "base")
+    if not isinstance(base.get("scenario"), str):
+        raise ScenarioError("base.scenario", base.get("scenario", MISSING),
+                            "required: a shipped scenario name (paper-cycle) or a path to a scenario file")
+    base_name = base["scenario"]
+    from frogsim.io.scenario import SCENARIOS_DIR
+    candidate = spec_dir / base_name
+    if candidate.is_file():
+        where = candidate
+    elif (SCENARIOS_DIR / f"{base_name}.toml").exists() and "/" not in base_name and not base_name.endswith(".toml"):
+        where = SCENARIOS_DIR / f"{base_name}.toml"
+    else:
+        shipped = ", ".join(sorted(p.stem for p in SCENARIOS_DIR.glob("*.toml")))
+        raise ScenarioError("base.scenario", base_name, f"must be a scenario file (relative to the spec: "
+                                                        f"{spec_dir}) or a shipped scenario ({shipped})")
+    base_raw, scen_dir = merged_raw(where)
+    overrides = base.get("overrides", {})
+    if not isinstance(overrides, dict):
+        raise ScenarioError("base.overrides", overrides, "expected a table of dotted path = value")
+    try:
+        base_raw = _apply_overrides(base_raw, overrides)
+        scenario = scenario_from_raw(base_raw, scen_dir)
+    except ScenarioError as exc:
+        raise ScenarioError(exc.field, exc.value, f"{exc.allowed} (in the base scenario)") from None
+    base_raw = json.loads(json.dumps(base_raw))
+
+    # parameters and points
+    sweep = raw.get("sweep", MISSING)
+    if sweep is MISSING:
+        raise ScenarioError("sweep", MISSING, "required: [sweep] with method and parameters")
+    _check_keys(sweep, ("method", "parameters", "samples", "seed"), "sweep")
+    method = sweep.get("method", "grid")
+    if method not in METHODS:
+        raise ScenarioError("sweep.method", method, f"must be one of {', '.join(map(repr, METHODS))}")
+    params_raw = sweep.get("parameters", MISSING)
+    if not isinstance(params_raw, dict) or not params_raw:
+        raise ScenarioError("sweep.parameters", params_raw,
+                            "expected a table of at least one dotted path = values or range")
+    flat = _flatten_parameters(params_raw)
+    paths = list(flat)
+    for a, b in itertools.permutations(paths, 2):
+        if b.startswith(a + "."):
+            raise ScenarioError(f"sweep.parameters.{b}", UNKNOWN, f"lies inside another swept setting ({a})")
+    params = [_parameter(p, v, method, base_raw) for p, v in flat.items()]
+    for p in paths:
+        base_raw = _ensure_section(base_raw, p)
+    samples = seed = None
+    if method in ("random", "lhs"):
+        samples = sweep.get("samples", MISSING)
+        if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+            raise ScenarioError("sweep.samples", samples, f"method {method!r} needs a whole number of samples >= 1")
+        seed = sweep.get("seed", 0)
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise ScenarioError("sweep.seed", seed, "expected a whole number >= 0")
+        if samples > MAX_POINTS:
+            raise ScenarioError("sweep.samples", samples, f"must be <= {MAX_POINTS}")
+        u = _sample(method, samples, seed, params)
+        filled = []
+        for j, p in enumerate(params):
+            w, s = _sampled_values(p, u[:, j], f"sweep.parameters.{p.path}")
+            filled.append(dataclasses.replace(p, written=w, si=s))
+        params = filled
+        written = list(zip(*(p.written for p in params)))
+    else:
+        for key in ("samples", "seed"):
+            if key in sweep:
+                raise ScenarioError(f"sweep.{key}", sweep[key], f"only for method 'random' or 'lhs', not {method!r}")
+        if method == "list":
+            lengths = {p.path: len(p.written) for p in params}
+            if len(set(lengths.values())) > 1:
+                first = params[0]
+                odd = next(p for p in params if len(p.written) != len(first.written))
+                raise ScenarioError(f"sweep.parameters.{odd.path}", f"{len(odd.written)} value(s)",
+                                    f"method 'list' zips parameters point by point: must have as many "
+                                    f"values as {first.path} ({len(first.written)})")
+            written = list(zip(*(p.written for p in params)))
+        else:
+            total = math.prod(len(p.written) for p in params)
+            if total > MAX_POINTS:
+                raise ScenarioError("sweep.parameters", f"{total} points", f"a grid must have <= {MAX_POINTS} points")
+            written = list(itertools.product(*(p.written for p in params)))
+    if method == "grid":
+        si = np.array(list(itertools.product(*(p.si for p in params))), float).reshape(len(written), len(params))
+    else:
+        si = np.array([p.si for p in params], float).T.reshape(len(written), len(params))
+
+    # what to record
+    record = raw.get("record", {})
+    _check_keys(record, ("metrics", "muscle", "timeseries"), "record")
+    metrics = record.get("metrics", list(METRICS))
+    if isinstance(metrics, str):
+        metrics = [metrics]
+    if not isinstance(metrics, list) or not metrics:
+        raise ScenarioError("record.metrics", metrics, f"expected a list of metric names ({', '.join(METRICS)})")
+    for m in metrics:
+        if m not in METRICS:
+            raise ScenarioError("record.metrics", m, f"must be one of {', '.join(METRICS)}")
+    if len(set(metrics)) < len(metrics):
+        raise ScenarioError("record.metrics", metrics, "names a metric twice")
+    muscles = list(scenario.muscles)
+    muscle = record.get("muscle", muscles[0])
+    if muscle not in muscles:
+        raise ScenarioError("record.muscle", muscle, f"must name a muscle of the base scenario ({', '.join(muscles)})")
+    timeseries = _timeseries(record.get("timeseries"), scenario, params, metrics)
+
+    run = raw.get("run", {})
+    _check_keys(run, ("chunk_size",), "run")
+    n = len(written)
+    chunk_size = run.get("chunk_size", min(2000, max(64, math.ceil(n / 10))))
+    if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
+        raise ScenarioError("run.chunk_size", chunk_size, "expected a whole number >= 1")
+    return SweepSpec(name=name, description=description, method=method, base=base_name, base_raw=base_raw,
+                     base_dir=scen_dir, parameters=tuple(params), written=tuple(written), si=si,
+                     metrics=tuple(metrics), muscle=muscle, timeseries=timeseries,
+                     chunk_size=chunk_size, samples=samples, seed=seed, text=text, raw=raw)
+
+
+def _timeseries(ts, scenario, params, metrics) -> TimeSeries | None:
+    from frogsim.sweep.runner import STATES
+    if ts is None:
+        return None
+    where = "record.timeseries"
+    _check_keys(ts, ("states", "interval"), where)
+    states = ts.get("states", MISSING)
+    if isinstance(states, str):
+        states = [states]
+    if not isinstance(states, list) or not states:
+        raise ScenarioError(f"{where}.states", states, f"expected a list of state names ({', '.join(STATES)})")
+    for s in states:
+        if s not in STATES:
+            raise ScenarioError(f"{where}.states", s, f"must be one of {', '.join(STATES)}")
+        if s in metrics:
+            raise ScenarioError(f"{where}.states", s, "is also recorded as a metric")
+    for p in params:
+        if p.path in ("duration", "output_interval"):
+            raise ScenarioError(f"{where}", UNKNOWN, f"time series need one time grid: not available "
+                                                     f"when {p.path} is swept")
+    from frogsim.components.builder import parse_field
+    oi = scenario.output_interval
+    interval = parse_field(ts.get("interval", f"{oi} s"), dict(kind="time", gt=0.0, display="ms"),
+                           f"{where}.interval")
+    step = round(interval / oi)
+    if step < 1 or abs(step * oi - interval) > 1e-9 * interval:
+        raise ScenarioError(f"{where}.interval", ts.get("interval"),
+                            f"must be a whole multiple of the base scenario's output_interval ({oi * 1e3:g} ms)")
+    from frogsim.circuit.model import output_times
+    t = output_times(scenario.duration, oi)[::step]
+    return TimeSeries(tuple(states), interval, step, tuple(float(x) for x in t))
+
+
+# --- TOML text (the base scenario is stored in the results file) ------------------------------------
+_BARE = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def _toml_key(k: str) -> str:
+    return k if _BARE.fullmatch(k) else json.dumps(k, ensure_ascii=False)
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(f"cannot write {type(v).__name__} as TOML")
+
+
+def dumps_toml(data: dict) -> str:
+    """TOML text of a dict of tables, text, numbers, booleans and lists ({value = ...} tables
+    inline). ``tomllib.loads(dumps_toml(d)) == d``."""
+    lines: list[str] = []
+
+    def table(prefix: str, node: dict):
+        leaves = [(k, v) for k, v in node.items() if not (isinstance(v, dict) and "value" not in v)]
+        subs = [(k, v) for k, v in node.items() if isinstance(v, dict) and "value" not in v]
+        if prefix and (leaves or not subs):
+            lines.append(f"\n[{prefix}]")
+        for k, v in leaves:
+            lines.append(f"{_toml_key(k)} = {_toml_value(v)}")
+        for k, v in subs:
+            table(f"{prefix}.{_toml_key(k)}" if prefix else _toml_key(k), v)
+
+    table("", data)
+    return "\n".join(lines).lstrip("\n") + "\n"

@@ -1,0 +1,48 @@
+"""Small scenario and spec files shared by the sweep tests (short runs, tens of points)."""
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+# one hip muscle held at a fixed volume, charged for 0.3 s then vented: 0.5 s per run
+ONE_HIP = """
+name = "one-hip"
+duration = "0.5 s"
+output_interval = "1 ms"
+[controller]
+rate = "1 kHz"
+[programs.stroke]
+pressurise = "0.3 s"
+release = "0.2 s"
+[muscles.hip]
+type = "hip"
+program = "stroke"
+motion = { kind = "volume_constant", fraction = 0.5 }
+"""
+
+GRID = """
+name = "grid-test"
+[base]
+scenario = "one-hip.toml"
+[sweep]
+method = "grid"
+[sweep.parameters]
+"source.initial_pressure_gauge" = { start = "3 bar", stop = "6 bar", num = 4 }
+"supply.branch_limit" = { values = [15, 45, 180], unit = "L/min" }
+"muscles.hip.motion.fraction" = [0.0, 1.0]
+[record]
+metrics = ["rise_time", "final_pressure", "aeration_volume", "source_drop"]
+muscle = "hip"
+timeseries = { states = ["muscle_pressure", "source_pressure"], interval = "10 ms" }
+[run]
+chunk_size = 5
+"""
+
+
+def write_case(folder: Path, spec: str = GRID, base: str = ONE_HIP, name: str = "spec.toml") -> Path:
+    """Write the base scenario and a spec into folder; returns the spec path."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "one-hip.toml").write_text(textwrap.dedent(base))
+    path = folder / name
+    path.write_text(textwrap.dedent(spec))
+    return path
