@@ -6,13 +6,18 @@ Public API::
     scenario = frogsim.load_scenario("paper-cycle")          # a TOML path, shipped name or dict
     result = frogsim.simulate(scenario)                       # -> Result
     df = result.to_dataframe()                                # SI columns, units in the names
+
+    run = frogsim.swim("swim", cycles=10)                     # the robot in MuJoCo -> SwimResult
+    run.summary()["mean_speed_m_per_s"]                       # m/s; see frogsim.engine.swim
 """
 from frogsim.circuit.model import build_model
 from frogsim.engine.pneumatic import simulate
 from frogsim.engine.result import Result
+from frogsim.engine.swim import SwimResult, swim
 from frogsim.errors import FrogsimError, ScenarioError, SimulationError
 from frogsim.io.scenario import load_scenario, with_overrides
+from frogsim.robot.scenario import load_robot_scenario
 
-__all__ = ["FrogsimError", "Result", "ScenarioError", "SimulationError", "build_model",
-           "load_scenario", "simulate", "with_overrides"]
+__all__ = ["FrogsimError", "Result", "ScenarioError", "SimulationError", "SwimResult", "build_model",
+           "load_robot_scenario", "load_scenario", "simulate", "swim", "with_overrides"]
 __version__ = "0.1.0"

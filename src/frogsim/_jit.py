@@ -23,7 +23,8 @@ import numba
 from numba import njit
 
 _PACKAGE = Path(__file__).resolve().parent
-_COMPILED_SOURCES = ("_jit.py", "physics", "circuit", "engine")
+# robot/water.py: its table layout (E_*, P_*) is compiled into the coupled engine as constants
+_COMPILED_SOURCES = ("_jit.py", "physics", "circuit", "engine", "robot/water.py")
 
 
 def _source_hash() -> str:

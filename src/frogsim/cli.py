@@ -4,7 +4,11 @@
     frogsim reproduce [STUDY ...] --out DIR reproduce the paper's studies (all by default)
     frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
     frogsim simulate SCENARIO --out DIR     run one scenario (TOML path or shipped name)
+    frogsim swim SCENARIO [--cycles N] --out DIR  run the robot in MuJoCo (swim, leg-in-air): CSV,
+                                            figure, summary.json, MJCF, animation
     frogsim params [NAME]                   show a parameter set with the source of every value
+    frogsim sweep SPEC.toml --out RESULTS.nc run a parameter sweep (resumable; see docs/sweeps.md)
+    frogsim plot RESULTS.nc --x P --metric M a sweep's metric against one or two swept parameters
 
 Exit codes: 0 success, 1 simulation failure, 2 bad input (one-line message, nothing written).
 """
@@ -44,38 +48,73 @@ def cmd_design(args) -> int:
     return _run_studies(args, "design")
 
 
+def _study_task(name: str, out: str) -> tuple:
+    """Compute one study and write its CSV and PNG; returns (name, summary, seconds).
+
+    Runs in a worker process, so the costly first-run compilations of different engines (the
+    pneumatic one, the coupled MuJoCo one) proceed side by side on the machine's cores.
+    """
+    from frogsim.io.results import write_csv, write_figure
+    from frogsim.studies import STUDIES
+    t0 = time.perf_counter()
+    study = STUDIES[name]
+    data = study.compute()
+    write_csv(Path(out) / f"{name}.csv", data.table)
+    write_figure(Path(out) / f"{name}.png", lambda p: study.draw(data, p))
+    return name, data.summary, time.perf_counter() - t0
+
+
 def _run_studies(args, group: str) -> int:
+    import multiprocessing
+    import os
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
     from frogsim._jit import cache_is_warm
-    from frogsim.io.results import write_csv, write_figure, write_json
+    from frogsim.io.results import write_json
     from frogsim.studies import STUDIES, studies_in
     names = args.studies or studies_in(group)
     unknown = [n for n in names if n not in STUDIES]
     if unknown:
         return _err(f"study = {unknown[0]!r}: must be one of {', '.join(STUDIES)}", 2)
-    if not cache_is_warm():
-        _progress("first run: compiling the engine (about 8 s, cached afterwards)")
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         return _err(f"--out = {str(out)!r}: exists and is not a directory", 2)
-    summary = {}
+    if args.workers is not None and args.workers < 1:
+        return _err(f"--workers = {args.workers}: must be a whole number >= 1", 2)
+    workers = min(args.workers or os.cpu_count() or 1, len(names))
+    if not cache_is_warm():
+        _progress("first run: compiling the engines (cached afterwards)")
+    _progress(f"{len(names)} studies on {workers} process{'es' if workers > 1 else ''} -> {out}/")
+    order = sorted(names, key=lambda n: -STUDIES[n].cost)     # costly first, so they overlap the rest
+    summaries = {}
     t_all = time.perf_counter()
-    for k, name in enumerate(names, 1):
-        study = STUDIES[name]
-        t0 = time.perf_counter()
-        _progress(f"[{k}/{len(names)}] {name}: {study.title} ...")
-        data = study.compute()
-        write_csv(out / f"{name}.csv", data.table)
-        write_figure(out / f"{name}.png", lambda p, s=study, d=data: s.draw(d, p))
-        summary.update(data.summary)
-        _progress(f"      done in {time.perf_counter() - t0:.2f} s -> {out / name}.png, .csv")
-        for entry in data.summary.values():
+
+    def report(k, name, summary, seconds):
+        summaries[name] = summary
+        _progress(f"[{k}/{len(names)}] {name} done in {seconds:.2f} s -> {out / name}.png, .csv: "
+                  f"{STUDIES[name].title}")
+        for entry in summary.values():
             if isinstance(entry, dict) and "conclusion" in entry:
                 _progress(textwrap.fill(entry["conclusion"], 100, initial_indent="      ",
                                         subsequent_indent="      "))
+    if workers == 1:
+        for k, name in enumerate(order, 1):
+            report(k, *_study_task(name, str(out)))
+    else:
+        # fork where the platform has it: the workers inherit the loaded libraries (about 2 s of
+        # imports each with spawn); no threads are running yet, so forking is safe here
+        methods = multiprocessing.get_all_start_methods()
+        ctx = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
+        with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+            futures = [pool.submit(_study_task, name, str(out)) for name in order]
+            for k, fut in enumerate(as_completed(futures), 1):
+                report(k, *fut.result())
+    summary = {}
+    for name in names:                      # summary.json in registration order, whatever finished first
+        summary.update(summaries[name])
     write_json(out / "summary.json", summary)
     _progress(f"{len(names)} studies in {time.perf_counter() - t_all:.1f} s; summary: {out / 'summary.json'}")
     return 0
-
 
 def cmd_simulate(args) -> int:
     from frogsim.engine.pneumatic import simulate
@@ -93,6 +132,33 @@ def cmd_simulate(args) -> int:
     write_figure(out / "pressures.png", lambda p: plot_run(result, p))
     write_json(out / "summary.json", run_summary(result))
     _progress(f"wrote {out / 'timeseries.csv'}, {out / 'pressures.png'}, {out / 'summary.json'}")
+    return 0
+
+
+def cmd_swim(args) -> int:
+    from frogsim._jit import cache_is_warm
+    from frogsim.engine.swim import swim
+    from frogsim.robot.scenario import load_robot_scenario
+    from frogsim.studies.robot import write_outputs
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        return _err(f"--out = {str(out)!r}: exists and is not a directory", 2)
+    rs = load_robot_scenario(args.scenario, cycles=args.cycles)   # all validation before any write
+    if not cache_is_warm():
+        _progress("first run: compiling the engine (cached afterwards)")
+    _progress(f"running {rs.name!r}: {len(rs.muscles)} muscles in {rs.options.environment}, "
+              f"{rs.gait.cycles} cycles of {rs.gait.period:g} s ...")
+    result = swim(rs)
+    _progress(f"      {result.stats['mujoco_steps']} MuJoCo steps in {result.wall_s:.2f} s "
+              f"({result.t[-1] / result.wall_s:.0f} x real time)")
+    files, s = write_outputs(result, out, animation=not args.no_animation, progress=_progress)
+    _progress(f"mean speed {s['mean_speed_m_per_s']:.3f} m/s ({s['mean_speed_body_lengths_per_s']:.2f} "
+              f"body lengths/s), {s['distance_per_cycle_m']:.3f} m and {s['air_used_per_cycle_L_std']:.3f} L "
+              f"(standard) of air per cycle, source {s['source_pressure_after_cycles_bar_gauge']:.2f} bar gauge "
+              f"after {s['cycles']} cycles")
+    if "animation_skipped" in s:
+        _progress(f"warning: animation skipped: {s['animation_skipped']}")
+    _progress("wrote " + ", ".join(str(p) for p in files.values()))
     return 0
 
 
@@ -117,6 +183,46 @@ def cmd_params(args) -> int:
     return 0
 
 
+def cmd_sweep(args) -> int:
+    import json
+    from frogsim.sweep.runner import run_sweep
+    if args.workers is not None and args.workers < 1:
+        return _err(f"--workers = {args.workers}: must be >= 1", 2)
+    t0 = time.perf_counter()
+    ds = run_sweep(args.spec, out=args.out, workers=args.workers, scheduler=args.scheduler,
+                   progress=not args.quiet, overwrite=args.overwrite, connect_timeout=args.connect_timeout)
+    n, failed = ds.attrs["n_points"], ds.attrs["n_failed"]
+    _progress(f"{n} points in {time.perf_counter() - t0:.2f} s -> {args.out}")
+    if failed:
+        first = next(iter(json.loads(ds.attrs["failures"]).values()), "")
+        _progress(f"warning: {failed} points failed (their metrics are NaN); first: {first}")
+    return 0
+
+
+def cmd_plot(args) -> int:
+    from frogsim.errors import ScenarioError
+    from frogsim.sweep.plot import plot_sweep
+    from frogsim.sweep.runner import read_results
+    path = Path(args.results)
+    if not path.is_file():
+        return _err(f"results = {str(path)!r}: file not found", 2)
+    try:
+        ds = read_results(path)
+    except Exception as exc:  # xarray/netCDF4 raise many types for foreign files
+        return _err(f"results = {str(path)!r}: not a readable NetCDF file ({type(exc).__name__})", 2)
+    select = {}
+    for item in args.select:
+        if "=" not in item:
+            raise ScenarioError("--select", item, "expected PARAM=VALUE, e.g. 'supply.branch_limit=45 L/min'")
+        key, value = item.split("=", 1)
+        select[key.strip()] = value.strip()
+    stem = f"{path.stem}-{args.metric}-{args.x}" + (f"-{args.y}" if args.y else "")
+    out = Path(args.out) if args.out else path.with_name(stem + ".png")
+    plot_sweep(ds, args.x, args.metric, out, y=args.y, select=select, reduce=args.reduce)
+    _progress(f"wrote {out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="frogsim", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -127,19 +233,55 @@ def build_parser() -> argparse.ArgumentParser:
                                          "and DIR/summary.json")
     s.add_argument("studies", nargs="*", metavar="STUDY", help="studies to run (default: all)")
     s.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
+    s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
     s.set_defaults(func=cmd_reproduce)
     s = sub.add_parser("design", help="run the design studies (main tubes, endurance, valves): a PNG and "
                                       "a CSV per study, DIR/summary.json with written conclusions")
     s.add_argument("studies", nargs="*", metavar="STUDY", help="studies to run (default: all design studies)")
     s.add_argument("--out", default="design", metavar="DIR", help="output folder (default: design)")
+    s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
     s.set_defaults(func=cmd_design)
     s = sub.add_parser("simulate", help="run one scenario: timeseries.csv, pressures.png, summary.json")
     s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file, or a shipped name (paper-cycle)")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder")
     s.set_defaults(func=cmd_simulate)
+    s = sub.add_parser("swim", help="run the robot in MuJoCo (swim, leg-in-air): timeseries.csv, swim.png, "
+                                    "summary.json, frog.xml, animation.gif")
+    s.add_argument("scenario", metavar="SCENARIO", help="robot scenario TOML file, or a shipped name "
+                                                        "(swim, leg-in-air)")
+    s.add_argument("--cycles", type=int, default=None, metavar="N", help="gait cycles (default: the scenario's)")
+    s.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    s.add_argument("--no-animation", action="store_true", help="skip the offscreen animation")
+    s.set_defaults(func=cmd_swim)
     s = sub.add_parser("params", help="show a parameter set with the source of every value")
     s.add_argument("name", nargs="?", default="fan2017", help="parameter set (default: fan2017)")
     s.set_defaults(func=cmd_params)
+    s = sub.add_parser("sweep", help="run a parameter sweep from a spec; results as NetCDF, written as it "
+                                     "goes and resumed by running the same command again")
+    s.add_argument("spec", metavar="SPEC", help="sweep spec TOML file (see docs/sweeps.md)")
+    s.add_argument("--out", required=True, metavar="RESULTS.nc", help="NetCDF results file")
+    s.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="threads (default: all cores); with --scheduler: threads per Dask task (default 1)")
+    s.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run the chunks on a Dask distributed scheduler, e.g. tcp://host:8786")
+    s.add_argument("--connect-timeout", type=float, default=5.0, metavar="S",
+                   help="seconds to wait for the scheduler (default 5)")
+    s.add_argument("--overwrite", action="store_true",
+                   help="replace results (or an interrupted run) of a different spec instead of refusing")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=cmd_sweep)
+    s = sub.add_parser("plot", help="plot a sweep metric against one swept parameter (line) or two (heatmap)")
+    s.add_argument("results", metavar="RESULTS.nc", help="results of frogsim sweep")
+    s.add_argument("--x", required=True, metavar="PARAM", help="swept parameter on the x axis (dotted path)")
+    s.add_argument("--y", default=None, metavar="PARAM", help="second swept parameter: a heatmap")
+    s.add_argument("--metric", required=True, metavar="NAME", help="recorded metric, e.g. rise_time")
+    s.add_argument("--select", action="append", default=[], metavar="PARAM=VALUE",
+                   help="fix another swept parameter (value as written, e.g. '45 L/min'); repeatable")
+    s.add_argument("--reduce", choices=["mean"], default=None,
+                   help="average over the swept parameters neither on an axis nor selected")
+    s.add_argument("--out", default=None, metavar="FIG.png",
+                   help="figure file (default: beside the results, named after the metric and axes)")
+    s.set_defaults(func=cmd_plot)
     return p
 
 

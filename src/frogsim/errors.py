@@ -17,11 +17,16 @@ class ScenarioError(FrogsimError, ValueError):
         self.field = field
         self.value = value
         self.allowed = allowed
-        if value in (UNKNOWN, MISSING):
+        if isinstance(value, str) and value in (UNKNOWN, MISSING):
             super().__init__(f"{field}: {allowed}")
             return
         shown = value if isinstance(value, (int, float)) and not isinstance(value, bool) else repr(value)
         super().__init__(f"{field} = {shown}: {allowed}")
+
+
+    def __reduce__(self):
+        # rebuilt from its three parts when it crosses a process boundary (study workers, Dask)
+        return (type(self), (self.field, self.value, self.allowed))
 
 
 class SimulationError(FrogsimError, RuntimeError):

@@ -28,6 +28,14 @@ SI_UNITS = {
     "conductance": ("m**3/(s*Pa)", "a sonic conductance such as \"0.4 L/(s*bar)\""),
     "gas_constant": ("J/(kg*K)", "a specific gas constant such as \"287 J/(kg*K)\""),
     "dimensionless": ("", "a plain number or a percentage such as \"25 %\""),
+    "mass": ("kg", "a mass such as \"12 kg\""),
+    "area": ("m**2", "an area such as \"0.0335 m^2\""),
+    "density": ("kg/m**3", "a density such as \"998.2 kg/m^3\""),
+    "acceleration": ("m/s**2", "an acceleration such as \"9.81 m/s^2\""),
+    "force": ("N", "a force such as \"30 N\""),
+    "stiffness": ("N/m", "a spring stiffness such as \"3000 N/m\""),
+    "torque": ("N*m", "a torque such as \"0.2 N*m\""),
+    "rotational_damping": ("N*m*s", "a rotational damping such as \"0.02 N*m*s\" (per radian)"),
 }
 
 

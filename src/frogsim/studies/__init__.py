@@ -5,3 +5,4 @@
 from frogsim.studies.registry import STUDIES, Study, StudyData, register, run_study, studies_in  # noqa: F401
 from frogsim.studies import paper  # noqa: F401,E402  (registers the paper's studies)
 from frogsim.studies import design  # noqa: F401,E402  (registers the design studies)
+from frogsim.studies import robot  # noqa: F401,E402  (registers the robot's in-air study)

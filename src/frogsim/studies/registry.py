@@ -22,16 +22,17 @@ class Study:
     compute: Callable[[], StudyData]
     draw: Callable[[StudyData, str], None]
     group: str = "paper"     # "paper": frogsim reproduce; "design": frogsim design
+    cost: float = 1.0        # relative first-run cost (compilation included): costly ones start first
 
 
 STUDIES: dict[str, Study] = {}
 
 
-def register(name: str, title: str, group: str = "paper"):
+def register(name: str, title: str, group: str = "paper", cost: float = 1.0):
     """Decorator pairing a compute function with a draw function under a study name."""
     def deco(compute):
         def with_draw(draw):
-            STUDIES[name] = Study(name, title, compute, draw, group)
+            STUDIES[name] = Study(name, title, compute, draw, group, cost)
             return draw
         compute.draws = with_draw
         return compute

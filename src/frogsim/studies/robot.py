@@ -1,0 +1,164 @@
+"""The robot's studies and outputs: the in-air leg experiment (paper Figs. 12-13) and swim runs.
+
+``leg-in-air`` (registered study): the paper's Sec. 4.1-4.2 setting, body fixed on a base in air,
+1 s pressurise / 1 s release from 6 bar with spring recovery. Joint angles with the delay between
+the valve command and the joint's motion (Fig. 12's kind), and the hip muscle pressure with the
+muscle volume taken from the simulated joint angles (Fig. 13's kind), next to the prescribed-motion
+model of ``paper-cycle``.
+
+:func:`write_outputs` writes a robot run's files (``frogsim swim``): timeseries.csv, a figure,
+summary.json, the MJCF model and the animation.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from frogsim.studies.plotting import figure, save
+from frogsim.studies.registry import StudyData, register
+
+BAR = 1e5
+NOTE = "frogsim, parameter set fan2017 with the robot sections; pressures gauge"
+JOINT_COLORS = {"hip": "tab:blue", "knee": "tab:orange", "ankle": "tab:green"}
+
+
+def _gauge(result, p):
+    return (np.asarray(p) - result.atmospheric_pressure) / BAR
+
+
+# --- leg in air -------------------------------------------------------------------------------------
+@register("leg-in-air", "Leg in air, body fixed: joint angles and delay, hip pressure from the joints "
+                        "(paper Figs. 12-13)", cost=8.0)   # compiles the coupled MuJoCo engine (~10 s)
+def leg_in_air() -> StudyData:
+    from frogsim.circuit import layout as CL
+    from frogsim.engine.pneumatic import simulate
+    from frogsim.engine.swim import swim
+    from frogsim.physics.muscle import muscle_volume
+    r = swim("leg-in-air")
+    t = r.t
+    i = r.muscle_names.index("hip_left")
+    mp = r.model.pneumatic.mp
+    V = np.array([muscle_volume(L, mp[i, CL.M_B0], mp[i, CL.M_N]) for L in r.lengths[:, i]]) + mp[i, CL.M_DEAD]
+    prescribed = simulate("paper-cycle")
+    table = pd.DataFrame({"time_s": t})
+    for j in ("hip", "knee", "ankle"):
+        table[f"{j}_angle_deg"] = np.degrees(r.joint_angles[:, r.joint_names.index(f"{j}_left")])
+    table["hip_pressure_bar_gauge"] = _gauge(r, r.pressures[:, i])
+    table["hip_volume_cm3"] = V * 1e6
+    table["hip_contraction_percent"] = 100 * r.contraction()[:, i]
+    table["hip_pressure_prescribed_motion_bar_gauge"] = np.interp(
+        t, prescribed.t, _gauge(prescribed, prescribed.muscle_pressure("hip_left")))
+    table["source_pressure_bar_gauge"] = _gauge(r, r.source_pressure)
+    s = r.summary()
+    left = [f"{j}_left" for j in ("hip", "knee", "ankle")]
+    summary = {"leg_in_air": {
+        "joint_delay_s": {n: s["joint_delay_s"][n] for n in left},
+        "joint_delay_mean_s": float(np.mean([s["joint_delay_s"][n] for n in left])),
+        "joint_range_deg": {n: s["joints"][n]["max_deg"] - s["joints"][n]["min_deg"] for n in left},
+        "max_contraction_percent": {n: s["max_contraction_percent"][n] for n in left},
+        "hip_aeration_volume_L": s["aeration_volume_L_std"]["hip_left"],
+        "hip_pressure_end_of_pressurise_bar_gauge": float(np.interp(1.0, t, table.hip_pressure_bar_gauge)),
+    }}
+    return StudyData(table, summary, {"delays": summary["leg_in_air"]["joint_delay_s"],
+                                      "command_s": 0.0, "release_s": 1.0})
+
+
+@leg_in_air.draws
+def _draw_leg(data: StudyData, path: str) -> None:
+    d = data.table
+    fig, ax = figure(2, 1, height=6.4, sharex=True)
+    a, b = ax[0, 0], ax[1, 0]
+    for j in ("hip", "knee", "ankle"):
+        delay = data.extras["delays"][f"{j}_left"]
+        a.plot(d.time_s, d[f"{j}_angle_deg"], color=JOINT_COLORS[j], lw=2,
+               label=f"{j}: delay {delay * 1e3:.0f} ms")
+    for x, lab in ((data.extras["command_s"], "charge command"), (data.extras["release_s"], "vent command")):
+        a.axvline(x, color="0.4", ls=":", lw=1)
+        a.text(x + 0.01, a.get_ylim()[1] * 0.97, lab, fontsize=8, va="top", color="0.3")
+    a.set_ylabel("joint angle from flexed stop [deg]")
+    a.set_title("Leg in air, body fixed: joint angles (cf. paper Fig. 12)")
+    a.legend(loc="center right", fontsize=8)
+    b.plot(d.time_s, d.hip_pressure_bar_gauge, lw=2, label="hip muscle, volume from the joint angles")
+    b.plot(d.time_s, d.hip_pressure_prescribed_motion_bar_gauge, lw=1, ls="--", color="0.35",
+           label="paper-cycle: prescribed muscle motion")
+    b.set_ylabel("pressure [bar gauge]")
+    b.set_xlabel("time [s]")
+    b.set_title("Hip muscle pressure (cf. paper Fig. 13)")
+    b2 = b.twinx()
+    b2.plot(d.time_s, d.hip_volume_cm3, color="tab:purple", lw=1, alpha=0.7)
+    b2.set_ylabel("hip muscle volume [cm$^3$]", color="tab:purple")
+    b.legend(loc="center right", fontsize=8)
+    save(fig, path, NOTE)
+
+
+# --- swim outputs -----------------------------------------------------------------------------------
+def plot_swim(result, path: str, summary: dict | None = None) -> None:
+    """Four panels against time: forward motion, water forces, joint angles, pressures."""
+    s = summary or result.summary()
+    t = result.t
+    fig, ax = figure(4, 1, width=9.0, height=10.5, sharex=True)
+    a, b, c, e = (ax[k, 0] for k in range(4))
+    for x0, x1 in result.extension_windows():
+        for axis in (a, b, c, e):
+            axis.axvspan(x0, x1, color="tab:orange", alpha=0.07, lw=0)
+    a.plot(t, result.forward, color="k", lw=2, label="forward distance")
+    a.set_ylabel("distance [m]")
+    a2 = a.twinx()
+    a2.plot(t, result.forward_velocity, color="tab:blue", lw=1, label="forward velocity")
+    a2.set_ylabel("velocity [m/s]", color="tab:blue")
+    speed = s["mean_speed_m_per_s"]
+    a.set_title(f"{s['scenario']}: {speed:.2f} m/s ({s['mean_speed_body_lengths_per_s']:.2f} body "
+                f"lengths/s), {s['distance_per_cycle_m']:.2f} m and {s['air_used_per_cycle_L_std']:.2f} L "
+                "of air per cycle (shaded: extension)", fontsize=9)
+    b.plot(t, result.thrust, lw=1.2, label="legs (thrust)")
+    b.plot(t, result.hull_force, lw=1.2, label="hull")
+    b.axhline(0, color="0.5", lw=0.6)
+    b.set_ylabel("water force along heading [N]")
+    b.legend(loc="upper right", fontsize=8)
+    for j in ("hip", "knee", "ankle"):
+        c.plot(t, np.degrees(result.joint_angles[:, result.joint_names.index(f"{j}_left")]),
+               color=JOINT_COLORS[j], label=j)
+    c.plot(t, 40 * result.palm_opening[:, 0], color="0.5", ls=":", label="palm open (x 40)")
+    c.set_ylabel("left leg joint angle [deg]")
+    c.legend(loc="upper right", fontsize=8, ncol=4)
+    e.plot(t, _gauge(result, result.source_pressure), "k", lw=2, label="source")
+    e.plot(t, _gauge(result, result.exhaust_pressure), "k--", lw=1, label="exhaust")
+    for j in ("hip", "knee", "ankle"):
+        i = result.muscle_names.index(f"{j}_left")
+        e.plot(t, _gauge(result, result.pressures[:, i]), color=JOINT_COLORS[j], lw=1, label=f"{j} driving")
+    e.set_ylabel("pressure [bar gauge]")
+    e.set_xlabel("time [s]")
+    e.legend(loc="upper right", fontsize=8, ncol=5)
+    save(fig, path, NOTE)
+
+
+def write_outputs(result, out, animation: bool = True, progress=None) -> dict:
+    """Write timeseries.csv, swim.png, summary.json, frog.xml and animation.gif into ``out``.
+
+    Every file is written atomically (a reader never sees half a file). If no OpenGL backend can
+    draw offscreen, the animation is skipped and the reason kept in the summary under
+    "animation_skipped". Returns ({file kind: path}, summary).
+    """
+    from frogsim.io.results import atomic_write, write_csv, write_figure, write_json
+    out = Path(out)
+    files = {}
+    write_csv(out / "timeseries.csv", result.to_dataframe(units="display"))
+    files["timeseries"] = out / "timeseries.csv"
+    summary = result.summary()
+    write_figure(out / "swim.png", lambda p: plot_swim(result, p, summary))
+    files["figure"] = out / "swim.png"
+    atomic_write(out / "frog.xml", lambda tmp: Path(tmp).write_text(result.model.xml))
+    files["mjcf"] = out / "frog.xml"
+    if animation:
+        from frogsim.robot.render import RenderUnavailable, render_animation
+        if progress:
+            progress("rendering the animation offscreen ...")
+        try:
+            files["animation"] = render_animation(result, out / "animation.gif", fps=12)
+        except RenderUnavailable as exc:
+            summary["animation_skipped"] = str(exc)
+    write_json(out / "summary.json", summary)
+    files["summary"] = out / "summary.json"
+    return files, summary
