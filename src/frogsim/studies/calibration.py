@@ -8,8 +8,6 @@ aeration volume. :func:`calibrate_stroke_contraction` finds it by root finding o
 """
 from __future__ import annotations
 
-from scipy.optimize import brentq
-
 from frogsim.engine.pneumatic import simulate
 from frogsim.io.scenario import load_scenario, scenario_from_raw, with_overrides
 
@@ -29,6 +27,7 @@ def calibrate_stroke_contraction(scenario="paper-cycle", muscle_type: str = "hip
 
     Solves aeration(contraction) = target by Brent's method on [0, max_contraction].
     """
+    from scipy.optimize import brentq  # here, not at import: it costs 0.4 s of every CLI start
     raw = load_scenario(scenario).raw
     muscle = muscle or next(m for m, v in raw["muscles"].items() if v["type"] == muscle_type)
     target = PAPER_AERATION_L[muscle_type] if target_L is None else target_L
