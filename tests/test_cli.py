@@ -102,6 +102,15 @@ def test_reproduce_summary_contract(tmp_path):
         assert not (out / f"{name}.png").exists()
 
 
+def test_named_robot_study_adds_to_the_folders_summary(tmp_path):
+    out = tmp_path / "r"
+    assert main(["reproduce", "aeration", "--out", str(out)]) == 0
+    assert main(["reproduce", "leg-in-air", "--out", str(out)]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert "aeration_volume_L" in s                       # kept from the first run
+    assert len(s) > 1 and (out / "leg-in-air.png").exists()
+
+
 def test_design_command_writes_conclusions(tmp_path):
     out = tmp_path / "d"
     assert main(["design", "design-valve", "--out", str(out)]) == 0

@@ -1,7 +1,8 @@
 """The ``frogsim`` command: a thin layer over the registries and the engine (no physics here).
 
     frogsim studies                         list the registered studies
-    frogsim reproduce [STUDY ...] --out DIR reproduce the paper's studies (all by default)
+    frogsim reproduce [STUDY ...] --out DIR reproduce the paper's studies (the pneumatic ones by
+                                            default; name leg-in-air for the robot's in-air study)
     frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
     frogsim simulate SCENARIO --out DIR     run one scenario (TOML path or shipped name)
     frogsim swim SCENARIO [--cycles N] --out DIR  run the robot in MuJoCo (swim, leg-in-air): CSV,
@@ -33,7 +34,9 @@ def _progress(msg: str) -> None:
 def cmd_studies(args) -> int:
     from frogsim.studies import STUDIES, studies_in
     width = max(len(n) for n in STUDIES)
-    for group, command in (("paper", "frogsim reproduce"), ("design", "frogsim design")):
+    for group, command in (("paper", "frogsim reproduce"),
+                           ("robot", "frogsim reproduce NAME (named: compiles the MuJoCo engine on first use)"),
+                           ("design", "frogsim design")):
         print(f"# {command}")
         for name in studies_in(group):
             print(f"{name:<{width}}  {STUDIES[name].title}")
@@ -62,6 +65,16 @@ def _study_task(name: str, out: str) -> tuple:
     write_csv(Path(out) / f"{name}.csv", data.table)
     write_figure(Path(out) / f"{name}.png", lambda p: study.draw(data, p))
     return name, data.summary, time.perf_counter() - t0
+
+
+def _existing_summary(path: Path) -> dict:
+    """The summary.json already in an output folder (studies run there before), or {}."""
+    import json
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
 
 
 def _run_studies(args, group: str) -> int:
@@ -109,8 +122,8 @@ def _run_studies(args, group: str) -> int:
             futures = [pool.submit(_study_task, name, str(out)) for name in order]
             for k, fut in enumerate(as_completed(futures), 1):
                 report(k, *fut.result())
-    summary = {}
-    for name in names:                      # summary.json in registration order, whatever finished first
+    summary = _existing_summary(out / "summary.json")    # studies run earlier into this folder
+    for name in names:                      # in registration order, whatever finished first
         summary.update(summaries[name])
     write_json(out / "summary.json", summary)
     _progress(f"{len(names)} studies in {time.perf_counter() - t_all:.1f} s; summary: {out / 'summary.json'}")
@@ -230,8 +243,10 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("studies", help="list the registered studies")
     s.set_defaults(func=cmd_studies)
     s = sub.add_parser("reproduce", help="reproduce the paper's studies: a PNG and a CSV per study, "
-                                         "and DIR/summary.json")
-    s.add_argument("studies", nargs="*", metavar="STUDY", help="studies to run (default: all)")
+                                         "and DIR/summary.json (merged with one already there)")
+    s.add_argument("studies", nargs="*", metavar="STUDY",
+                   help="studies to run (default: the paper's pneumatic studies; name leg-in-air "
+                        "for the robot's in-air study)")
     s.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
     s.set_defaults(func=cmd_reproduce)

@@ -30,7 +30,7 @@ def _gauge(result, p):
 
 # --- leg in air -------------------------------------------------------------------------------------
 @register("leg-in-air", "Leg in air, body fixed: joint angles and delay, hip pressure from the joints "
-                        "(paper Figs. 12-13)", cost=8.0)   # compiles the coupled MuJoCo engine (~10 s)
+                        "(paper Figs. 12-13)", group="robot", cost=8.0)   # compiles the coupled MuJoCo engine (~10 s)
 def leg_in_air() -> StudyData:
     from frogsim.circuit import layout as CL
     from frogsim.engine.pneumatic import simulate
