@@ -27,6 +27,15 @@ def _err(msg: str, code: int) -> int:
     return code
 
 
+def _out_dir(path: str) -> Path:
+    """The output folder; ScenarioError (exit 2, nothing written) if the path is a file."""
+    from frogsim.errors import ScenarioError
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise ScenarioError("--out", str(out), "exists and is not a directory")
+    return out
+
+
 def _progress(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
@@ -89,9 +98,7 @@ def _run_studies(args, group: str) -> int:
     unknown = [n for n in names if n not in STUDIES]
     if unknown:
         return _err(f"study = {unknown[0]!r}: must be one of {', '.join(STUDIES)}", 2)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        return _err(f"--out = {str(out)!r}: exists and is not a directory", 2)
+    out = _out_dir(args.out)
     if args.workers is not None and args.workers < 1:
         return _err(f"--workers = {args.workers}: must be a whole number >= 1", 2)
     workers = min(args.workers or os.cpu_count() or 1, len(names))
@@ -133,9 +140,7 @@ def cmd_simulate(args) -> int:
     from frogsim.engine.pneumatic import simulate
     from frogsim.io.results import plot_run, run_summary, write_csv, write_figure, write_json
     from frogsim.io.scenario import load_scenario
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        return _err(f"--out = {str(out)!r}: exists and is not a directory", 2)
+    out = _out_dir(args.out)
     scenario = load_scenario(args.scenario)          # all validation happens here, before any write
     _progress(f"simulating {scenario.name!r}: {len(scenario.muscles)} muscles, {scenario.duration:g} s ...")
     t0 = time.perf_counter()
@@ -153,9 +158,7 @@ def cmd_swim(args) -> int:
     from frogsim.engine.swim import swim
     from frogsim.robot.scenario import load_robot_scenario
     from frogsim.studies.robot import write_outputs
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        return _err(f"--out = {str(out)!r}: exists and is not a directory", 2)
+    out = _out_dir(args.out)
     rs = load_robot_scenario(args.scenario, cycles=args.cycles)   # all validation before any write
     if not cache_is_warm():
         _progress("first run: compiling the engine (cached afterwards)")

@@ -34,12 +34,6 @@ def _scalars(model: PneumaticModel) -> np.ndarray:
     return np.array([sc.duration, sc.solver.rtol, sc.solver.max_step, 1.0 / sc.controller.rate])
 
 
-def _structure(model: PneumaticModel) -> tuple:
-    """What must agree for two models to share a batch (array shapes and output grid)."""
-    return (tuple(getattr(model, a).shape for a in _ARRAYS), model.out_t.size, float(model.out_t[-1]),
-            tuple(len(x) for x in model.charge_open_times))
-
-
 def _run_one(m: PneumaticModel):
     sc = m.scenario
     return run_schedule(m.y0, 0.0, sc.duration, m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n,
@@ -69,14 +63,6 @@ def run_models(models: list[PneumaticModel], threads: int | None = None) -> list
                               stats={"steps": int(stats[0]), "rejected": int(stats[1]),
                                      "rhs_evaluations": int(stats[2])}))
     return results
-
-
-def group_by_structure(models: list[PneumaticModel]) -> dict[tuple, list[int]]:
-    """Indices of models grouped so that each group can run as one batch."""
-    groups: dict[tuple, list[int]] = {}
-    for i, m in enumerate(models):
-        groups.setdefault(_structure(m), []).append(i)
-    return groups
 
 
 # --- building many models fast ----------------------------------------------------------------------

@@ -7,7 +7,7 @@ from functools import cached_property
 import numpy as np
 
 from frogsim.circuit import layout as L
-from frogsim.engine.measures import charged_in_phase, rise_time, value_at_close
+from frogsim.engine.measures import charged_in_phase, pressurise_window, rise_time, value_at_close
 
 
 @dataclass
@@ -173,6 +173,13 @@ class Result:
         ``fraction`` of its rise over the phase (see :func:`frogsim.engine.measures.rise_time`)."""
         u, t_open = self._phase(muscle, stroke)
         return float(rise_time(self.t, self.muscle_pressure(muscle)[None, :], u, t_open, fraction)[0])
+
+    def pressurise_window(self, muscle: str, stroke: int = 0) -> tuple[float, float]:
+        """(time the charge valve opens, first output time it is closed again) [s]; the end of
+        the run if it never closes (see :func:`frogsim.engine.measures.pressurise_window`)."""
+        u, t_open = self._phase(muscle, stroke)
+        _, k_closed, _ = pressurise_window(self.t, u, t_open)
+        return float(t_open[0]), float(self.t[k_closed[0]])
 
     def pressure_at_close(self, muscle: str, stroke: int = 0) -> float:
         """Muscle pressure [Pa abs] at the last output point with the charge valve open."""

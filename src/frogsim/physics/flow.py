@@ -9,7 +9,7 @@ import math
 
 from frogsim._jit import jit
 
-from frogsim.physics.air import choked_mass_flux_factor, critical_pressure_ratio
+from frogsim.physics.air import choked_mass_flux_factor
 
 
 @jit
@@ -96,12 +96,6 @@ def tube_sonic_conductance(inner_diameter: float, discharge_coefficient: float, 
     """
     area = math.pi * 0.25 * inner_diameter * inner_diameter
     return discharge_coefficient * area * choked_mass_flux_factor(R, k) / (rho_ref * math.sqrt(T_ref))
-
-
-@jit
-def tube_critical_ratio(k: float) -> float:
-    """Critical pressure ratio used for a tube bore in the physical tube mode (isentropic)  [-]."""
-    return critical_pressure_ratio(k)
 
 
 @jit

@@ -38,19 +38,9 @@ def gauge_bar(result, p):
     return (p - result.atmospheric_pressure) / BAR
 
 
-def pressurise_window(result, muscle=HIP):
-    """(valve opening time, valve closing time) of the first pressurise phase [s]."""
-    t_open = float(result.charge_open_times(muscle)[0])
-    u = result.u[:, 2 * result.index(muscle)]
-    closes = np.nonzero((result.t > t_open) & (u < 0.5))[0]
-    return t_open, float(result.t[closes[0]]) if closes.size else float(result.t[-1])
-
-
 def final_pressure_bar(result, muscle=HIP) -> float:
     """Muscle pressure when the charge valve closes [bar gauge]."""
-    _, t_close = pressurise_window(result, muscle)
-    k = int(np.searchsorted(result.t, t_close)) - 1
-    return float(gauge_bar(result, result.muscle_pressure(muscle)[k]))
+    return float(gauge_bar(result, result.pressure_at_close(muscle)))
 
 
 # --- Figures 13 and 14: the cycle ------------------------------------------------------------------
@@ -71,7 +61,7 @@ def fig13() -> StudyData:
         "final_muscle_pressure_bar_gauge": final_pressure_bar(r),
         "end_pressure_after_release_bar_gauge": float(table.hip_pressure_bar_gauge.iloc[-1]),
         "exhaust_pressure_end_bar_gauge": float(table.exhaust_pressure_bar_gauge.iloc[-1]),
-    }}, {"window": pressurise_window(r)})
+    }}, {"window": r.pressurise_window(HIP)})
 
 
 @fig13.draws
@@ -106,7 +96,7 @@ def fig14() -> StudyData:
         "initial_pressure_bar_gauge": float(ps[0]),
         "final_pressure_bar_gauge": float(ps[-1]),
         "temperature_drop_K": float(table.source_temperature_K.iloc[0] - table.source_temperature_K.min()),
-    }}, {"window": pressurise_window(r)})
+    }}, {"window": r.pressurise_window(HIP)})
 
 
 @fig14.draws
