@@ -173,8 +173,7 @@ def scenario_from_raw(raw: dict, base_dir: str = ".") -> Scenario:
                 raise ScenarioError(f"{path}.motion.contraction_percent", c,
                                     f"must be <= the muscle's max_contraction ({mt.max_contraction:.0%})")
         muscles[mname] = m
-    if max((s[0] for m in muscles.values() for s in m.program.steps), default=0.0) > duration:
-        pass  # steps after the end are allowed: they simply never happen
+    # program steps after the end of the run are allowed: they simply never happen
     scenario = Scenario(name=name, parameters=raw["parameters"], duration=duration,
                         output_interval=interval, controller=controller, solver=solver,
                         muscle_types=muscle_types, muscles=muscles, programs=programs,
