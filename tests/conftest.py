@@ -63,7 +63,7 @@ def one_muscle_scenario(program: dict, duration: float, *, muscle_type: str = "h
 
 def paper_cycle_dict() -> dict:
     """The shipped paper-cycle scenario as a raw dict (to be modified by a test)."""
-    from frogsim.io.scenario import SCENARIOS_DIR
+    from frogsim.scenario.load import SCENARIOS_DIR
     with open(SCENARIOS_DIR / "paper-cycle.toml", "rb") as fh:
         return tomllib.load(fh)
 

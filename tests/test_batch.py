@@ -1,9 +1,10 @@
-"""Batched engine: batch, chunking and threads change nothing; composed models equal built ones."""
+"""Batched engine: batch, chunking and threads change nothing; cached model parts equal fresh builds."""
 import numpy as np
 import pytest
 
 import frogsim
-from frogsim.engine.batch import compose_models, run_models
+from frogsim.circuit import model as circuit_model
+from frogsim.engine.batch import build_models, run_models
 from frogsim.sweep.metrics import METRICS, evaluate, evaluate_models
 
 BASE = {"name": "batch", "parameters": "fan2017", "duration": "1.2 s",
@@ -12,32 +13,54 @@ BASE = {"name": "batch", "parameters": "fan2017", "duration": "1.2 s",
 
 
 @pytest.fixture(scope="module")
-def raw():
-    return frogsim.load_scenario(BASE).raw
+def base():
+    return frogsim.load_scenario(BASE)
+
+
+@pytest.fixture(scope="module")
+def raw(base):
+    return base.raw
 
 
 @pytest.fixture(scope="module")
 def points():
-    return [{"source.initial_pressure_gauge": f"{ps} bar", "supply.branch_limit": f"{q} L/min",
-             "muscle_types.hip.stroke_contraction": f"{e} %"}
+    return [{"source.initial_pressure_gauge": ps * 1e5, "supply.branch_limit": q * 1e-3 / 60,
+             "muscle_types.hip.stroke_contraction": e / 100}
             for ps in (3, 6) for q in (30, 90) for e in (0, 10, 20)]
 
 
-def test_composed_models_equal_exact_builds(raw, points):
-    models, method = compose_models(raw, points)
-    assert method == "composed"
+def _fresh_build(scenario):
+    for part in (circuit_model._globals_part, circuit_model._muscle_part, circuit_model._motion_part,
+                 circuit_model._state_part, circuit_model._output_part):
+        part.cache_clear()
+    return frogsim.build_model(scenario)
+
+
+def test_models_from_cached_parts_equal_fresh_builds(base, points):
+    models = build_models(base, points)
     for pt, m in zip(points, models):
-        exact = frogsim.build_model(frogsim.load_scenario(frogsim.with_overrides(raw, pt)))
-        for a in ("g", "mp", "y0", "atol", "u0"):
+        exact = _fresh_build(base.replace(pt))
+        for a in ("g", "mp", "y0", "atol", "u0", "mot_t", "mot_L", "mot_d", "mot_n", "sched_t", "sched_u", "out_t"):
             assert np.array_equal(getattr(exact, a), getattr(m, a)), a
-        n = exact.mot_n[0]
-        assert np.array_equal(exact.mot_L[0, :n], m.mot_L[0, :n])
-        assert np.array_equal(exact.sched_t, m.sched_t[np.isfinite(m.sched_t)])
+        assert not np.shares_memory(m.g, models[0].g) or m is models[0]     # no model shares arrays
 
 
-def test_batch_equals_one_by_one_whatever_threads_and_chunks(raw, points):
-    models, _ = compose_models(raw, points)
-    singles = [frogsim.simulate(frogsim.load_scenario(frogsim.with_overrides(raw, pt))) for pt in points]
+def test_variant_equals_the_same_values_written_in_a_file(raw, points):
+    # a typed variant and a file with the same values in units build the same model
+    for pt, text in zip(points[:3], ({"muscle_types.hip.stroke_contraction": "0 %"},
+                                     {"muscle_types.hip.stroke_contraction": "10 %"},
+                                     {"muscle_types.hip.stroke_contraction": "20 %"})):
+        text = {**text, "source.initial_pressure_gauge": "3 bar", "supply.branch_limit": "30 L/min"}
+        a = frogsim.build_model(frogsim.load_scenario(frogsim.with_overrides(raw, text)))
+        b = frogsim.build_model(frogsim.load_scenario(raw).replace(pt))
+        for key in ("mp", "y0", "mot_L", "sched_t"):
+            assert np.array_equal(getattr(a, key), getattr(b, key)), key
+        assert a.g == pytest.approx(b.g, rel=1e-15)      # L/min: pint's factor vs 1e-3/60
+
+
+def test_batch_equals_one_by_one_whatever_threads_and_chunks(base, points):
+    models = build_models(base, points)
+    singles = [frogsim.simulate(base.replace(pt)) for pt in points]
     for threads in (1, 2):
         batch = run_models(models, threads=threads)
         for a, b in zip(batch, singles):
@@ -49,8 +72,8 @@ def test_batch_equals_one_by_one_whatever_threads_and_chunks(raw, points):
             assert np.array_equal(vals[m], ref[m]), (m, chunk)
 
 
-def test_metrics_equal_result_methods(raw, points):
-    models, _ = compose_models(raw, points)
+def test_metrics_equal_result_methods(base, points):
+    models = build_models(base, points)
     results = run_models(models)
     vals = evaluate(results, ["rise_time", "aeration_volume", "final_pressure"], "hip")
     for k, r in enumerate(results):
@@ -60,21 +83,21 @@ def test_metrics_equal_result_methods(raw, points):
             (r.pressure_at_close("hip") - r.atmospheric_pressure) / 1e5, rel=1e-12)
 
 
-def test_overlapping_parameters_fall_back_to_full_builds(raw):
-    # main tube diameter and count both set the Eq. (9) limit (one array entry): composing them
-    # from single-parameter builds would be wrong, so every point must be built in full
-    pts = [{"supply.main_tube_inner_diameter": f"{d} mm", "supply.main_tube_count": c}
+def test_parameters_meeting_in_one_entry(base):
+    # main tube diameter and count both set the Eq. (9) limit (one array entry)
+    pts = [{"supply.main_tube_inner_diameter": d * 1e-3, "supply.main_tube_count": c}
            for d in (3, 5) for c in (1, 2)]
-    models, method = compose_models(raw, pts)
-    assert method == "built"
+    models = build_models(base, pts)
     # Eq. (9): the per-branch limit grows with d^2 and with the count
     lim = [m.g[frogsim.circuit.layout.G_BRANCH_LIMIT] for m in models]
     assert lim[3] / lim[0] == pytest.approx((5 / 3) ** 2 * 2, rel=1e-12)
 
 
-def test_bad_point_is_refused_before_running(raw):
-    with pytest.raises(frogsim.ScenarioError, match="source.volume"):
-        compose_models(raw, [{"source.volume": "4 L"}, {"source.volume": "-1 L"}])
+def test_bad_point_is_refused_before_running(base):
+    with pytest.raises(frogsim.ScenarioError, match=r"source.volume.*point 1"):
+        build_models(base, [{"source.volume": 4e-3}, {"source.volume": -1e-3}])
+    with pytest.raises(frogsim.ScenarioError, match="no unit text"):
+        build_models(base, [{"source.volume": "4 L"}])
 
 
 def test_metrics_refuse_mixed_time_grids(raw):

@@ -15,7 +15,7 @@ from frogsim.engine.pneumatic import simulate
 from frogsim.engine.result import Result
 from frogsim.engine.swim import SwimResult, swim
 from frogsim.errors import FrogsimError, ScenarioError, SimulationError
-from frogsim.io.scenario import load_scenario, with_overrides
+from frogsim.scenario.load import load_scenario, with_overrides
 from frogsim.robot.scenario import load_robot_scenario
 
 __all__ = ["FrogsimError", "Result", "ScenarioError", "SimulationError", "SwimResult", "build_model",

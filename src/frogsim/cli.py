@@ -139,7 +139,7 @@ def _run_studies(args, group: str) -> int:
 def cmd_simulate(args) -> int:
     from frogsim.engine.pneumatic import simulate
     from frogsim.io.results import plot_run, run_summary, write_csv, write_figure, write_json
-    from frogsim.io.scenario import load_scenario
+    from frogsim.scenario.load import load_scenario
     out = _out_dir(args.out)
     scenario = load_scenario(args.scenario)          # all validation happens here, before any write
     _progress(f"simulating {scenario.name!r}: {len(scenario.muscles)} muscles, {scenario.duration:g} s ...")
@@ -179,7 +179,7 @@ def cmd_swim(args) -> int:
 
 
 def cmd_params(args) -> int:
-    from frogsim.io.scenario import PARAMS_DIR, parameter_set_names, read_toml
+    from frogsim.scenario.load import PARAMS_DIR, parameter_set_names, read_toml
     if args.name not in parameter_set_names():
         return _err(f"name = {args.name!r}: must be one of {', '.join(parameter_set_names())}", 2)
     raw = read_toml(PARAMS_DIR / f"{args.name}.toml", "parameters")

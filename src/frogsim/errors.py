@@ -6,6 +6,10 @@ UNKNOWN = "(unknown key)"     # value placeholder for a key that is not a settin
 MISSING = "(missing)"         # value placeholder for a required setting that is absent
 
 
+class Shown(str):
+    """A value already formatted for a reader (e.g. "6.2 bar" from an SI value): shown unquoted."""
+
+
 class FrogsimError(Exception):
     """Base class of frogsim's own errors."""
 
@@ -20,7 +24,8 @@ class ScenarioError(FrogsimError, ValueError):
         if isinstance(value, str) and value in (UNKNOWN, MISSING):
             super().__init__(f"{field}: {allowed}")
             return
-        shown = value if isinstance(value, (int, float)) and not isinstance(value, bool) else repr(value)
+        plain = isinstance(value, Shown) or (isinstance(value, (int, float)) and not isinstance(value, bool))
+        shown = value if plain else repr(value)
         super().__init__(f"{field} = {shown}: {allowed}")
 
 

@@ -1,5 +1,1 @@
-"""Typed, frozen parameter dataclasses and the generic validating builder that fills them."""
-from frogsim.components.schema import (  # noqa: F401
-    Air, Chamber, Controller, Motion, Muscle, MuscleType, Program, Pump, Scenario, Solver, Supply,
-    Valve, Valves,
-)
+"""A small catalogue of real parts: reference data of the FESTO DMSP-20 fluidic muscle and its fit."""

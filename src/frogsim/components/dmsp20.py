@@ -81,7 +81,7 @@ def plot_fit(path: str, constants: dict, inner_diameter: float = 0.020,
     """Draw the corrected law and the ideal law against the reference rows (docs/robot.md)."""
     from frogsim.physics.muscle import braid_parameters
     from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL, muscle_force
-    from frogsim.studies.plotting import figure, save
+    from frogsim._plotting import figure, save
     L0 = 0.18
     b0, n = braid_parameters(L0, inner_diameter, braid_angle)
     c = [constants[k] for k in ("force_scale", "strain_scale", "stiffness", "stretch_stiffness",

@@ -16,7 +16,7 @@ vent or hold, and when the palms open and fold::
 The default above is the paper's open-loop timing (Sec. 4.1: pressurised for one second, released
 for one second) with the palms synchronised: open for the power stroke, folded for the recovery.
 Both legs move together. :func:`muscle_programs` turns the gait into one
-:class:`frogsim.components.schema.Program` per muscle over all cycles; the valve dead time and
+:class:`frogsim.scenario.schema.Program` per muscle over all cycles; the valve dead time and
 the controller's sampling are applied downstream exactly as for any program
 (:func:`frogsim.circuit.model.build_schedule`). :func:`palm_commands` gives the steering motors'
 command times, sampled on the same controller grid.
@@ -27,9 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frogsim.circuit.model import command_time
-from frogsim.components.builder import parse_field, unknown_key_error, unwrap
-from frogsim.components.schema import VALVE_STATES, Program
+from frogsim.scenario.motion import command_time
+from frogsim.scenario.fields import parse_field, unknown_key_error, unwrap
+from frogsim.scenario.schema import VALVE_STATES, Program
 from frogsim.errors import MISSING, ScenarioError
 
 PALM_STATES = {"open": 1.0, "fold": 0.0}

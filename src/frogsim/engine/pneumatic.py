@@ -5,7 +5,7 @@ import numpy as np
 
 from frogsim.circuit import layout as L
 from frogsim.circuit.model import PneumaticModel, build_model
-from frogsim.components.schema import Scenario
+from frogsim.scenario.core import Scenario
 from frogsim.engine.integrator import STATUS_OK, run_schedule
 from frogsim.engine.result import Result
 from frogsim.errors import SimulationError
@@ -19,7 +19,7 @@ def _as_model(what) -> PneumaticModel:
         return what
     if isinstance(what, Scenario):
         return build_model(what)
-    from frogsim.io.scenario import load_scenario
+    from frogsim.scenario.load import load_scenario
     return build_model(load_scenario(what))
 
 

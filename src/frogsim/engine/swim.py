@@ -182,7 +182,7 @@ class SwimResult:
     def joint_delay(self, joint: str) -> float:
         """Time from the first charge command of the joint's driving muscle to the joint having
         moved 5 % of its excursion in that pressurise phase [s] (nan if it did not move)."""
-        from frogsim.circuit.model import command_time
+        from frogsim.scenario.motion import command_time
         side = joint.split("_", 1)[1]
         base = joint.split("_", 1)[0]
         steps = self.rs.gait.joints[base]["drive"]

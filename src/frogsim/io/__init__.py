@@ -1,1 +1,1 @@
-"""Edges of frogsim: scenario files in, result files out. Units live here and nowhere deeper."""
+"""Result files: summaries, CSV tables and figures of runs (written atomically)."""

@@ -94,7 +94,7 @@ def run_summary(result) -> dict:
 
 def plot_run(result, path: str) -> None:
     """Pressures of source, exhaust and every muscle, and the valve states, against time."""
-    from frogsim.studies.plotting import figure, save
+    from frogsim._plotting import figure, save
     patm = result.atmospheric_pressure
     n = result.n
     fig, ax = figure(2, 1, height=6.0, sharex=True, gridspec_kw={"height_ratios": [3, 1.2]})

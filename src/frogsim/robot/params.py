@@ -3,14 +3,14 @@
 These dataclasses read the robot sections of a parameter set (``[muscle_force]``, ``[body]``,
 ``[legs]``, ``[joints.hip|knee|ankle]``, ``[palms]``, ``[water]``, ``[hydro]``; see
 ``params/fan2017.toml``) into SI floats, with the same validation as the pneumatic sections
-(:mod:`frogsim.components.builder`): every value has a unit and bounds, unknown keys are refused.
+(:mod:`frogsim.scenario.fields`): every value has a unit and bounds, unknown keys are refused.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
 
-from frogsim.components.builder import (build, choice, integer, parse_field, quantity,
+from frogsim.scenario.fields import (build, choice, integer, parse_field, quantity,
                                          unknown_key_error, unwrap)
 from frogsim.errors import MISSING, ScenarioError
 
@@ -132,7 +132,7 @@ ROBOT_SECTIONS = ("muscle_force", "body", "legs", "joints", "palms", "water", "h
 
 
 def robot_params_from_raw(raw: dict, muscle_types: dict) -> RobotParams:
-    """Validate the robot sections of a merged scenario dict (see :mod:`frogsim.io.scenario`)."""
+    """Validate the robot sections of a merged scenario dict (see :mod:`frogsim.scenario.load`)."""
     for key in ROBOT_SECTIONS:
         if key not in raw:
             raise ScenarioError(key, MISSING, "required robot section is missing (parameter set "

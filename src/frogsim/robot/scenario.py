@@ -2,7 +2,7 @@
 fixed), validated into a :class:`RobotScenario`.
 
 A robot scenario file holds the run's own settings and may override any parameter-set value like
-any scenario (:mod:`frogsim.io.scenario`); instead of ``[muscles]`` it has ``[robot]`` and
+any scenario (:mod:`frogsim.scenario.load`); instead of ``[muscles]`` it has ``[robot]`` and
 ``[gait]``, from which the muscles (two per joint and leg, or one and a spring) and their valve
 programs are made::
 
@@ -19,14 +19,14 @@ programs are made::
 """
 from __future__ import annotations
 
-import copy
 from dataclasses import dataclass, field
 
-from frogsim.components.builder import build, choice, flag, quantity
-from frogsim.components.schema import Scenario
+from frogsim.scenario.fields import build, choice, flag, quantity
+from frogsim.scenario.core import Scenario
+from frogsim.scenario.schema import Motion, Muscle
 from frogsim.control.gait import Gait, muscle_programs
 from frogsim.errors import MISSING, ScenarioError
-from frogsim.io.scenario import merged_raw, scenario_from_raw
+from frogsim.scenario.load import merged_raw, scenario_from_raw
 from frogsim.robot.geometry import Layout, layout
 from frogsim.robot.params import JOINTS, SIDES, RobotParams, robot_params_from_raw
 
@@ -98,14 +98,10 @@ def load_robot_scenario(source, cycles: int | None = None) -> RobotScenario:
     robot = robot_params_from_raw(raw, types if isinstance(types, dict) else {})
     names = muscle_names(options.recovery)
     programs = muscle_programs(gait, {n: (j, g) for n, (j, _, g) in names.items()})
-    pn_raw = copy.deepcopy(raw)
-    pn_raw["duration"] = f"{gait.duration!r} s"
-    pn_raw["muscles"] = {
-        name: {"type": robot.joints[joint].muscle_type,
-               "program": {"steps": [{"at": f"{t!r} s", "state": st} for t, st in programs[name].steps]},
-               "motion": {"kind": "constant"}}
-        for name, (joint, _, _) in names.items()}
-    pneumatic = scenario_from_raw(pn_raw, base_dir)
+    muscles = {name: Muscle(type=robot.joints[joint].muscle_type, program=programs[name],
+                            motion=Motion("constant"))
+               for name, (joint, _, _) in names.items()}
+    pneumatic = scenario_from_raw(raw, base_dir, duration=gait.duration, muscles=muscles)
     lay = layout(robot, pneumatic.muscle_types)
     return RobotScenario(name=pneumatic.name, pneumatic=pneumatic, robot=robot, options=options,
                          gait=gait, layout=lay, muscles=names, raw=raw)

@@ -9,15 +9,14 @@ aeration volume. :func:`calibrate_stroke_contraction` finds it by root finding o
 from __future__ import annotations
 
 from frogsim.engine.pneumatic import simulate
-from frogsim.io.scenario import load_scenario, scenario_from_raw, with_overrides
+from frogsim.scenario.load import load_scenario
 
 PAPER_AERATION_L = {"hip": 0.455, "knee": 0.401, "ankle": 0.401}   # paper Sec. 4.2
 
 
-def aeration_for(raw: dict, muscle_type: str, contraction: float, muscle: str) -> float:
-    """Aeration volume [L standard] of ``muscle`` with its type's stroke contraction set."""
-    sc = scenario_from_raw(with_overrides(raw, {
-        f"muscle_types.{muscle_type}.stroke_contraction": f"{contraction * 100:.10g} %"}))
+def aeration_for(base, muscle_type: str, contraction: float, muscle: str) -> float:
+    """Aeration volume [L standard] of ``muscle`` with its type's stroke contraction set [-]."""
+    sc = base.replace({f"muscle_types.{muscle_type}.stroke_contraction": contraction})
     return simulate(sc).aeration_volume(muscle) * 1e3
 
 
@@ -28,11 +27,11 @@ def calibrate_stroke_contraction(scenario="paper-cycle", muscle_type: str = "hip
     Solves aeration(contraction) = target by Brent's method on [0, max_contraction].
     """
     from scipy.optimize import brentq  # here, not at import: it costs 0.4 s of every CLI start
-    raw = load_scenario(scenario).raw
-    muscle = muscle or next(m for m, v in raw["muscles"].items() if v["type"] == muscle_type)
+    base = load_scenario(scenario)
+    muscle = muscle or next(m for m, v in base.muscles.items() if v.type == muscle_type)
     target = PAPER_AERATION_L[muscle_type] if target_L is None else target_L
-    hi = load_scenario(scenario).muscle_types[muscle_type].max_contraction
-    return brentq(lambda e: aeration_for(raw, muscle_type, e, muscle) - target, 0.0, hi, xtol=1e-6)
+    hi = base.muscle_types[muscle_type].max_contraction
+    return brentq(lambda e: aeration_for(base, muscle_type, e, muscle) - target, 0.0, hi, xtol=1e-6)
 
 
 if __name__ == "__main__":

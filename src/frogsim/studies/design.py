@@ -16,17 +16,22 @@ import numpy as np
 import pandas as pd
 
 from frogsim.circuit import layout as L
-from frogsim.engine.batch import compose_models, run_models
-from frogsim.io.scenario import load_scenario
+from frogsim.engine.batch import build_models, run_models
+from frogsim.scenario.load import load_scenario
 from frogsim.physics.flow import pump_mass_flow
 from frogsim.studies.paper import HIP, NOTE
-from frogsim.studies.plotting import figure, save
+from frogsim._plotting import figure, save
 from frogsim.studies.registry import StudyData, register
 from frogsim.sweep.metrics import evaluate
 
 VALVE_LIMITED_MARGIN = 0.05      # "the valve limits": rise time within 5 % of the valve-only value
 TUBE_DIAMETERS_MM = tuple(np.round(np.arange(2.0, 10.01, 0.5), 2))
 TUBE_COUNTS = (1, 2, 3)
+BAR = 1e5                        # Pa
+MM = 1e-3                        # m
+LITRE = 1e-3                     # m^3
+L_PER_MIN = 1e-3 / 60.0          # m^3/s
+L_PER_S_BAR = 1e-3 / 1e5         # m^3/(s Pa): sonic conductance
 REQUIRED_SWING_BAR = 4.0         # chosen: a full stroke needs 4 bar between source and exhaust (a
                                  # muscle cycles between the two): two thirds of the 6 bar force swing
                                  # (Chou-Hannaford force ~ pressure)
@@ -37,8 +42,7 @@ VALVE_B = tuple(np.round(np.arange(0.15, 0.61, 0.05), 2))   # MHJ9 is 0.38
 
 
 def _rise_times(base: str, points: list[dict]) -> np.ndarray:
-    raw = load_scenario(base).raw
-    models, _ = compose_models(raw, points)
+    models = build_models(load_scenario(base), points)
     return evaluate(run_models(models), ["rise_time"], HIP)["rise_time"]
 
 
@@ -64,7 +68,7 @@ def design_tubes() -> StudyData:
         for count in TUBE_COUNTS:
             for d in TUBE_DIAMETERS_MM:
                 points.append({"supply.mode": mode, "supply.main_tube_count": int(count),
-                               "supply.main_tube_inner_diameter": f"{d} mm"})
+                               "supply.main_tube_inner_diameter": d * MM})
                 rows.append({"mode": mode, "main_tube_count": count, "inner_diameter_mm": d})
     table = pd.DataFrame(rows)
     table["rise_time_90_s"] = _rise_times("paper-cycle", points)
@@ -135,14 +139,12 @@ def _steady_pressures(model, swing: float) -> tuple[float, float]:
     return ps, ps - swing
 
 
-def _air_per_stroke_at(raw: dict, source_gauge_bar: float) -> float:
+def _air_per_stroke_at(base, source_gauge_bar: float) -> float:
     """Air [kg] one stroke of all muscles takes with the source held at the given pressure above an
     atmospheric exhaust (a 1000 L source, pump off, one 2 s cycle)."""
     from frogsim.engine.pneumatic import simulate
-    from frogsim.io.scenario import scenario_from_raw, with_overrides
-    sc = scenario_from_raw(with_overrides(raw, {"source.volume": "1000 L", "pump.enabled": False,
-                                                "source.initial_pressure_gauge": f"{source_gauge_bar} bar",
-                                                "duration": "2 s"}))
+    sc = base.replace({"source.volume": 1000 * LITRE, "pump.enabled": False,
+                       "source.initial_pressure_gauge": source_gauge_bar * BAR, "duration": 2.0})
     r = simulate(sc)
     return float(sum(r.charged_mass(n)[-1] for n in r.names))
 
@@ -164,17 +166,17 @@ def _pump_for_rate(sub: pd.DataFrame, rate: float) -> float:
 @register("design-endurance", "Source volume x pump flow -> strokes before the source runs short, "
           "sustainable stroke rate (12 muscles)", group="design")
 def design_endurance() -> StudyData:
-    raw = load_scenario("robot-12").raw
+    base = load_scenario("robot-12")
     points, rows = [], []
     for vs in SOURCE_VOLUMES_L:
         for q in PUMP_FLOWS_L_PER_MIN:
-            points.append({"source.volume": f"{vs} L", "pump.displacement": f"{q} L/min"})
+            points.append({"source.volume": vs * LITRE, "pump.displacement": q * L_PER_MIN})
             rows.append({"source_volume_L": vs, "pump_displacement_L_per_min": q})
-    models, _ = compose_models(raw, points)
+    models = build_models(base, points)
     results = run_models(models)
     swing = REQUIRED_SWING_BAR * 1e5
     period = 2.0
-    air_req = _air_per_stroke_at(raw, REQUIRED_SWING_BAR)
+    air_req = _air_per_stroke_at(base, REQUIRED_SWING_BAR)
     rho_ref = results[0].reference_density
     for row, r, m in zip(rows, results, models):
         patm = r.atmospheric_pressure
@@ -254,9 +256,9 @@ def design_valve() -> StudyData:
     for c in VALVE_C:
         for b in VALVE_B:
             points.append({"supply.mode": "none",
-                           "valves.charge.sonic_conductance": f"{c} L/(s*bar)",
+                           "valves.charge.sonic_conductance": c * L_PER_S_BAR,
                            "valves.charge.critical_ratio": float(b),
-                           "valves.discharge.sonic_conductance": f"{c} L/(s*bar)",
+                           "valves.discharge.sonic_conductance": c * L_PER_S_BAR,
                            "valves.discharge.critical_ratio": float(b)})
             rows.append({"sonic_conductance_L_per_s_bar": c, "critical_ratio": b})
     table = pd.DataFrame(rows)

@@ -10,9 +10,10 @@ import pandas as pd
 
 from frogsim.circuit.model import branch_limit_standard
 from frogsim.engine.pneumatic import simulate
-from frogsim.io.scenario import load_scenario, scenario_from_raw, with_overrides
+from frogsim.scenario.load import load_scenario
+from frogsim.scenario.schema import Motion, Program
 from frogsim.studies.calibration import PAPER_AERATION_L
-from frogsim.studies.plotting import figure, save, shade_valve_phases
+from frogsim._plotting import figure, save, shade_valve_phases
 from frogsim.studies.registry import StudyData, register
 
 BASE = "paper-cycle"
@@ -25,13 +26,13 @@ L_PER_MIN = 1e-3 / 60.0
 NOTE = "frogsim, parameter set fan2017; pressures gauge"
 
 
-def _base_raw() -> dict:
-    return load_scenario(BASE).raw
+def _base():
+    return load_scenario(BASE)
 
 
-def run(overrides: dict | None = None):
-    """Simulate the base scenario with dotted-path overrides."""
-    return simulate(scenario_from_raw(with_overrides(_base_raw(), overrides or {})))
+def run(changes: dict | None = None):
+    """Simulate a variant of the base scenario (dotted path -> SI value or typed table)."""
+    return simulate(_base().replace(changes or {}))
 
 
 def gauge_bar(result, p):
@@ -124,7 +125,7 @@ def fig15() -> StudyData:
     summary = {"saturated": [], "unsaturated": []}
     for label, mode in (("saturated", "paper"), ("unsaturated", "none")):
         for ps in SOURCE_PRESSURES_BAR:
-            r = run({"source.initial_pressure_gauge": f"{ps} bar", "supply.mode": mode})
+            r = run({"source.initial_pressure_gauge": ps * BAR, "supply.mode": mode})
             cols.setdefault("time_s", r.t)
             cols[f"hip_pressure_bar_gauge_{ps}bar_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
             summary[label].append({"source_pressure_bar_gauge": ps,
@@ -172,8 +173,8 @@ def fig16() -> StudyData:
         entry = {"volume_constant_percent": frac}
         for label, mode in (("saturated", "paper"), ("unsaturated", "none")):
             over = {"supply.mode": mode}
-            for m in _base_raw()["muscles"]:
-                over[f"muscles.{m}.motion"] = {"kind": "volume_constant", "fraction": f"{frac} %"}
+            for m in _base().muscles:
+                over[f"muscles.{m}.motion"] = Motion("volume_constant", fraction=frac / 100.0)
             r = run(over)
             cols.setdefault("time_s", r.t)
             cols[f"hip_pressure_bar_gauge_{frac}pct_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
@@ -204,7 +205,7 @@ def fig17() -> StudyData:
     cols = {}
     entries = []
     for q in BRANCH_LIMITS_L_PER_MIN:
-        r = run({"supply.branch_limit": f"{q} L/min"})
+        r = run({"supply.branch_limit": q * L_PER_MIN})
         cols.setdefault("time_s", r.t)
         cols[f"hip_pressure_bar_gauge_{q}Lpm"] = gauge_bar(r, r.muscle_pressure(HIP))
         entries.append({"branch_limit_L_per_min": q, "rise_time_90_s": r.rise_time(HIP),
@@ -268,10 +269,10 @@ def _draw_aeration(data: StudyData, path: str) -> None:
 # --- Tube modes -------------------------------------------------------------------------------------
 def _one_branch_overrides() -> dict:
     """Only the left hip muscle is charged: the other five programs hold their valves closed."""
-    over = {"programs.idle": {"steps": [{"at": "0 s", "state": "hold"}]}}
-    for m in _base_raw()["muscles"]:
+    over = {}
+    for m in _base().muscles:
         if m != HIP:
-            over[f"muscles.{m}.program"] = "idle"
+            over[f"muscles.{m}.program"] = Program(steps=((0.0, "hold"),))
     return over
 
 
@@ -290,7 +291,7 @@ def tube_modes() -> StudyData:
             summary[mode][f"{label}_L_per_min"] = float(q.max())
             summary[mode][f"{label}_rise_time_90_s"] = r.rise_time(HIP)
     sc = load_scenario(BASE)
-    limit = branch_limit_standard(sc) / L_PER_MIN
+    limit = branch_limit_standard(sc.supply) / L_PER_MIN
     return StudyData(pd.DataFrame(cols), {"tube_modes": summary, "branch_saturation_L_per_min": limit})
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from frogsim.studies.plotting import figure, save
+from frogsim._plotting import figure, save
 from frogsim.studies.registry import StudyData, register
 
 BAR = 1e5

@@ -12,6 +12,8 @@ from typing import Callable
 
 import numpy as np
 
+from frogsim._parallel import map_pieces
+
 from frogsim.circuit import layout as L
 from frogsim.engine.measures import charged_in_phase, rise_time, value_at_close
 
@@ -140,21 +142,9 @@ def evaluate_models(models, metrics: list[str], muscle: str | None = None, threa
     ``frogsim.simulate``) and reduces them to metric values while their time series are still in
     cache, so memory stays at a few chunks' worth whatever the number of points.
     """
-    import os
-    from concurrent.futures import ThreadPoolExecutor
-
     from frogsim.engine.batch import run_models
     unknown = [m for m in metrics if m not in METRICS]
     if unknown:
         raise KeyError(f"unknown metric {unknown[0]!r}; metrics: {', '.join(METRICS)}")
-    pieces = [models[k:k + chunk] for k in range(0, len(models), chunk)]
-
-    def work(piece):
-        return evaluate(run_models(piece, threads=1), metrics, muscle)
-    threads = max(1, threads or os.cpu_count() or 1)
-    if threads == 1 or len(pieces) == 1:
-        parts = [work(p) for p in pieces]
-    else:
-        with ThreadPoolExecutor(threads) as pool:
-            parts = list(pool.map(work, pieces))
+    parts = map_pieces(lambda piece: evaluate(run_models(piece, threads=1), metrics, muscle), models, chunk, threads)
     return {m: np.concatenate([p[m] for p in parts]) if parts else np.empty(0) for m in metrics}

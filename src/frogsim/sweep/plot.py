@@ -38,7 +38,7 @@ def _match(ds, path: str, text: str):
     if not hit.any() and ds[path].dtype.kind == "f":
         kind = ds[path].attrs.get("kind", "")
         try:
-            from frogsim.io.units import parse_quantity
+            from frogsim.scenario.units import parse_quantity
             x = float(text) if kind in ("integer", "dimensionless") or not any(ch.isalpha() for ch in text) \
                 else parse_quantity(text, kind)
         except Exception:
@@ -56,7 +56,7 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
                reduce: str | None = None) -> None:
     """Draw ``metric`` against swept parameter ``x`` (and ``y``: heatmap) into the PNG ``out``."""
     from frogsim.io.results import write_figure
-    from frogsim.studies.plotting import figure, save
+    from frogsim._plotting import figure, save
     params, metrics = _params(ds), _metrics(ds)
     if not params:
         raise ScenarioError("results", ds.attrs.get("title", "?"), "is not a frogsim sweep results file")

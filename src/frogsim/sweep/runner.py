@@ -36,15 +36,16 @@ from typing import Callable
 
 import numpy as np
 
+from frogsim._parallel import map_pieces
 from frogsim.circuit import layout as L
 from frogsim.errors import ScenarioError, SimulationError
+from frogsim.scenario.core import Scenario
 from frogsim.sweep.spec import SweepSpec, _toml_value, dumps_toml, load_spec
 
 FORMAT = 1                      # version of the results layout, stored in the file
 NC_ENGINE = "netcdf4"
 _FLUSH_SECONDS = 5.0            # rewrite results.nc at most this often while running
 _SUB_BATCH = 64                 # points per thread held in memory at once within a chunk
-_COMPOSE_POINTS = 20_000        # a local run builds the models of up to this many points at once
 
 
 @dataclass(frozen=True)
@@ -78,20 +79,6 @@ STATES: dict[str, State] = {
 
 
 # --- one chunk (runs locally or as a Dask task) -----------------------------------------------------
-def build_chunk_models(base_raw: dict, base_dir: str, points: list[dict]):
-    """Models of a chunk: composed from one build per distinct value when that is cheaper than
-    one build per point (grids), else built point by point (random and LHS points, whose values
-    are all distinct). Returns (models, "composed" | "built")."""
-    from frogsim.circuit.model import build_model
-    from frogsim.engine.batch import compose_models
-    from frogsim.io.scenario import scenario_from_raw, with_overrides
-    paths = sorted({p for pt in points for p in pt})
-    distinct = sum(len({json.dumps(pt[p]) for pt in points}) for p in paths)
-    if distinct + 3 < len(points):            # compose_models checks 3 points with full builds
-        return compose_models(base_raw, points, base_dir)
-    return [build_model(scenario_from_raw(with_overrides(base_raw, pt, share=True), base_dir)) for pt in points], "built"
-
-
 def _run_isolating(models, threads: int) -> list:
     """Results in order; a point whose integration fails gets its error text instead."""
     from frogsim.engine.batch import run_models
@@ -153,25 +140,19 @@ def run_built(models, metrics, muscle: str, timeseries: tuple | None = None, thr
     points' time series per thread. Returns {"metrics": name -> (B,), "timeseries": state ->
     (B, samples), "failed": (B,) bool, "errors": {row: text}}.
     """
-    from concurrent.futures import ThreadPoolExecutor
     B = len(models)
     threads = max(1, int(threads or 1))
     size = max(1, min(_SUB_BATCH, -(-B // threads)))
     starts = list(range(0, B, size))
-
     lock = threading.Lock()
 
-    def work(a):
-        res = _run_piece(models[a:a + size], metrics, muscle, timeseries)
+    def work(piece):
+        res = _run_piece(piece, metrics, muscle, timeseries)
         if on_progress is not None:
             with lock:
                 on_progress(len(res["failed"]))
         return res
-    if threads == 1 or len(starts) == 1:
-        parts = [work(a) for a in starts]
-    else:
-        with ThreadPoolExecutor(threads) as pool:
-            parts = list(pool.map(work, starts))
+    parts = map_pieces(work, models, size, threads)
     out = {"metrics": {m: np.concatenate([p["metrics"][m] for p in parts]) if parts else np.empty(0)
                        for m in metrics},
            "timeseries": {}, "failed": np.concatenate([p["failed"] for p in parts]) if parts else np.zeros(0, bool),
@@ -181,17 +162,16 @@ def run_built(models, metrics, muscle: str, timeseries: tuple | None = None, thr
     return out
 
 
-def run_chunk(base_raw: dict, base_dir: str, points: list[dict], metrics, muscle: str,
+def run_chunk(base: Scenario, points: list[dict], metrics, muscle: str,
               timeseries: tuple | None = None, threads: int = 1, on_progress=None) -> dict:
     """Build, run and reduce one chunk of points (a Dask task; see :func:`run_built`).
 
-    ``timeseries`` is (state names, step, samples) or None. Returns plain data only (so a Dask
-    worker can send it back): the dict of :func:`run_built` plus "method" ("composed" or "built").
+    ``points`` are variants of ``base`` (dotted path -> SI value); ``timeseries`` is (state names,
+    step, samples) or None. Returns plain data only (so a Dask worker can send it back): the dict
+    of :func:`run_built`.
     """
-    models, how = build_chunk_models(base_raw, base_dir, points)
-    res = run_built(models, metrics, muscle, timeseries, threads, on_progress)
-    res["method"] = how
-    return res
+    from frogsim.engine.batch import build_models
+    return run_built(build_models(base, points), metrics, muscle, timeseries, threads, on_progress)
 
 
 # --- the sweep's data in memory ---------------------------------------------------------------------
@@ -207,7 +187,6 @@ class _Store:
         self.completed = np.zeros(n, bool)
         self.failed = np.zeros(n, bool)
         self.errors: dict[int, str] = {}
-        self.methods: set = set()
 
     def put(self, idx: np.ndarray, res: dict) -> None:
         for m in self.metrics:
@@ -218,8 +197,6 @@ class _Store:
         for row, text in res["errors"].items():
             self.errors[int(idx[int(row)])] = text
         self.completed[idx] = True
-        if res.get("method"):
-            self.methods.add(res["method"])
 
     def load_dataset(self, ds) -> None:
         """Take the completed points of a results file of the same spec."""
@@ -318,7 +295,6 @@ def to_dataset(spec: SweepSpec, store: _Store):
         "n_failed": int(store.failed.sum()),
         "complete": int(store.completed.all()),
         "chunk_size": spec.chunk_size,
-        "model_building": ", ".join(sorted(store.methods)),
         "failures": json.dumps({str(k): v[:300] for k, v in sorted(store.errors.items())[:1000]}),
         "updated": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
@@ -403,8 +379,7 @@ class _Journal:
                 with np.load(f, allow_pickle=False) as z:
                     res = {"metrics": {k[2:]: z[k] for k in z.files if k.startswith("m_")},
                            "timeseries": {k[3:]: z[k] for k in z.files if k.startswith("ts_")},
-                           "failed": z["failed"], "errors": json.loads(str(z["errors"])),
-                           "method": str(z["method"])}
+                           "failed": z["failed"], "errors": json.loads(str(z["errors"]))}
                     yield int(f.stem.split("-")[1]), z["idx"], res
             except (OSError, ValueError, KeyError):
                 f.unlink()          # cannot happen with atomic writes; rerun that chunk
@@ -414,8 +389,7 @@ class _Journal:
         arrays = {f"m_{m}": v for m, v in res["metrics"].items()}
         arrays.update({f"ts_{s}": v for s, v in res["timeseries"].items()})
         with open(tmp, "wb") as fh:
-            np.savez(fh, idx=idx, failed=res["failed"], errors=np.array(json.dumps(res["errors"])),
-                     method=np.array(res["method"]), **arrays)
+            np.savez(fh, idx=idx, failed=res["failed"], errors=np.array(json.dumps(res["errors"])), **arrays)
         _fsync_replace(tmp, self.dir / f"chunk-{k:06d}.npz")
 
     def remove(self) -> None:
@@ -588,35 +562,19 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
 
 
 def _run_local(spec: SweepSpec, plan, pending, ts, threads: int, bar, finished) -> None:
-    """Pending chunks in order; models are built for several consecutive chunks at once (up to
-    _COMPOSE_POINTS points), since composing costs one build per distinct value, not per point."""
-    limit = max(_COMPOSE_POINTS, spec.chunk_size)
-    k = 0
-    while k < len(pending):
-        group, n = [], 0
-        while k + len(group) < len(pending) and (not group or n + len(plan[pending[k + len(group)]]) <= limit):
-            n += len(plan[pending[k + len(group)]])
-            group.append(pending[k + len(group)])
-        idx = np.concatenate([plan[c] for c in group])
-        models, how = build_chunk_models(spec.base_raw, spec.base_dir, spec.points(idx))
-        a = 0
-        for c in group:
-            m = len(plan[c])
-            res = run_built(models[a:a + m], spec.metrics, spec.muscle, ts, threads, on_progress=bar.update)
-            res["method"] = how
-            finished(c, res)
-            a += m
-        del models
-        k += len(group)
+    """Pending chunks in order, each built, run and reduced on ``threads`` threads."""
+    for c in pending:
+        finished(c, run_chunk(spec.scenario, spec.points(plan[c]), spec.metrics, spec.muscle, ts, threads,
+                              on_progress=bar.update))
 
 
 def _run_dask(client, spec: SweepSpec, plan, pending, ts, threads: int, bar, finished) -> None:
     """One task per pending chunk; results handled in the order they finish."""
     from distributed import as_completed
-    base = client.scatter([spec.base_raw], broadcast=True)[0]
+    base = client.scatter([spec.scenario], broadcast=True)[0]
     futures = {}
     for k in pending:
-        fut = client.submit(run_chunk, base, spec.base_dir, spec.points(plan[k]), spec.metrics, spec.muscle,
+        fut = client.submit(run_chunk, base, spec.points(plan[k]), spec.metrics, spec.muscle,
                             ts, threads, key=f"frogsim-sweep-{spec.hash[:12]}-{k}-{time.time_ns()}", pure=False)
         futures[fut] = k
     try:

@@ -39,6 +39,7 @@ one-line :class:`frogsim.ScenarioError` naming the spec field, the value and wha
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import functools
 import hashlib
 import itertools
@@ -51,11 +52,11 @@ from pathlib import Path
 
 import numpy as np
 
-from frogsim.components import schema
-from frogsim.components.builder import unknown_key_error, unwrap
+from frogsim.scenario.fields import unknown_key_error, unwrap
 from frogsim.errors import MISSING, UNKNOWN, ScenarioError
-from frogsim.io.scenario import merged_raw, read_toml, scenario_from_raw, with_overrides
-from frogsim.io.units import SI_UNITS, parse_quantity
+from frogsim.scenario.core import Scenario
+from frogsim.scenario.load import merged_raw, read_toml, scenario_from_raw, with_overrides
+from frogsim.scenario.units import SI_UNITS, display_factor, parse_quantity
 
 METHODS = ("grid", "list", "random", "lhs")
 MAX_POINTS = 2_000_000
@@ -67,9 +68,21 @@ _RANGE_KEYS = ("values", "start", "stop", "num", "min", "max")
 # --- what a dotted path is --------------------------------------------------------------------------
 @dataclass(frozen=True)
 class FieldInfo:
-    """How the scenario reads one setting: a quantity kind, an integer, a flag or a choice."""
-    kind: str                      # a key of frogsim.io.units.SI_UNITS, "integer", "flag" or "choice"
+    """How a scenario setting is read: a quantity kind, an integer, a flag or a choice (taken from
+    the field's metadata in the schema, :meth:`frogsim.scenario.core.Scenario.variable_paths`)."""
+    kind: str                      # a key of frogsim.scenario.units.SI_UNITS, "integer", "flag" or "choice"
     choices: tuple = ()
+    meta: dict = dataclasses.field(default_factory=dict, compare=False, repr=False)
+
+    @classmethod
+    def of(cls, meta: dict) -> "FieldInfo":
+        if meta.get("boolean"):
+            return cls("flag", (), meta)
+        if "choices" in meta:
+            return cls("choice", tuple(meta["choices"]), meta)
+        if meta.get("integer"):
+            return cls("integer", (), meta)
+        return cls(meta["kind"], (), meta)
 
     @property
     def numeric(self) -> bool:
@@ -82,100 +95,36 @@ class FieldInfo:
         return "1" if self.kind == "integer" else ""
 
 
-def _dataclass_fields(cls) -> dict[str, FieldInfo]:
-    out = {}
-    for f in dataclasses.fields(cls):
-        meta = f.metadata or {}
-        if "kind" in meta:
-            out[f.name] = FieldInfo(meta["kind"])
-        elif meta.get("integer"):
-            out[f.name] = FieldInfo("integer")
-        elif meta.get("boolean"):
-            out[f.name] = FieldInfo("flag")
-        elif "choices" in meta:
-            out[f.name] = FieldInfo("choice", tuple(meta["choices"]))
-    return out
-
-
-_SECTIONS = {"air": schema.Air, "source": schema.Chamber, "exhaust": schema.Chamber, "pump": schema.Pump,
-             "supply": schema.Supply, "controller": schema.Controller, "solver": schema.Solver}
-_TIME = FieldInfo("time")
-_FRACTION = FieldInfo("dimensionless")
-_MOTION = {"contraction": _FRACTION, "fraction": _FRACTION, "delay": _TIME, "rise": _TIME, "fall": _TIME,
-           "kind": FieldInfo("choice", tuple(schema.MOTION_KINDS))}
-
-
-def field_info(path: str, base_raw: dict) -> FieldInfo:
+def field_info(path: str, base: Scenario) -> FieldInfo:
     """How the setting at a dotted path is read, or ScenarioError if no setting lives there."""
-    keys = path.split(".")
     where = f"sweep.parameters.{path}"
-
-    def unknown(known, key):
-        err = unknown_key_error("", key, known)
-        return ScenarioError(where, UNKNOWN, f"no scenario setting at this path: {err.allowed}")
-
-    if not all(keys):
+    keys = path.split(".") if isinstance(path, str) else []
+    if not all(keys) or not keys:
         raise ScenarioError(where, UNKNOWN, "expected a dotted path such as source.initial_pressure_gauge")
-    top = keys[0]
-    tops = ("duration", "output_interval", *_SECTIONS, "valves", "muscle_types", "muscles", "programs")
-    if top not in tops:
-        raise unknown(tops, top)
-    if len(keys) == 1:
-        if top in ("duration", "output_interval"):
-            return _TIME
-        raise ScenarioError(where, UNKNOWN, f"{top!r} is a table; sweep one of its settings, "
-                                            f"e.g. {top}.<name>")
-    if top in _SECTIONS and len(keys) == 2:
-        fields = _dataclass_fields(_SECTIONS[top])
-        if keys[1] not in fields:
-            raise unknown(fields, keys[1])
-        return fields[keys[1]]
-    if top == "valves" and len(keys) == 3:
-        if keys[1] not in ("charge", "discharge"):
-            raise unknown(("charge", "discharge"), keys[1])
-        fields = _dataclass_fields(schema.Valve)
-        if keys[2] not in fields:
-            raise unknown(fields, keys[2])
-        return fields[keys[2]]
-    if top in ("muscle_types", "muscles", "programs") and len(keys) >= 3:
-        names = base_raw.get(top, {})
-        if keys[1] not in names:
-            raise ScenarioError(where, UNKNOWN, f"the base scenario has no {top}.{keys[1]} "
-                                                f"(it has: {', '.join(names) or 'none'})")
-        if top == "muscle_types" and len(keys) == 3:
-            fields = _dataclass_fields(schema.MuscleType)
-        elif top == "programs" and len(keys) == 3:
-            fields = _dataclass_fields(schema._Cycle)
-        elif top == "muscles" and len(keys) == 3:
-            fields = {"initial_pressure_gauge": FieldInfo("pressure"),
-                      "type": FieldInfo("choice", tuple(base_raw.get("muscle_types", {})))}
-            if keys[2] in ("motion", "program"):
-                raise ScenarioError(where, UNKNOWN, f"{keys[2]!r} is a table; sweep one of its "
-                                                    f"settings, e.g. {path}.{'fraction' if keys[2] == 'motion' else 'pressurise'}")
-        elif top == "muscles" and len(keys) == 4 and keys[2] == "motion":
-            fields = _MOTION
+    paths = base.variable_paths()
+    if path in paths:
+        return FieldInfo.of(paths[path])
+    node, here = base, ""
+    for key in keys:            # find the first key that names nothing, and say what is there
+        if dataclasses.is_dataclass(node):
+            names = [f.name for f in dataclasses.fields(node) if f.name not in ("raw", "base_dir")]
+            if key not in names:
+                err = unknown_key_error(here, key, names)
+                raise ScenarioError(where, UNKNOWN, f"no scenario setting at this path: {err.allowed}")
+            node = getattr(node, key)
+        elif isinstance(node, dict):
+            if key not in node:
+                raise ScenarioError(where, UNKNOWN, f"the base scenario has no {here}.{key} "
+                                                    f"(it has: {', '.join(node) or 'none'})")
+            node = node[key]
         else:
-            raise ScenarioError(where, UNKNOWN, "no scenario setting at this path")
-        key = keys[-1]
-        if key not in fields:
-            raise unknown(fields, key)
-        return fields[key]
-    raise ScenarioError(where, UNKNOWN, "no scenario setting at this path")
-
-
-def validation_group(path: str) -> str:
-    """Settings the scenario loader checks together (a check never reads two groups).
-
-    Each section of the parameter set is built and checked on its own (pump band, valve ratios,
-    ...); the run settings (duration, output interval, controller, programs, muscles, muscle
-    types) meet in the muscle motions and are one group.
-    """
-    keys = path.split(".")
-    if keys[0] == "valves":
-        return ".".join(keys[:2])
-    if keys[0] in ("air", "source", "exhaust", "pump", "supply", "solver"):
-        return keys[0]
-    return "run"
+            raise ScenarioError(where, UNKNOWN, f"{here} is a value, not a table")
+        here = f"{here}.{key}" if here else key
+    inside = sorted(p for p in paths if p.startswith(path + "."))
+    if inside:
+        raise ScenarioError(where, UNKNOWN, f"{path!r} is a table; sweep one of its settings, e.g. {inside[0]}")
+    raise ScenarioError(where, UNKNOWN, "not a setting a sweep can vary here (a name, a file, or a setting "
+                                        "this scenario does not use)")
 
 
 # --- values -----------------------------------------------------------------------------------------
@@ -273,16 +222,35 @@ def _range_value(text, unit, info: FieldInfo, where: str) -> tuple[float, str]:
 
 
 def _generated(mags, unit: str, info: FieldInfo, where: str, digits: int = 12) -> tuple[tuple, tuple]:
-    """Values generated in a written unit -> (as written with ``digits`` significant digits, SI)."""
+    """Values generated in a written unit -> (labels with ``digits`` significant digits, SI).
+
+    The values run are the labels' numbers (rounded to ``digits``) times the unit's size, so a
+    label means exactly the value run; no label is parsed back.
+    """
     if info.kind == "integer":
         if any(abs(m - round(m)) > 1e-9 for m in mags):
             raise ScenarioError(where, [_fmt(m) for m in mags], "must be whole numbers for this setting")
         written = tuple(int(round(m)) for m in mags)
-    elif unit:
-        written = tuple(f"{_fmt(m, digits)} {unit}" for m in mags)
-    else:
-        written = tuple(float(_fmt(m, digits)) for m in mags)
-    return written, tuple(_to_si(w, info, where) for w in written)
+        return written, tuple(float(w) for w in written)
+    rounded = [float(_fmt(m, digits)) for m in mags]
+    factor = display_factor(unit, info.kind) if unit else 1.0
+    si = tuple(r * factor for r in rounded)
+    for w, x in zip(rounded, si):
+        _check_si(x, info, where, w)
+    written = tuple(f"{_fmt(r, digits)} {unit}" for r in rounded) if unit else tuple(rounded)
+    return written, si
+
+
+def _check_si(x: float, info: FieldInfo, where: str, shown) -> None:
+    if not math.isfinite(x):
+        raise ScenarioError(where, shown, "must be a finite number")
+
+
+def _typed(info: FieldInfo, written, si: float):
+    """The value a variant takes: SI float, whole number, choice or flag."""
+    if not info.numeric:
+        return written
+    return int(si) if info.kind == "integer" else si
 
 
 def _display(written: tuple, si: tuple, info: FieldInfo) -> tuple[str, float]:
@@ -296,9 +264,9 @@ def _display(written: tuple, si: tuple, info: FieldInfo) -> tuple[str, float]:
     return info.si_unit, 1.0
 
 
-def _parameter(path: str, raw, method: str, base_raw: dict) -> Parameter:
+def _parameter(path: str, raw, method: str, base: Scenario) -> Parameter:
     where = f"sweep.parameters.{path}"
-    info = field_info(path, base_raw)
+    info = field_info(path, base)
     if isinstance(raw, list):
         raw = {"values": raw}
     if not isinstance(raw, dict):
@@ -409,17 +377,7 @@ def _apply_overrides(raw: dict, overrides: dict, prefix: str = "") -> dict:
                 isinstance(_get(raw, path), dict):
             raw = _apply_overrides(raw, val, path)
         else:
-            raw = with_overrides(_ensure_section(raw, path), {path: val})
-    return raw
-
-
-def _ensure_section(raw: dict, path: str) -> dict:
-    """A copy of raw with an empty table for the path's section if the scenario left it out
-    (an empty [solver] or [controller] means the defaults, as a missing one does)."""
-    top = path.split(".")[0]
-    if "." in path and top in _SECTIONS and top not in raw:
-        raw = dict(raw)
-        raw[top] = {}
+            raw = with_overrides(raw, {path: val})
     return raw
 
 
@@ -451,8 +409,9 @@ class SweepSpec:
     description: str
     method: str
     base: str                        # the base as given (shipped name or path)
-    base_raw: dict                   # merged raw scenario, overrides applied
+    base_raw: dict                   # merged raw scenario, overrides applied (as in the files)
     base_dir: str
+    scenario: Scenario               # the base scenario, typed; every point is a variant of it
     parameters: tuple                # Parameter, in the spec's order
     written: tuple                   # per point: tuple of values as written (one per parameter)
     si: np.ndarray                   # (points, parameters) SI values (NaN for choices)
@@ -485,8 +444,14 @@ class SweepSpec:
         return len(self.written)
 
     def point(self, k: int) -> dict:
-        """Overrides of point k (flat index, C order for a grid): dotted path -> value as written."""
-        return dict(zip(self.paths, self.written[k]))
+        """Point k (flat index, C order for a grid) as a variant: dotted path -> SI value (or the
+        choice / flag / whole number), ready for ``scenario.replace``."""
+        row = self.si[k]
+        return {p.path: _typed(p.info, w, float(x)) for p, w, x in zip(self.parameters, self.written[k], row)}
+
+    def variant(self, k: int) -> Scenario:
+        """The scenario of point k (validated)."""
+        return self.scenario.replace(self.point(k))
 
     def points(self, indices=None) -> list[dict]:
         idx = range(self.n_points) if indices is None else indices
@@ -504,6 +469,7 @@ class SweepSpec:
         series, chunk plan (not the name, description or comments)."""
         key = {"base": self.base_raw, "method": self.method,
                "paths": self.paths, "points": [list(w) for w in self.written],
+               "si": [[repr(float(x)) for x in row] for row in self.si],
                "metrics": list(self.metrics), "muscle": self.muscle,
                "timeseries": None if self.timeseries is None else
                [list(self.timeseries.states), self.timeseries.step], "chunk_size": self.chunk_size}
@@ -515,36 +481,16 @@ class SweepSpec:
         return dumps_toml({k: v for k, v in self.base_raw.items()})
 
     def validate_points(self) -> int:
-        """Validate every point's scenario (raises ScenarioError naming the point); returns the
-        number of scenarios checked.
-
-        The loader checks each validation group (see :func:`validation_group`) on its own, so it is
-        enough to check every combination of values met within each group, the rest at base
-        values: for a grid that is far fewer than the points. Point sweeps (list, random, lhs)
-        whose combinations are no fewer are checked point by point.
-        """
-        groups: dict[str, list[int]] = {}
-        for j, p in enumerate(self.parameters):
-            groups.setdefault(validation_group(p.path), []).append(j)
-        combos = {g: sorted({tuple(w[j] for j in cols) for w in self.written}, key=repr)
-                  for g, cols in groups.items()}
-        todo: list[tuple[dict, int | None]] = []
-        if sum(len(c) for c in combos.values()) < self.n_points:
-            for g, cols in groups.items():
-                for combo in combos[g]:
-                    todo.append(({self.paths[j]: v for j, v in zip(cols, combo)}, None))
-        else:
-            todo = [(self.point(k), k) for k in range(self.n_points)]
-        if not todo:
-            todo = [({}, None)]
-        for overrides, k in todo:
+        """Validate every point's scenario (raises ScenarioError naming the point, before anything
+        runs); returns the number of scenarios checked. Each point is made as the run makes it,
+        ``scenario.replace(point)``: the same field bounds and cross-field rules as the loader."""
+        for k in range(self.n_points):
             try:
-                scenario_from_raw(with_overrides(self.base_raw, overrides, share=True), self.base_dir)
+                self.variant(k)
             except ScenarioError as exc:
-                where = f"sweep point {k}" if k is not None else "a sweep point"
-                raise ScenarioError(exc.field, exc.value,
-                                    f"{exc.allowed} (in {where}: {_show(overrides)})") from None
-        return len(todo)
+                shown = _show(dict(zip(self.paths, self.written[k])))
+                raise ScenarioError(exc.field, exc.value, f"{exc.allowed} (in sweep point {k}: {shown})") from None
+        return self.n_points
 
 
 def _show(overrides: dict) -> str:
@@ -624,7 +570,7 @@ def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
         raise ScenarioError("base.scenario", base.get("scenario", MISSING),
                             "required: a shipped scenario name (paper-cycle) or a path to a scenario file")
     base_name = base["scenario"]
-    from frogsim.io.scenario import SCENARIOS_DIR
+    from frogsim.scenario.load import SCENARIOS_DIR
     candidate = spec_dir / base_name
     if candidate.is_file():
         where = candidate
@@ -662,9 +608,7 @@ def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
     for a, b in itertools.permutations(paths, 2):
         if b.startswith(a + "."):
             raise ScenarioError(f"sweep.parameters.{b}", UNKNOWN, f"lies inside another swept setting ({a})")
-    params = [_parameter(p, v, method, base_raw) for p, v in flat.items()]
-    for p in paths:
-        base_raw = _ensure_section(base_raw, p)
+    params = [_parameter(p, v, method, scenario) for p, v in flat.items()]
     samples = seed = None
     if method in ("random", "lhs"):
         samples = sweep.get("samples", MISSING)
@@ -731,7 +675,7 @@ def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
     if isinstance(chunk_size, bool) or not isinstance(chunk_size, int) or chunk_size < 1:
         raise ScenarioError("run.chunk_size", chunk_size, "expected a whole number >= 1")
     return SweepSpec(name=name, description=description, method=method, base=base_name, base_raw=base_raw,
-                     base_dir=scen_dir, parameters=tuple(params), written=tuple(written), si=si,
+                     base_dir=scen_dir, scenario=scenario, parameters=tuple(params), written=tuple(written), si=si,
                      metrics=tuple(metrics), muscle=muscle, timeseries=timeseries,
                      chunk_size=chunk_size, samples=samples, seed=seed, text=text, raw=raw)
 
@@ -756,7 +700,7 @@ def _timeseries(ts, scenario, params, metrics) -> TimeSeries | None:
         if p.path in ("duration", "output_interval"):
             raise ScenarioError(f"{where}", UNKNOWN, f"time series need one time grid: not available "
                                                      f"when {p.path} is swept")
-    from frogsim.components.builder import parse_field
+    from frogsim.scenario.fields import parse_field
     oi = scenario.output_interval
     interval = parse_field(ts.get("interval", f"{oi} s"), dict(kind="time", gt=0.0, display="ms"),
                            f"{where}.interval")
@@ -764,7 +708,7 @@ def _timeseries(ts, scenario, params, metrics) -> TimeSeries | None:
     if step < 1 or abs(step * oi - interval) > 1e-9 * interval:
         raise ScenarioError(f"{where}.interval", ts.get("interval"),
                             f"must be a whole multiple of the base scenario's output_interval ({oi * 1e3:g} ms)")
-    from frogsim.circuit.model import output_times
+    from frogsim.scenario.motion import output_times
     t = output_times(scenario.duration, oi)[::step]
     return TimeSeries(tuple(states), interval, step, tuple(float(x) for x in t))
 

@@ -1,6 +1,6 @@
 """Build frozen dataclasses from nested dicts (parsed TOML), validating every value.
 
-Each dataclass field carries metadata: the kind of quantity (see :data:`frogsim.io.units.SI_UNITS`),
+Each dataclass field carries metadata: the kind of quantity (see :data:`frogsim.scenario.units.SI_UNITS`),
 bounds in SI, a display unit for messages, allowed choices, and an optional default. Errors name the
 dotted path of the field, the value as written and what is allowed; unknown keys get a "did you
 mean". A value may be written plain ("4 L") or with its source ({ value = "4 L", source = "..." }).
@@ -10,46 +10,44 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import functools
+import math
 import typing
-from dataclasses import MISSING, field
 
-from frogsim.errors import MISSING, UNKNOWN, ScenarioError
-from frogsim.io.units import SI_UNITS, parse_quantity, to_si
+import numpy as np
+from dataclasses import MISSING as NO_FIELD_DEFAULT, field
+
+from frogsim.errors import MISSING, UNKNOWN, ScenarioError, Shown
+from frogsim.scenario.units import display_factor, to_si
 
 _NO_DEFAULT = object()
 
 
+def _field(meta: dict, default):
+    meta["default"] = default
+    if default is _NO_DEFAULT:
+        return field(metadata=meta)
+    return field(default=default, metadata=meta)
+
+
 def quantity(kind: str, *, gt=None, ge=None, lt=None, le=None, display: str | None = None,
-             default=_NO_DEFAULT, doc: str = ""):
+             default=_NO_DEFAULT, doc: str = "", **extra):
     """A float field holding an SI value of the given kind, with bounds (SI) and a display unit."""
-    meta = dict(kind=kind, gt=gt, ge=ge, lt=lt, le=le, display=display, default=default, doc=doc)
-    if default is _NO_DEFAULT:
-        return field(metadata=meta)
-    return field(default=default, metadata=meta)
+    return _field(dict(kind=kind, gt=gt, ge=ge, lt=lt, le=le, display=display, doc=doc, **extra), default)
 
 
-def choice(options: tuple, *, default=_NO_DEFAULT, doc: str = ""):
+def choice(options: tuple, *, default=_NO_DEFAULT, doc: str = "", **extra):
     """A field whose value must be one of options."""
-    meta = dict(choices=options, default=default, doc=doc)
-    if default is _NO_DEFAULT:
-        return field(metadata=meta)
-    return field(default=default, metadata=meta)
+    return _field(dict(choices=options, doc=doc, **extra), default)
 
 
-def integer(*, ge=None, le=None, default=_NO_DEFAULT, doc: str = ""):
+def integer(*, ge=None, le=None, default=_NO_DEFAULT, doc: str = "", **extra):
     """An integer field with bounds."""
-    meta = dict(integer=True, ge=ge, le=le, default=default, doc=doc)
-    if default is _NO_DEFAULT:
-        return field(metadata=meta)
-    return field(default=default, metadata=meta)
+    return _field(dict(integer=True, ge=ge, le=le, doc=doc, **extra), default)
 
 
-def flag(*, default=_NO_DEFAULT, doc: str = ""):
+def flag(*, default=_NO_DEFAULT, doc: str = "", **extra):
     """A boolean field."""
-    meta = dict(boolean=True, default=default, doc=doc)
-    if default is _NO_DEFAULT:
-        return field(metadata=meta)
-    return field(default=default, metadata=meta)
+    return _field(dict(boolean=True, doc=doc, **extra), default)
 
 
 def unwrap(value):
@@ -63,8 +61,7 @@ def _fmt_bound(x: float, meta: dict) -> str:
     disp = meta.get("display")
     kind = meta.get("kind")
     if disp and kind:
-        factor = parse_quantity(f"1 {disp}", kind)
-        return f"{x / factor:g} {disp}"
+        return f"{x / display_factor(disp, kind):g} {disp}"
     return f"{x:g}"
 
 
@@ -102,6 +99,43 @@ def parse_field(raw, meta: dict, path: str):
     return x
 
 
+def check_value(value, meta: dict, path: str):
+    """Validate an SI value (no unit text) for a field with this metadata; return it as stored.
+
+    The typed twin of :func:`parse_field`: the same bounds and choices, the same messages, for
+    values that are already numbers in SI (a variant, a sweep point, a fit iterate).
+    """
+    if meta.get("boolean"):
+        if not isinstance(value, (bool, np.bool_)):
+            raise ScenarioError(path, value, "expected true or false")
+        return bool(value)
+    if "choices" in meta:
+        if value not in meta["choices"]:
+            raise ScenarioError(path, value, f"must be one of {', '.join(repr(c) for c in meta['choices'])}")
+        return value
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ScenarioError(path, value, "expected a number in SI units (no unit text past the loader)")
+    if meta.get("integer"):
+        if int(value) != value:
+            raise ScenarioError(path, value, "expected a whole number")
+        value = int(value)
+        check_bounds(value, meta, path, value)
+        return value
+    x = float(value)
+    if not math.isfinite(x):
+        raise ScenarioError(path, value, "must be a finite number")
+    check_bounds(x, meta, path, _shown(x, meta))
+    return x
+
+
+def _shown(x: float, meta: dict) -> str:
+    """An SI value as a user reads it in messages: in the field's display unit."""
+    disp, kind = meta.get("display"), meta.get("kind")
+    if disp and kind:
+        return Shown(f"{x / display_factor(disp, kind):g} {disp}")
+    return Shown(f"{x:g}")
+
+
 def unknown_key_error(path: str, key: str, known) -> ScenarioError:
     """ScenarioError for a key that is not a field, with the closest known names."""
     where = f"{path}.{key}" if path else key
@@ -136,7 +170,7 @@ def build(cls, raw, path: str = ""):
             if default is not _NO_DEFAULT:
                 values[name] = default
                 continue
-            if f.default is not MISSING or f.default_factory is not MISSING:
+            if f.default is not NO_FIELD_DEFAULT or f.default_factory is not NO_FIELD_DEFAULT:
                 continue
             if typing.get_origin(hint) is typing.Union and type(None) in typing.get_args(hint):
                 values[name] = None

@@ -64,3 +64,9 @@ def to_si(value, kind: str, field: str) -> float:
         return parse_quantity(value.strip(), kind)
     except Exception:  # pint raises several error types for bad text or dimensions
         raise ScenarioError(field, value, f"expected {what}") from None
+
+
+@functools.lru_cache(maxsize=256)
+def display_factor(unit: str, kind: str) -> float:
+    """Size of one display unit in SI ("bar", "pressure" -> 1e5); "" -> 1."""
+    return parse_quantity(f"1 {unit}", kind) if unit else 1.0

@@ -6,9 +6,11 @@ absolute (``*_abs``). Bounds are checked when a file is loaded; nothing is clamp
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import dataclass, field
 
-from frogsim.components.builder import build, choice, flag, integer, parse_field, quantity, unwrap
+from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, quantity, unknown_key_error,
+                                     unwrap)
 from frogsim.errors import MISSING, ScenarioError
 
 BAR = 1e5
@@ -117,14 +119,40 @@ class MuscleType:
 VALVE_STATES = {"charge": (1, 0), "vent": (0, 1), "hold": (0, 0)}
 
 
+def cycle_steps(pressurise: float, release: float, start: float, cycles: int) -> tuple:
+    """Steps ((t [s], state), ...) of a cycle program: charge at start + c*period, vent pressurise later."""
+    steps = []
+    period = pressurise + release
+    for c in range(cycles):
+        t0 = start + c * period
+        steps.append((t0, "charge"))
+        steps.append((t0 + pressurise, "vent"))
+    return tuple(steps)
+
+
 @dataclass(frozen=True)
 class Program:
     """An open-loop valve program: a list of (time [s], state) with state charge, vent or hold.
 
     Written either as a cycle, { pressurise = "1 s", release = "1 s", start = "0 s", cycles = 1 },
     or as steps, { steps = [ { at = "0 s", state = "charge" }, { at = "1 s", state = "vent" } ] }.
+    A cycle keeps its settings (so a variant can change them, e.g. ``programs.stroke.pressurise``);
+    its ``steps`` always follow from them.
     """
-    steps: tuple
+    steps: tuple = ()
+    pressurise: float | None = quantity("time", gt=0, display="s", default=None, cycle=True)
+    release: float | None = quantity("time", gt=0, display="s", default=None, cycle=True)
+    start: float | None = quantity("time", ge=0, display="s", default=None, cycle=True)
+    cycles: int | None = integer(ge=1, le=100000, default=None, cycle=True)
+
+    def __post_init__(self):
+        if self.is_cycle:
+            object.__setattr__(self, "steps", cycle_steps(self.pressurise, self.release,
+                                                          self.start or 0.0, self.cycles or 1))
+
+    @property
+    def is_cycle(self) -> bool:
+        return self.pressurise is not None and self.release is not None
 
     @classmethod
     def from_raw(cls, raw, path: str) -> "Program":
@@ -150,13 +178,7 @@ class Program:
                 steps.append((t, state))
             return cls(tuple(steps))
         cyc = build(_Cycle, raw, path)
-        steps = []
-        period = cyc.pressurise + cyc.release
-        for c in range(cyc.cycles):
-            t0 = cyc.start + c * period
-            steps.append((t0, "charge"))
-            steps.append((t0 + cyc.pressurise, "vent"))
-        return cls(tuple(steps))
+        return cls(pressurise=cyc.pressurise, release=cyc.release, start=cyc.start, cycles=cyc.cycles)
 
 
 @dataclass(frozen=True)
@@ -177,6 +199,9 @@ MOTION_KINDS = {
 }
 
 
+_PCT = dict(kind="dimensionless", ge=0.0, lt=1.0, display="%")
+
+
 @dataclass(frozen=True)
 class Motion:
     """How a muscle's length is prescribed (the paper's Figure 8 model takes it as an input).
@@ -191,12 +216,12 @@ class Motion:
       joint_angles    a CSV of joint angles in degrees (file, column, time_column = "time_s")
                       turned into muscle length through the muscle type's crank geometry
     """
-    kind: str
-    contraction: float | None = None
-    delay: float = 0.1
-    rise: float = 0.3
-    fall: float = 0.3
-    fraction: float | None = None
+    kind: str = choice(tuple(MOTION_KINDS))
+    contraction: float | None = quantity(default=None, **_PCT)
+    delay: float = quantity("time", ge=0.0, display="s", default=0.1)
+    rise: float = quantity("time", gt=0.0, display="s", default=0.3)
+    fall: float = quantity("time", gt=0.0, display="s", default=0.3)
+    fraction: float | None = quantity("dimensionless", ge=0.0, le=1.0, display="%", default=None)
     time_s: tuple = ()
     contraction_percent: tuple = ()
     file: str | None = None
@@ -210,30 +235,24 @@ class Motion:
         kind = parse_field(raw["kind"], dict(choices=tuple(MOTION_KINDS)), f"{path}.kind")
         required, optional = MOTION_KINDS[kind]
         allowed = set(required) | set(optional) | {"kind"}
-        from frogsim.components.builder import unknown_key_error
         for key in raw:
             if key not in allowed:
                 raise unknown_key_error(path, key, allowed)
         for key in required:
             if key not in raw:
                 raise ScenarioError(f"{path}.{key}", MISSING, f"required for kind {kind!r}")
+        fields = {f.name: f for f in dataclasses.fields(cls)}
         kw = {"kind": kind}
-        pct = dict(kind="dimensionless", ge=0.0, lt=1.0, display="%")
-        if "contraction" in raw:
-            kw["contraction"] = parse_field(raw["contraction"], pct, f"{path}.contraction")
-        for key in ("delay", "rise", "fall"):
+        for key in ("contraction", "delay", "rise", "fall", "fraction"):
             if key in raw:
-                lo = "ge" if key == "delay" else "gt"
-                kw[key] = parse_field(raw[key], {"kind": "time", lo: 0.0, "display": "s"}, f"{path}.{key}")
-        if "fraction" in raw:
-            kw["fraction"] = parse_field(raw["fraction"], dict(kind="dimensionless", ge=0.0, le=1.0,
-                                                                display="%"), f"{path}.fraction")
+                kw[key] = parse_field(raw[key], fields[key].metadata, f"{path}.{key}")
         if kind == "table":
             ts, cs = raw["time_s"], raw["contraction_percent"]
             for key, arr in (("time_s", ts), ("contraction_percent", cs)):
                 if not isinstance(arr, list) or not arr or not all(
-                        isinstance(x, (int, float)) and not isinstance(x, bool) for x in arr):
-                    raise ScenarioError(f"{path}.{key}", arr, "expected a non-empty list of numbers")
+                        isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+                        for x in arr):
+                    raise ScenarioError(f"{path}.{key}", arr, "expected a non-empty list of finite numbers")
             if len(ts) != len(cs):
                 raise ScenarioError(f"{path}.contraction_percent", cs,
                                     f"must have as many entries as time_s ({len(ts)})")
@@ -255,18 +274,23 @@ class Motion:
 
 @dataclass(frozen=True)
 class Muscle:
-    """One muscle in the circuit: its type, its valve program and how its length moves."""
-    type: str
-    program: Program
-    motion: Motion
-    initial_pressure_gauge: float | None = None
+    """One muscle in the circuit: its type, its valve program and how its length moves.
+
+    ``program_ref`` names the entry of ``[programs]`` the program came from ("" for a program
+    written in the muscle's own table); a variant of that entry reaches every muscle using it.
+    """
+    type: str = field(metadata=dict(choices_from="muscle_types"))
+    program: Program = field(default_factory=Program)
+    motion: Motion = field(default_factory=lambda: Motion("stroke"))
+    initial_pressure_gauge: float | None = quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar",
+                                                    default=None)
+    program_ref: str = ""
 
     @classmethod
     def from_raw(cls, raw, path: str, programs: dict | None = None) -> "Muscle":
         if not isinstance(raw, dict):
             raise ScenarioError(path, raw, "expected a muscle table")
         allowed = {"type", "program", "motion", "initial_pressure_gauge"}
-        from frogsim.components.builder import unknown_key_error
         for key in raw:
             if key not in allowed:
                 raise unknown_key_error(path, key, allowed)
@@ -277,21 +301,21 @@ class Muscle:
         if not isinstance(mtype, str):
             raise ScenarioError(f"{path}.type", mtype, "expected the name of a muscle type")
         prog_raw = raw["program"]
+        ref = ""
         if isinstance(prog_raw, str):
             if programs is None or prog_raw not in programs:
                 known = ", ".join(sorted(programs or {})) or "none defined"
                 raise ScenarioError(f"{path}.program", prog_raw,
                                     f"must name a program in [programs] (known: {known}) or be a table")
-            program = programs[prog_raw]
+            program, ref = programs[prog_raw], prog_raw
         else:
             program = Program.from_raw(prog_raw, f"{path}.program")
         motion = Motion.from_raw(raw.get("motion", {"kind": "stroke"}), f"{path}.motion")
         p0 = None
         if "initial_pressure_gauge" in raw:
             p0 = parse_field(raw["initial_pressure_gauge"],
-                             dict(kind="pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar"),
-                             f"{path}.initial_pressure_gauge")
-        return cls(mtype, program, motion, p0)
+                             dataclasses.fields(cls)[3].metadata, f"{path}.initial_pressure_gauge")
+        return cls(mtype, program, motion, p0, ref)
 
 
 @dataclass(frozen=True)
@@ -305,25 +329,3 @@ class Solver:
     """Integration tolerances."""
     rtol: float = quantity("dimensionless", gt=1e-13, le=1e-2, default=1e-7)
     max_step: float = quantity("time", gt=0.0, display="ms", default=0.05)
-
-
-@dataclass(frozen=True)
-class Scenario:
-    """Everything about one run: parameters of the robot's circuit plus the run's own settings."""
-    name: str
-    parameters: str
-    duration: float
-    output_interval: float
-    controller: Controller
-    solver: Solver
-    air: Air
-    source: Chamber
-    exhaust: Chamber
-    pump: Pump
-    valves: Valves
-    supply: Supply
-    muscle_types: dict
-    muscles: dict
-    programs: dict = field(default_factory=dict)
-    base_dir: str = "."
-    raw: dict = field(default_factory=dict, repr=False, compare=False)

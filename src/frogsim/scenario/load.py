@@ -7,13 +7,16 @@ pump, valves, supply, muscle_types) to override it, key by key.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import os
 import tomllib
 from pathlib import Path
 
-from frogsim.components.builder import build, parse_field, unknown_key_error
-from frogsim.components.schema import (
-    Air, Chamber, Controller, Muscle, MuscleType, Program, Pump, Scenario, Solver, Supply, Valves,
+from frogsim.scenario.fields import build, parse_field, unknown_key_error
+from frogsim.scenario.core import Scenario
+from frogsim.scenario.rules import check
+from frogsim.scenario.schema import (
+    Air, Chamber, Controller, Muscle, MuscleType, Program, Pump, Solver, Supply, Valves,
 )
 from frogsim.errors import MISSING, ScenarioError
 
@@ -106,25 +109,27 @@ def load_scenario(source) -> Scenario:
     return scenario_from_raw(raw, base_dir)
 
 
-def scenario_from_raw(raw: dict, base_dir: str = ".") -> Scenario:
-    """Validate an already merged raw dict (see :func:`merged_raw`) into a Scenario."""
+def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None = None,
+                      muscles: dict | None = None) -> Scenario:
+    """Validate an already merged raw dict (see :func:`merged_raw`) into a Scenario.
+
+    Every value is parsed from its text once, here; then the cross-field rules run
+    (:func:`frogsim.scenario.rules.check`, the same as for every variant). ``duration`` [s] and
+    ``muscles`` (name -> :class:`Muscle`) given typed take the place of the file's (the robot
+    makes its muscles and programs from its gait).
+    """
     name = raw.get("name", "scenario")
     if not isinstance(name, str):
         raise ScenarioError("name", name, "expected text")
-    if "gait" in raw and not raw.get("muscles"):
+    if "gait" in raw and not raw.get("muscles") and muscles is None:
         raise ScenarioError("gait", "(a table)", "this is a robot scenario (a gait, no muscles): "
                                                  "run it with `frogsim swim` or frogsim.swim()")
-    if "duration" not in raw:
-        raise ScenarioError("duration", MISSING, "required setting is missing")
-    duration = parse_field(raw["duration"], dict(kind="time", gt=0.0, le=1e6, display="s"), "duration")
-    interval = parse_field(raw.get("output_interval", "1 ms"),
-                           dict(kind="time", gt=0.0, display="ms"), "output_interval")
-    if interval > duration:
-        raise ScenarioError("output_interval", raw.get("output_interval"),
-                            f"must not exceed the duration ({duration:g} s)")
-    if duration / interval > 5_000_000:
-        raise ScenarioError("output_interval", raw.get("output_interval"),
-                            "too fine for the duration (more than 5 million output rows)")
+    fields = {f.name: f.metadata for f in dataclasses.fields(Scenario)}
+    if duration is None:
+        if "duration" not in raw:
+            raise ScenarioError("duration", MISSING, "required setting is missing")
+        duration = parse_field(raw["duration"], fields["duration"], "duration")
+    interval = parse_field(raw.get("output_interval", "1 ms"), fields["output_interval"], "output_interval")
     sections = {}
     for key, cls in (("air", Air), ("source", Chamber), ("exhaust", Chamber), ("pump", Pump),
                      ("valves", Valves), ("supply", Supply)):
@@ -133,54 +138,25 @@ def scenario_from_raw(raw: dict, base_dir: str = ".") -> Scenario:
         sections[key] = build(cls, raw[key], key)
     controller = build(Controller, raw.get("controller", {}), "controller")
     solver = build(Solver, raw.get("solver", {}), "solver")
-    pump = sections["pump"]
-    if pump.on_below_gauge >= pump.off_above_gauge:
-        raise ScenarioError("pump.on_below_gauge", raw["pump"].get("on_below_gauge"),
-                            "must be below pump.off_above_gauge")
-    for vname in ("charge", "discharge"):
-        v = getattr(sections["valves"], vname)
-        if v.laminar_ratio <= v.critical_ratio:
-            raise ScenarioError(f"valves.{vname}.laminar_ratio", v.laminar_ratio,
-                                f"must exceed critical_ratio ({v.critical_ratio:g})")
     types_raw = raw.get("muscle_types", {})
     if not isinstance(types_raw, dict) or not types_raw:
         raise ScenarioError("muscle_types", types_raw, "expected at least one muscle type")
-    muscle_types = {}
-    for tname, traw in types_raw.items():
-        mt = build(MuscleType, traw, f"muscle_types.{tname}")
-        mt.check(f"muscle_types.{tname}")
-        muscle_types[tname] = mt
+    muscle_types = {tname: build(MuscleType, traw, f"muscle_types.{tname}") for tname, traw in types_raw.items()}
     programs_raw = raw.get("programs", {})
     if not isinstance(programs_raw, dict):
         raise ScenarioError("programs", programs_raw, "expected a table of named programs")
     programs = {p: Program.from_raw(v, f"programs.{p}") for p, v in programs_raw.items()}
-    muscles_raw = raw.get("muscles", {})
-    if not isinstance(muscles_raw, dict) or not muscles_raw:
-        raise ScenarioError("muscles", muscles_raw, "expected at least one muscle, e.g. [muscles.hip]")
-    muscles = {}
-    for mname, mraw in muscles_raw.items():
-        path = f"muscles.{mname}"
-        m = Muscle.from_raw(mraw, path, programs)
-        if m.type not in muscle_types:
-            raise ScenarioError(f"{path}.type", m.type,
-                                f"must name a muscle type ({', '.join(sorted(muscle_types))})")
-        mt = muscle_types[m.type]
-        if m.motion.contraction is not None and m.motion.contraction > mt.max_contraction:
-            raise ScenarioError(f"{path}.motion.contraction", mraw["motion"]["contraction"],
-                                f"must be <= the muscle's max_contraction ({mt.max_contraction:.0%})")
-        for c in m.motion.contraction_percent:
-            if c / 100.0 > mt.max_contraction:
-                raise ScenarioError(f"{path}.motion.contraction_percent", c,
-                                    f"must be <= the muscle's max_contraction ({mt.max_contraction:.0%})")
-        muscles[mname] = m
-    # program steps after the end of the run are allowed: they simply never happen
+    if muscles is None:
+        muscles_raw = raw.get("muscles", {})
+        if not isinstance(muscles_raw, dict) or not muscles_raw:
+            raise ScenarioError("muscles", muscles_raw, "expected at least one muscle, e.g. [muscles.hip]")
+        muscles = {mname: Muscle.from_raw(mraw, f"muscles.{mname}", programs)
+                   for mname, mraw in muscles_raw.items()}
     scenario = Scenario(name=name, parameters=raw["parameters"], duration=duration,
                         output_interval=interval, controller=controller, solver=solver,
                         muscle_types=muscle_types, muscles=muscles, programs=programs,
                         base_dir=base_dir, raw=raw, **sections)
-    # motions that read files or depend on programs are checked by building them now
-    from frogsim.circuit.model import build_motions
-    build_motions(scenario)
+    check(scenario)
     return scenario
 
 
