@@ -66,7 +66,7 @@ def _study_task(name: str, out: str) -> tuple:
     Runs in a worker process, so the costly first-run compilations of different engines (the
     pneumatic one, the coupled MuJoCo one) proceed side by side on the machine's cores.
     """
-    from frogsim.io.results import write_csv, write_figure
+    from frogsim._files import write_csv, write_figure
     from frogsim.studies import STUDIES
     t0 = time.perf_counter()
     study = STUDIES[name]
@@ -92,7 +92,7 @@ def _run_studies(args, group: str) -> int:
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     from frogsim._jit import cache_is_warm
-    from frogsim.io.results import write_json
+    from frogsim._files import write_json
     from frogsim.studies import STUDIES, studies_in
     names = args.studies or studies_in(group)
     unknown = [n for n in names if n not in STUDIES]
@@ -138,7 +138,8 @@ def _run_studies(args, group: str) -> int:
 
 def cmd_simulate(args) -> int:
     from frogsim.engine.pneumatic import simulate
-    from frogsim.io.results import plot_run, run_summary, write_csv, write_figure, write_json
+    from frogsim._files import write_csv, write_figure, write_json
+    from frogsim.io.results import plot_run, run_summary
     from frogsim.scenario.load import load_scenario
     out = _out_dir(args.out)
     scenario = load_scenario(args.scenario)          # all validation happens here, before any write

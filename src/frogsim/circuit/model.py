@@ -11,10 +11,9 @@ from frogsim.circuit import layout as L
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.motion import command_time, muscle_knots, output_times
 from frogsim.scenario.schema import VALVE_STATES
-from frogsim.errors import ScenarioError
 from frogsim.physics.air import critical_pressure_ratio
 from frogsim.physics.flow import main_pipe_branch_limit, tube_sonic_conductance
-from frogsim.physics.muscle import braid_parameters, crank_muscle_length, muscle_volume
+from frogsim.physics.muscle import braid_parameters, muscle_volume
 
 
 def build_schedule(programs: list, rate: float, charge_dead: float, discharge_dead: float):

@@ -207,7 +207,7 @@ def _tendon(w, name, joint, side, group, width, rgba, extra="") -> None:
 
 def write_mjcf(rs, path) -> Path:
     """Write the MJCF of a robot scenario to ``path`` (atomically) and return the path."""
-    from frogsim.io.results import atomic_write
+    from frogsim._files import atomic_write
     text = build_mjcf(rs)
     path = Path(path)
 

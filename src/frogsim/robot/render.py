@@ -63,7 +63,7 @@ def render_animation(result, path, fps: float = 20.0, width: int = 480, height: 
 
     Raises RenderUnavailable when no OpenGL backend works (see the module docstring).
     """
-    from frogsim.io.results import atomic_write
+    from frogsim._files import atomic_write
     path = Path(path)
     data = frames_for(result, fps, max_frames)
     backends = [os.environ["MUJOCO_GL"]] if os.environ.get("MUJOCO_GL") else list(BACKENDS)

@@ -141,7 +141,7 @@ def write_outputs(result, out, animation: bool = True, progress=None) -> dict:
     draw offscreen, the animation is skipped and the reason kept in the summary under
     "animation_skipped". Returns ({file kind: path}, summary).
     """
-    from frogsim.io.results import atomic_write, write_csv, write_figure, write_json
+    from frogsim._files import atomic_write, write_csv, write_figure, write_json
     out = Path(out)
     files = {}
     write_csv(out / "timeseries.csv", result.to_dataframe(units="display"))

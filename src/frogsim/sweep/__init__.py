@@ -7,7 +7,8 @@
 See docs/sweeps.md for the spec format, the NetCDF layout and resuming.
 """
 from frogsim.sweep.metrics import METRICS, register_metric
-from frogsim.sweep.runner import STATES, read_results, run_sweep
+from frogsim.sweep.metrics import STATES
+from frogsim.sweep.runner import read_results, run_sweep
 from frogsim.sweep.spec import SweepSpec, load_spec
 
 __all__ = ["METRICS", "STATES", "SweepSpec", "load_spec", "read_results", "register_metric", "run_sweep"]

@@ -148,3 +148,34 @@ def evaluate_models(models, metrics: list[str], muscle: str | None = None, threa
         raise KeyError(f"unknown metric {unknown[0]!r}; metrics: {', '.join(METRICS)}")
     parts = map_pieces(lambda piece: evaluate(run_models(piece, threads=1), metrics, muscle), models, chunk, threads)
     return {m: np.concatenate([p[m] for p in parts]) if parts else np.empty(0) for m in metrics}
+
+
+# --- time series a sweep can store ----------------------------------------------------------------
+@dataclass(frozen=True)
+class State:
+    """A time series that a sweep can store per point: unit, meaning, and how to read it from a
+    Result (``get(result, muscle name)``). Muscle states are those of ``record.muscle``."""
+    unit: str
+    description: str
+    get: Callable
+
+
+STATES: dict[str, State] = {
+    "muscle_pressure": State("Pa", "muscle pressure (absolute)", lambda r, m: r.muscle_pressure(m)),
+    "muscle_mass": State("kg", "air mass in the muscle", lambda r, m: r.muscle_mass(m)),
+    "charged_mass": State("kg", "mass that entered the muscle through its charge valve since t = 0",
+                          lambda r, m: r.charged_mass(m)),
+    "vented_mass": State("kg", "mass that left the muscle through its discharge valve since t = 0",
+                         lambda r, m: r.vented_mass(m)),
+    "charge_valve": State("1", "charge valve state (1 = open)", lambda r, m: r.u[:, 2 * r.index(m)]),
+    "discharge_valve": State("1", "discharge valve state (1 = open)",
+                             lambda r, m: r.u[:, 2 * r.index(m) + 1]),
+    "source_pressure": State("Pa", "source chamber pressure (absolute)", lambda r, m: r.source_pressure),
+    "source_temperature": State("K", "source chamber temperature", lambda r, m: r.temperature("source")),
+    "source_mass": State("kg", "air mass in the source chamber", lambda r, m: r.y[:, L.Y_MS]),
+    "exhaust_pressure": State("Pa", "exhaust chamber pressure (absolute)", lambda r, m: r.exhaust_pressure),
+    "exhaust_mass": State("kg", "air mass in the exhaust chamber", lambda r, m: r.y[:, L.Y_ME]),
+    "pumped_mass": State("kg", "mass the pump moved from exhaust to source since t = 0",
+                         lambda r, m: r.pumped_mass),
+    "pump_on": State("1", "pump running (1) or not (0)", lambda r, m: r.u[:, 2 * r.n]),
+}

@@ -55,7 +55,7 @@ def _match(ds, path: str, text: str):
 def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict | None = None,
                reduce: str | None = None) -> None:
     """Draw ``metric`` against swept parameter ``x`` (and ``y``: heatmap) into the PNG ``out``."""
-    from frogsim.io.results import write_figure
+    from frogsim._files import write_figure
     from frogsim._plotting import figure, save
     params, metrics = _params(ds), _metrics(ds)
     if not params:

@@ -29,53 +29,22 @@ import shutil
 import sys
 import threading
 import time
-from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
+from frogsim._files import atomic_write
 from frogsim._parallel import map_pieces
-from frogsim.circuit import layout as L
 from frogsim.errors import ScenarioError, SimulationError
 from frogsim.scenario.core import Scenario
+from frogsim.sweep.metrics import STATES
 from frogsim.sweep.spec import SweepSpec, _toml_value, dumps_toml, load_spec
 
 FORMAT = 1                      # version of the results layout, stored in the file
 NC_ENGINE = "netcdf4"
 _FLUSH_SECONDS = 5.0            # rewrite results.nc at most this often while running
 _SUB_BATCH = 64                 # points per thread held in memory at once within a chunk
-
-
-@dataclass(frozen=True)
-class State:
-    """A time series that a sweep can store per point: unit, meaning, and how to read it from a
-    Result (``get(result, muscle name)``). Muscle states are those of ``record.muscle``."""
-    unit: str
-    description: str
-    get: Callable
-
-
-STATES: dict[str, State] = {
-    "muscle_pressure": State("Pa", "muscle pressure (absolute)", lambda r, m: r.muscle_pressure(m)),
-    "muscle_mass": State("kg", "air mass in the muscle", lambda r, m: r.muscle_mass(m)),
-    "charged_mass": State("kg", "mass that entered the muscle through its charge valve since t = 0",
-                          lambda r, m: r.charged_mass(m)),
-    "vented_mass": State("kg", "mass that left the muscle through its discharge valve since t = 0",
-                         lambda r, m: r.vented_mass(m)),
-    "charge_valve": State("1", "charge valve state (1 = open)", lambda r, m: r.u[:, 2 * r.index(m)]),
-    "discharge_valve": State("1", "discharge valve state (1 = open)",
-                             lambda r, m: r.u[:, 2 * r.index(m) + 1]),
-    "source_pressure": State("Pa", "source chamber pressure (absolute)", lambda r, m: r.source_pressure),
-    "source_temperature": State("K", "source chamber temperature", lambda r, m: r.temperature("source")),
-    "source_mass": State("kg", "air mass in the source chamber", lambda r, m: r.y[:, L.Y_MS]),
-    "exhaust_pressure": State("Pa", "exhaust chamber pressure (absolute)", lambda r, m: r.exhaust_pressure),
-    "exhaust_mass": State("kg", "air mass in the exhaust chamber", lambda r, m: r.y[:, L.Y_ME]),
-    "pumped_mass": State("kg", "mass the pump moved from exhaust to source since t = 0",
-                         lambda r, m: r.pumped_mass),
-    "pump_on": State("1", "pump running (1) or not (0)", lambda r, m: r.u[:, 2 * r.n]),
-}
 
 
 # --- one chunk (runs locally or as a Dask task) -----------------------------------------------------
@@ -309,25 +278,10 @@ def _fmt_range(x: float) -> str:
 
 
 # --- files ------------------------------------------------------------------------------------------
-def _fsync_replace(tmp: Path, path: Path) -> None:
-    fd = os.open(tmp, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-    os.replace(tmp, path)
-
-
-def write_dataset(ds, path: Path, tmp_dir: Path) -> None:
-    """Write the dataset beside ``path`` (in tmp_dir, same filesystem) and move it into place."""
-    tmp = tmp_dir / f"tmp-{os.getpid()}-{time.monotonic_ns()}.nc"
+def write_dataset(ds, path: Path) -> None:
+    """Write the dataset beside ``path`` and move it into place (durably)."""
     encoding = {v: {"zlib": True, "complevel": 1} for v in ds.data_vars if "time" in ds[v].dims}
-    try:
-        ds.to_netcdf(tmp, engine=NC_ENGINE, encoding=encoding)
-        _fsync_replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine=NC_ENGINE, encoding=encoding), durable=True)
 
 
 def read_results(path) :
@@ -364,13 +318,14 @@ class _Journal:
                                 "another frogsim sweep is writing this file right now") from None
         stale = fresh or self.manifest_hash() != spec.hash
         for f in self.dir.iterdir():
-            if f.name.startswith("tmp-") or (stale and f.name != "lock"):
+            if f.name.startswith(".") or (stale and f.name != "lock"):
                 f.unlink()
+        for f in self.out.parent.glob(f".{self.out.name}.*"):    # a results file a kill left half written
+            f.unlink()
         if stale:
-            tmp = self.dir / f"tmp-manifest-{os.getpid()}"
-            tmp.write_text(json.dumps({"hash": spec.hash, "n_points": spec.n_points,
-                                       "chunk_size": spec.chunk_size, "name": spec.name}))
-            _fsync_replace(tmp, self.dir / "manifest.json")
+            text = json.dumps({"hash": spec.hash, "n_points": spec.n_points,
+                               "chunk_size": spec.chunk_size, "name": spec.name})
+            atomic_write(self.dir / "manifest.json", lambda tmp: Path(tmp).write_text(text), durable=True)
 
     def chunks(self):
         """(chunk number, flat indices, result dict) of every chunk file."""
@@ -385,12 +340,13 @@ class _Journal:
                 f.unlink()          # cannot happen with atomic writes; rerun that chunk
 
     def write_chunk(self, k: int, idx: np.ndarray, res: dict) -> None:
-        tmp = self.dir / f"tmp-chunk-{k}-{os.getpid()}.npz"
         arrays = {f"m_{m}": v for m, v in res["metrics"].items()}
         arrays.update({f"ts_{s}": v for s, v in res["timeseries"].items()})
-        with open(tmp, "wb") as fh:
-            np.savez(fh, idx=idx, failed=res["failed"], errors=np.array(json.dumps(res["errors"])), **arrays)
-        _fsync_replace(tmp, self.dir / f"chunk-{k:06d}.npz")
+
+        def write(tmp):
+            with open(tmp, "wb") as fh:
+                np.savez(fh, idx=idx, failed=res["failed"], errors=np.array(json.dumps(res["errors"])), **arrays)
+        atomic_write(self.dir / f"chunk-{k:06d}.npz", write, durable=True)
 
     def remove(self) -> None:
         shutil.rmtree(self.dir, ignore_errors=True)
@@ -518,7 +474,7 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
             now = time.monotonic()
             if force or now - last[0] >= max(_FLUSH_SECONDS, 10 * last[1]):
                 t0 = time.monotonic()
-                write_dataset(to_dataset(spec, store), out, journal.dir)
+                write_dataset(to_dataset(spec, store), out)
                 last[0], last[1] = time.monotonic(), time.monotonic() - t0
 
         if pending and (existing is None or not existing.attrs.get("complete")):

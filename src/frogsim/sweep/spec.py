@@ -39,7 +39,6 @@ one-line :class:`frogsim.ScenarioError` naming the spec field, the value and wha
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import functools
 import hashlib
 import itertools
@@ -393,7 +392,7 @@ def _get(raw: dict, path: str):
 # --- the spec ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class TimeSeries:
-    """Time series to store per point: state names (see :data:`frogsim.sweep.runner.STATES`), every
+    """Time series to store per point: state names (see :data:`frogsim.sweep.metrics.STATES`), every
     ``step`` output samples of the base scenario (``interval`` [s])."""
     states: tuple
     interval: float
@@ -681,7 +680,7 @@ def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
 
 
 def _timeseries(ts, scenario, params, metrics) -> TimeSeries | None:
-    from frogsim.sweep.runner import STATES
+    from frogsim.sweep.metrics import STATES
     if ts is None:
         return None
     where = "record.timeseries"

@@ -1,0 +1,76 @@
+"""The one way frogsim writes a file: atomically (a reader never sees half a file), plus the JSON,
+CSV and PNG writers built on it."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+
+def _clean(obj):
+    """JSON-safe copy: numpy scalars to Python, NaN/inf to None."""
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, (np.floating, float)):
+        x = float(obj)
+        return x if math.isfinite(x) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def atomic_write(path: str | os.PathLike, write, durable: bool = False) -> None:
+    """Call write(tmp_path) then move the file into place, so readers never see half a file.
+
+    The temporary file lies beside ``path`` (same filesystem, name starting with "."). With
+    ``durable`` its content is flushed to disk before the move, so a crash leaves either the
+    old file or the whole new one (the sweep journal relies on it).
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        if durable:
+            fd = os.open(tmp, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_json(path, data: dict) -> None:
+    def w(tmp):
+        with open(tmp, "w") as fh:
+            json.dump(_clean(data), fh, indent=2)
+            fh.write("\n")
+    atomic_write(path, w)
+
+
+def write_csv(path, df) -> None:
+    atomic_write(path, lambda tmp: df.to_csv(tmp, index=False, float_format="%.8g"))
+
+
+def write_figure(path, draw) -> None:
+    """draw(tmp_path) must save a PNG at tmp_path."""
+    def w(tmp):
+        png = tmp + ".png"
+        try:
+            draw(png)
+            os.replace(png, tmp)
+        finally:
+            if os.path.exists(png):
+                os.unlink(png)
+    atomic_write(path, w)

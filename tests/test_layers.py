@@ -1,0 +1,168 @@
+"""The package's layers hold: no module imports one of a higher layer, and no import cycles.
+
+The order is the one of DESIGN.md (lowest first). Imports are read from the source (module level,
+inside functions alike; ``if TYPE_CHECKING:`` blocks, which never run, are left out). A test plants
+an upward import in a copy of the package and checks the checker catches it.
+"""
+from __future__ import annotations
+
+import ast
+import shutil
+from pathlib import Path
+
+import pytest
+
+PACKAGE = Path(__file__).resolve().parent.parent / "src" / "frogsim"
+
+#: lowest first; a module may import its own layer and those before it
+LAYERS = (
+    ("errors", "_jit", "_parallel", "_plotting", "_files"),
+    ("physics",),
+    ("components",),
+    ("scenario",),
+    ("circuit",),
+    ("control",),
+    ("robot",),
+    ("engine",),
+    ("sweep",),
+    ("io",),
+    ("studies",),
+    ("cli", "__init__", "__main__"),
+)
+RANK = {name: k for k, names in enumerate(LAYERS) for name in names}
+PINT_ALLOWED = {"frogsim.scenario.units"}
+
+
+def _module_name(path: Path, root: Path) -> str:
+    rel = path.relative_to(root.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__" and len(parts) > 1:
+        parts = parts[:-1] if len(parts) > 2 else parts
+    return ".".join(parts)
+
+
+def _layer(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _type_checking(node) -> bool:
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or \
+        (isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
+def imports(root: Path = PACKAGE) -> dict[str, set[str]]:
+    """module -> the modules (frogsim.* or third-party top names) it imports."""
+    out = {}
+    for path in sorted(root.rglob("*.py")):
+        mod = _module_name(path, root)
+        tree = ast.parse(path.read_text(), str(path))
+        found = set()
+
+        def visit(node):
+            for child in ast.iter_child_nodes(node):
+                if isinstance(child, ast.If) and _type_checking(child):
+                    for sub in child.orelse:
+                        visit(sub)
+                    continue
+                if isinstance(child, ast.Import):
+                    found.update(a.name for a in child.names)
+                elif isinstance(child, ast.ImportFrom) and child.module and child.level == 0:
+                    found.add(child.module)
+                    found.update(f"{child.module}.{a.name}" for a in child.names
+                                 if (root / Path(*child.module.split(".")[1:]) / f"{a.name}.py").exists())
+                visit(child)
+        visit(tree)
+        out[mod] = found
+    return out
+
+
+def upward_imports(root: Path = PACKAGE) -> list[str]:
+    bad = []
+    for mod, deps in imports(root).items():
+        here = RANK[_layer(mod)]
+        for dep in deps:
+            if dep.split(".")[0] != "frogsim" or dep == "frogsim":
+                continue
+            there = RANK.get(_layer(dep))
+            if there is None or there > here:
+                bad.append(f"{mod} imports {dep}")
+    return sorted(bad)
+
+
+def cycles(root: Path = PACKAGE) -> list[list[str]]:
+    """Import cycles among the package's modules (strongly connected components of size > 1)."""
+    graph = {m: {d for d in deps if d in imports_cache(root)} for m, deps in imports_cache(root).items()}
+    index, low, stack, on, out, counter = {}, {}, [], set(), [], [0]
+
+    def strong(v):
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+    for v in graph:
+        if v not in index:
+            strong(v)
+    return out
+
+
+_CACHE: dict = {}
+
+
+def imports_cache(root: Path) -> dict:
+    if root not in _CACHE:
+        _CACHE[root] = imports(root)
+    return _CACHE[root]
+
+
+def test_every_module_has_a_layer():
+    unknown = sorted({_layer(m) for m in imports()} - set(RANK))
+    assert not unknown, f"modules outside the layer list (add them to LAYERS and DESIGN.md): {unknown}"
+
+
+def test_no_upward_imports():
+    assert upward_imports() == []
+
+
+def test_no_import_cycles():
+    assert cycles(PACKAGE) == []
+
+
+def test_only_the_units_module_imports_pint():
+    users = sorted(m for m, deps in imports().items() if any(d.split(".")[0] == "pint" for d in deps))
+    assert set(users) <= PINT_ALLOWED, users
+
+
+def test_a_planted_upward_import_is_caught(tmp_path):
+    copy = tmp_path / "frogsim"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    target = copy / "physics" / "gas.py"
+    target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.studies import paper\n")
+    assert upward_imports(copy) == ["frogsim.physics.gas imports frogsim.studies",
+                                    "frogsim.physics.gas imports frogsim.studies.paper"]
+    (copy / "physics" / "flow.py").write_text((copy / "physics" / "flow.py").read_text()
+                                              + "\nimport pint\n")
+    assert "frogsim.physics.flow" in [m for m, d in imports(copy).items() if "pint" in d]
+    # and a cycle: two modules of one layer importing each other
+    (copy / "physics" / "air.py").write_text((copy / "physics" / "air.py").read_text()
+                                             + "\nfrom frogsim.physics import hydro\n")
+    (copy / "physics" / "hydro.py").write_text((copy / "physics" / "hydro.py").read_text()
+                                               + "\nfrom frogsim.physics import air\n")
+    assert ["frogsim.physics.air", "frogsim.physics.hydro"] in cycles(copy)
