@@ -30,7 +30,7 @@ def points():
 
 
 def _fresh_build(scenario):
-    for part in (circuit_model._globals_part, circuit_model._muscle_part, circuit_model._motion_part,
+    for part in (circuit_model._globals_part, circuit_model._muscle_part, circuit_model._schedule_part, frogsim.scenario.motion.muscle_knots,
                  circuit_model._state_part, circuit_model._output_part):
         part.cache_clear()
     return frogsim.build_model(scenario)

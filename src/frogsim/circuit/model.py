@@ -193,7 +193,6 @@ def _muscle_part(valves, types: tuple) -> np.ndarray:
     return mp
 
 
-@functools.lru_cache(maxsize=_CACHE)
 def _motion_part(muscles: tuple, rate: float, charge_dead: float, discharge_dead: float, files: tuple,
                  base_dir: str):
     """Motion knots (padded to a common length), the valve schedule with the knots as extra stops,
@@ -215,12 +214,20 @@ def _motion_part(muscles: tuple, rate: float, charge_dead: float, discharge_dead
         else:
             b0, nt = braid_parameters(mt.nominal_length, mt.inner_diameter, mt.braid_angle)
             volumes.append(muscle_volume(mk.L[0], b0, nt) + mt.dead_volume)
-    sched_t, sched_u, u0, opens = build_schedule([(name, m.program) for name, m, _ in muscles], rate,
-                                                 charge_dead, discharge_dead)
-    breaks = np.unique(np.concatenate([mk.t for mk in knots if mk.fixed_volume <= 0] + [np.zeros(0)]))
-    sched_t, sched_u = add_breakpoints(sched_t, sched_u, u0, breaks[breaks > 0])
+    breaks = tuple(float(t) for mk in knots if mk.fixed_volume <= 0 for t in mk.t)
+    sched_t, sched_u, u0, opens = _schedule_part(tuple((name, m.program) for name, m, _ in muscles), rate,
+                                                 charge_dead, discharge_dead, breaks)
     fixed = np.array([mk.fixed_volume for mk in knots])
     return mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0, opens, tuple(volumes), fixed
+
+
+@functools.lru_cache(maxsize=_CACHE)
+def _schedule_part(programs: tuple, rate: float, charge_dead: float, discharge_dead: float, breaks: tuple):
+    """The valve schedule (:func:`build_schedule`) with the motion knots ``breaks`` as extra stops."""
+    sched_t, sched_u, u0, opens = build_schedule(list(programs), rate, charge_dead, discharge_dead)
+    stops = np.unique(np.asarray(breaks, float))
+    sched_t, sched_u = add_breakpoints(sched_t, sched_u, u0, stops[stops > 0])
+    return sched_t, sched_u, u0, opens
 
 
 @functools.lru_cache(maxsize=_CACHE)

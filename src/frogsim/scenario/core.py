@@ -14,9 +14,10 @@ the schema is sweepable and fittable at once.
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
-from frogsim.errors import ScenarioError
+from frogsim.errors import UNKNOWN, ScenarioError
 from frogsim.scenario import rules
 from frogsim.scenario.fields import check_value, quantity, unknown_key_error
 from frogsim.scenario.schema import (MOTION_KINDS, Air, Chamber, Controller, Motion, Muscle, MuscleType,
@@ -55,14 +56,23 @@ class Scenario:
 
         Raises ScenarioError naming the path, the value and what is allowed.
         """
-        new = self
+        tree = _Tree()
         for path, value in changes.items():
             if not isinstance(path, str) or not path or not all(path.split(".")):
                 raise ScenarioError(str(path), value, "expected a dotted path such as source.volume")
-            new = _set(new, path.split("."), value, "", self)
-        if any(p.startswith("programs.") for p in changes):
+            node = tree
+            keys = path.split(".")
+            for j, key in enumerate(keys[:-1]):
+                node = node.setdefault(key, _Tree())
+                if not isinstance(node, _Tree):
+                    raise ScenarioError(path, value, f"lies inside {'.'.join(keys[:j + 1])}, which is also set")
+            if isinstance(node.get(keys[-1]), _Tree):
+                raise ScenarioError(path, value, "is a table whose settings are also set")
+            node[keys[-1]] = value
+        tree["raw"] = _RAW_CLEARED
+        new = _apply(self, tree, "", self)
+        if "programs" in tree:
             new = _relink_programs(new)
-        new = dataclasses.replace(new, raw={})
         rules.check(new)
         return new
 
@@ -77,6 +87,23 @@ class Scenario:
 
     def program_of(self, muscle: str) -> Program:
         return self.muscles[muscle].program
+
+
+@functools.lru_cache(maxsize=None)
+def _field_map(cls) -> dict:
+    return {f.name: f for f in dataclasses.fields(cls) if f.init and f.name not in ("raw", "base_dir")}
+
+
+def _with(obj, **changes):
+    """dataclasses.replace for frozen dataclasses, without the generic machinery's cost: a copy
+    with the fields set, then the class's own __post_init__ (a Program derives its steps)."""
+    new = object.__new__(type(obj))
+    new.__dict__.update(obj.__dict__)
+    new.__dict__.update(changes)
+    post = getattr(new, "__post_init__", None)
+    if post is not None:
+        post()
+    return new
 
 
 def _leaf_meta(meta, root: Scenario) -> dict | None:
@@ -117,47 +144,69 @@ def _walk(obj, prefix: str, root: Scenario, out: dict) -> None:
                     _walk(v, f"{path}.{k}.", root, out)
 
 
-def _set(obj, keys: list, value, prefix: str, root: Scenario):
-    """obj with the setting at keys (relative to obj, whose own path is prefix) set to value."""
-    name = keys[0]
-    fields = {f.name: f for f in dataclasses.fields(obj) if f.init and f.name not in ("raw", "base_dir")}
-    here = prefix + name
-    if name not in fields:
-        raise unknown_key_error(prefix.rstrip("."), name, fields)
-    f = fields[name]
-    meta = _leaf_meta(f.metadata, root)
-    if len(keys) == 1:
-        if meta is None:
-            current = getattr(obj, name)
-            if dataclasses.is_dataclass(current) and isinstance(value, type(current)):
-                _check_object(value, here, root)       # a whole table, typed (e.g. a Motion)
-                extra = {"program_ref": ""} if isinstance(obj, Muscle) and name == "program" else {}
-                return dataclasses.replace(obj, **{name: value}, **extra)
-            raise ScenarioError(here, value, "is a table or a fixed setting: give a value of one of its "
-                                             f"settings, or a whole {type(current).__name__} object")
-        why = _unused(obj, name)
-        if why:
-            raise ScenarioError(here, value, why)
-        if value is None and meta.get("default", ...) is None:
-            return dataclasses.replace(obj, **{name: None})
-        return dataclasses.replace(obj, **{name: check_value(value, meta, here)})
+class _Tree(dict):
+    """Changes below one table: key -> value, or a _Tree for a table further down."""
+
+
+_RAW_CLEARED = object()
+
+
+def _apply(obj, tree: _Tree, prefix: str, root: Scenario):
+    """obj (whose own path is prefix) with every change of the tree made; one copy per table."""
+    changes = {}
+    fields = _field_map(type(obj))
+    for name, value in tree.items():
+        if value is _RAW_CLEARED:
+            changes["raw"] = {}
+            continue
+        here = prefix + name
+        if name not in fields:
+            raise unknown_key_error(prefix.rstrip("."), name, fields)
+        if isinstance(value, _Tree):
+            changes[name] = _apply_inside(obj, name, value, here, root)
+        else:
+            changes.update(_leaf_change(obj, fields[name], value, here, root))
+    return _with(obj, **changes)
+
+
+def _apply_inside(obj, name: str, tree: _Tree, here: str, root: Scenario):
     child = getattr(obj, name)
     if isinstance(obj, Muscle) and name == "program" and obj.program_ref:
-        raise ScenarioError(here + "." + ".".join(keys[1:]), value,
+        raise ScenarioError(f"{here}.{next(iter(tree))}", UNKNOWN,
                             f"this muscle uses programs.{obj.program_ref}: change that program instead")
     if dataclasses.is_dataclass(child):
-        return dataclasses.replace(obj, **{name: _set(child, keys[1:], value, here + ".", root)})
+        return _apply(child, tree, here + ".", root)
     if isinstance(child, dict):
-        key = keys[1]
-        if key not in child:
-            raise ScenarioError(f"{here}.{key}", value,
-                                f"no such entry (this scenario has: {', '.join(child) or 'none'})")
-        if len(keys) == 2:
-            raise ScenarioError(f"{here}.{key}", value, "is a table; set one of its settings")
         new_child = dict(child)
-        new_child[key] = _set(child[key], keys[2:], value, f"{here}.{key}.", root)
-        return dataclasses.replace(obj, **{name: new_child})
-    raise ScenarioError(here, value, f"is a value, not a table ({'.'.join(keys[1:])} cannot lie inside it)")
+        for key, sub in tree.items():
+            if key not in child:
+                raise ScenarioError(f"{here}.{key}", UNKNOWN,
+                                    f"no such entry (this scenario has: {', '.join(child) or 'none'})")
+            if not isinstance(sub, _Tree):
+                raise ScenarioError(f"{here}.{key}", sub, "is a table; set one of its settings")
+            new_child[key] = _apply(child[key], sub, f"{here}.{key}.", root)
+        return new_child
+    raise ScenarioError(f"{here}.{next(iter(tree))}", UNKNOWN, f"{here} is a value, not a table")
+
+
+def _leaf_change(obj, f, value, here: str, root: Scenario) -> dict:
+    """{field name: checked value} (and what goes with it) for one setting of obj."""
+    name = f.name
+    meta = _leaf_meta(f.metadata, root)
+    if meta is None:
+        current = getattr(obj, name)
+        if dataclasses.is_dataclass(current) and isinstance(value, type(current)):
+            _check_object(value, here, root)       # a whole table, typed (e.g. a Motion)
+            extra = {"program_ref": ""} if isinstance(obj, Muscle) and name == "program" else {}
+            return {name: value, **extra}
+        raise ScenarioError(here, value, "is a table or a fixed setting: give a value of one of its "
+                                         f"settings, or a whole {type(current).__name__} object")
+    why = _unused(obj, name)
+    if why:
+        raise ScenarioError(here, value, why)
+    if value is None and meta.get("default", ...) is None:
+        return {name: None}
+    return {name: check_value(value, meta, here)}
 
 
 def _check_object(obj, path: str, root: Scenario) -> None:

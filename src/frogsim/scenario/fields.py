@@ -11,6 +11,7 @@ import dataclasses
 import difflib
 import functools
 import math
+import operator
 import typing
 
 import numpy as np
@@ -65,13 +66,16 @@ def _fmt_bound(x: float, meta: dict) -> str:
     return f"{x:g}"
 
 
+_BOUNDS = (("gt", operator.gt, ">"), ("ge", operator.ge, ">="), ("lt", operator.lt, "<"), ("le", operator.le, "<="))
+
+
 def check_bounds(x: float, meta: dict, path: str, raw) -> None:
-    """Raise ScenarioError unless x lies within the metadata bounds."""
-    for key, ok, word in (("gt", lambda a, b: a > b, ">"), ("ge", lambda a, b: a >= b, ">="),
-                          ("lt", lambda a, b: a < b, "<"), ("le", lambda a, b: a <= b, "<=")):
+    """Raise ScenarioError unless x lies within the metadata bounds. ``raw`` is the value shown in
+    the message (a callable is called for it, only when the check fails)."""
+    for key, ok, word in _BOUNDS:
         bound = meta.get(key)
         if bound is not None and not ok(x, bound):
-            raise ScenarioError(path, raw, f"must be {word} {_fmt_bound(bound, meta)}")
+            raise ScenarioError(path, raw() if callable(raw) else raw, f"must be {word} {_fmt_bound(bound, meta)}")
 
 
 def parse_field(raw, meta: dict, path: str):
@@ -124,7 +128,7 @@ def check_value(value, meta: dict, path: str):
     x = float(value)
     if not math.isfinite(x):
         raise ScenarioError(path, value, "must be a finite number")
-    check_bounds(x, meta, path, _shown(x, meta))
+    check_bounds(x, meta, path, lambda: _shown(x, meta))
     return x
 
 

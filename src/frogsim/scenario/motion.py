@@ -26,15 +26,13 @@ if TYPE_CHECKING:   # annotations only
 
 @dataclass(frozen=True)
 class MotionKnots:
-    """Cubic Hermite knots of one muscle's length: times [s], lengths [m], slopes [m/s]."""
+    """Cubic Hermite knots of one muscle's length: times [s], lengths [m], slopes [m/s].
+
+    Cached and shared (:func:`muscle_knots`): read them, never change them in place."""
     t: np.ndarray
     L: np.ndarray
     dL: np.ndarray
     fixed_volume: float = 0.0   # > 0: the total volume is held at this value [m^3]
-
-    def __post_init__(self):
-        for a in (self.t, self.L, self.dL):     # shared between models: never changed in place
-            a.flags.writeable = False
 
 
 def command_time(t: float, rate: float) -> float:
