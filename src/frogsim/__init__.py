@@ -5,6 +5,7 @@ Public API::
     import frogsim
     scenario = frogsim.load_scenario("paper-cycle")          # a TOML path, shipped name or dict
     result = frogsim.simulate(scenario)                       # -> Result
+    hot = scenario.replace({"source.initial_pressure_gauge": 5e5})   # a variant: SI values
     df = result.to_dataframe()                                # SI columns, units in the names
 
     run = frogsim.swim("swim", cycles=10)                     # the robot in MuJoCo -> SwimResult
@@ -15,9 +16,10 @@ from frogsim.engine.pneumatic import simulate
 from frogsim.engine.result import Result
 from frogsim.engine.swim import SwimResult, swim
 from frogsim.errors import FrogsimError, ScenarioError, SimulationError
+from frogsim.scenario.core import Scenario
 from frogsim.scenario.load import load_scenario, with_overrides
 from frogsim.robot.scenario import load_robot_scenario
 
-__all__ = ["FrogsimError", "Result", "ScenarioError", "SimulationError", "SwimResult", "build_model",
+__all__ = ["FrogsimError", "Result", "Scenario", "ScenarioError", "SimulationError", "SwimResult", "build_model",
            "load_robot_scenario", "load_scenario", "simulate", "swim", "with_overrides"]
 __version__ = "0.1.0"

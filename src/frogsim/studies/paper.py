@@ -5,6 +5,8 @@ pressurise / 1 s release) and change one thing at a time by dotted path.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pandas as pd
 
@@ -26,7 +28,9 @@ L_PER_MIN = 1e-3 / 60.0
 NOTE = "frogsim, parameter set fan2017; pressures gauge"
 
 
+@functools.lru_cache(maxsize=1)
 def _base():
+    """The base scenario, read once (scenarios are immutable; variants are made from it)."""
     return load_scenario(BASE)
 
 

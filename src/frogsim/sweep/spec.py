@@ -25,7 +25,7 @@ A sweep spec is a TOML file (or a dict of the same shape)::
     [run]
     chunk_size = 500                    # optional: points per chunk (the unit of resume)
 
-Parameters are addressed by the dotted paths of :func:`frogsim.with_overrides`. A parameter is a
+Parameters are addressed by dotted paths (:meth:`frogsim.scenario.core.Scenario.variable_paths`). A parameter is a
 list of values (as a scenario file would write them), ``{ values = [...], unit = "bar" }``,
 ``{ start, stop, num }`` (evenly spaced; ``scale = "log"`` for geometric spacing), or, for the
 ``random`` and ``lhs`` methods, a range ``{ min, max }`` sampled ``sweep.samples`` times with
@@ -51,11 +51,11 @@ from pathlib import Path
 
 import numpy as np
 
-from frogsim.scenario.fields import unknown_key_error, unwrap
+from frogsim.scenario.fields import parse_field, unknown_key_error, unwrap
 from frogsim.errors import MISSING, UNKNOWN, ScenarioError
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.load import merged_raw, read_toml, scenario_from_raw, with_overrides
-from frogsim.scenario.units import SI_UNITS, display_factor, parse_quantity
+from frogsim.scenario.units import SI_UNITS, display_factor
 
 METHODS = ("grid", "list", "random", "lhs")
 MAX_POINTS = 2_000_000
@@ -160,34 +160,12 @@ class Parameter:
 
 
 def _to_si(value, info: FieldInfo, where: str) -> float:
-    """SI float of one value as written, or ScenarioError naming the spec field."""
-    if info.kind == "flag":
-        if not isinstance(value, bool):
-            raise ScenarioError(where, value, "expected true or false")
-        return math.nan
-    if info.kind == "choice":
-        if value not in info.choices:
-            raise ScenarioError(where, value, f"must be one of {', '.join(map(repr, info.choices))}")
-        return math.nan
-    if info.kind == "integer":
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ScenarioError(where, value, "expected a whole number")
-        return float(value)
-    unit, what = SI_UNITS[info.kind]
-    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-        raise ScenarioError(where, value, f"expected {what}")
-    if isinstance(value, (int, float)):
-        if info.kind != "dimensionless":
-            raise ScenarioError(where, value, f"expected {what}: write the unit out (or give unit = ...)")
-        x = float(value)
-    else:
-        try:
-            x = parse_quantity(value.strip(), info.kind)
-        except Exception:  # pint raises several error types for bad text or dimensions
-            raise ScenarioError(where, value, f"expected {what}") from None
-    if not math.isfinite(x):
-        raise ScenarioError(where, value, "must be a finite number")
-    return x
+    """SI float of one value as written (NaN for a choice or flag), or ScenarioError naming the
+    spec field. The scenario loader's own parser (:func:`frogsim.scenario.fields.parse_field`);
+    bounds are left to the variant (``scenario.replace``), which names the point."""
+    meta = {k: v for k, v in info.meta.items() if k not in ("gt", "ge", "lt", "le")}
+    x = parse_field(value, meta, where)
+    return math.nan if info.kind in ("flag", "choice") else float(x)
 
 
 def _with_unit(x, unit: str | None, info: FieldInfo, where: str):
@@ -259,7 +237,7 @@ def _display(written: tuple, si: tuple, info: FieldInfo) -> tuple[str, float]:
     if len(units) == 1:
         unit = units.pop()
         if unit:
-            return unit, parse_quantity(f"1 {unit}", info.kind)
+            return unit, display_factor(unit, info.kind)
     return info.si_unit, 1.0
 
 
@@ -281,7 +259,7 @@ def _parameter(path: str, raw, method: str, base: Scenario) -> Parameter:
         if not info.numeric or info.kind == "integer":
             raise ScenarioError(f"{where}.unit", unit, f"this setting takes no unit ({info.kind})")
         try:
-            parse_quantity(f"1 {unit}", info.kind)
+            display_factor(unit, info.kind)
         except Exception:
             raise ScenarioError(f"{where}.unit", unit, f"expected a unit of {SI_UNITS[info.kind][1]}") from None
     scale = raw.get("scale", "linear")
@@ -299,7 +277,7 @@ def _parameter(path: str, raw, method: str, base: Scenario) -> Parameter:
         lo, lo_unit = _range_value(raw["min"], unit, info, f"{where}.min")
         hi_text = _with_unit(raw["max"], unit, info, f"{where}.max")
         hi_si = _to_si(hi_text, info, f"{where}.max")
-        factor = parse_quantity(f"1 {lo_unit}", info.kind) if lo_unit else 1.0
+        factor = display_factor(lo_unit, info.kind) if lo_unit else 1.0
         hi = hi_si / factor
         if not hi > lo:
             raise ScenarioError(f"{where}.max", raw["max"], f"must be above min ({raw['min']!r}): the range is empty")
@@ -334,7 +312,7 @@ def _parameter(path: str, raw, method: str, base: Scenario) -> Parameter:
             raise ScenarioError(f"{where}.num", num, "expected a whole number >= 1")
         a, a_unit = _range_value(raw["start"], unit, info, f"{where}.start")
         b_text = _with_unit(raw["stop"], unit, info, f"{where}.stop")
-        factor = parse_quantity(f"1 {a_unit}", info.kind) if a_unit else 1.0
+        factor = display_factor(a_unit, info.kind) if a_unit else 1.0
         b = _to_si(b_text, info, f"{where}.stop") / factor
         if num > 1 and a == b:
             raise ScenarioError(f"{where}.stop", raw["stop"], "equals start: the range is empty (or use num = 1)")
@@ -699,10 +677,9 @@ def _timeseries(ts, scenario, params, metrics) -> TimeSeries | None:
         if p.path in ("duration", "output_interval"):
             raise ScenarioError(f"{where}", UNKNOWN, f"time series need one time grid: not available "
                                                      f"when {p.path} is swept")
-    from frogsim.scenario.fields import parse_field
     oi = scenario.output_interval
-    interval = parse_field(ts.get("interval", f"{oi} s"), dict(kind="time", gt=0.0, display="ms"),
-                           f"{where}.interval")
+    interval = oi if "interval" not in ts else parse_field(ts["interval"], dict(kind="time", gt=0.0, display="ms"),
+                                                            f"{where}.interval")
     step = round(interval / oi)
     if step < 1 or abs(step * oi - interval) > 1e-9 * interval:
         raise ScenarioError(f"{where}.interval", ts.get("interval"),
