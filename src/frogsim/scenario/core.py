@@ -85,9 +85,6 @@ class Scenario:
         _walk(self, "", self, out)
         return out
 
-    def program_of(self, muscle: str) -> Program:
-        return self.muscles[muscle].program
-
 
 @functools.lru_cache(maxsize=None)
 def _field_map(cls) -> dict:

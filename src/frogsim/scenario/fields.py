@@ -128,11 +128,11 @@ def check_value(value, meta: dict, path: str):
     x = float(value)
     if not math.isfinite(x):
         raise ScenarioError(path, value, "must be a finite number")
-    check_bounds(x, meta, path, lambda: _shown(x, meta))
+    check_bounds(x, meta, path, lambda: shown(x, meta))
     return x
 
 
-def _shown(x: float, meta: dict) -> str:
+def shown(x: float, meta: dict) -> str:
     """An SI value as a user reads it in messages: in the field's display unit."""
     disp, kind = meta.get("display"), meta.get("kind")
     if disp and kind:

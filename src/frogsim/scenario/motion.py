@@ -7,13 +7,11 @@ once they exist (overlapping strokes, joint-angle files), so the loader and ever
 """
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
-
 import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 

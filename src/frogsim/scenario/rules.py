@@ -1,18 +1,16 @@
 """Cross-field rules of a scenario: the checks no single field can make on its own.
 
 :func:`check` runs every rule on a typed scenario (SI values). The loader calls it once the file is
-read; :meth:`frogsim.scenario.schema.Scenario.replace` calls it on every variant, so a sweep point
+read; :meth:`frogsim.scenario.core.Scenario.replace` calls it on every variant, so a sweep point
 or a fit iterate is refused exactly as the same values written in a file would be.
 """
 from __future__ import annotations
 
+import dataclasses
 from typing import TYPE_CHECKING
 
-
-import dataclasses
-
 from frogsim.errors import MISSING, ScenarioError
-from frogsim.scenario.fields import _shown
+from frogsim.scenario.fields import shown
 from frogsim.scenario.motion import build_motions
 from frogsim.scenario.schema import MOTION_KINDS
 
@@ -27,7 +25,7 @@ def _meta(obj, name: str) -> dict:
 
 
 def _err(path: str, obj, name: str, allowed: str) -> ScenarioError:
-    return ScenarioError(path, _shown(getattr(obj, name), _meta(obj, name)), allowed)
+    return ScenarioError(path, shown(getattr(obj, name), _meta(obj, name)), allowed)
 
 
 def check(sc: Scenario) -> None:
@@ -38,7 +36,7 @@ def check(sc: Scenario) -> None:
         raise _err("output_interval", sc, "output_interval",
                    "too fine for the duration (more than 5 million output rows)")
     if sc.pump.on_below_gauge >= sc.pump.off_above_gauge:
-        off = _shown(sc.pump.off_above_gauge, _meta(sc.pump, "off_above_gauge"))
+        off = shown(sc.pump.off_above_gauge, _meta(sc.pump, "off_above_gauge"))
         raise _err("pump.on_below_gauge", sc.pump, "on_below_gauge", f"must be below pump.off_above_gauge ({off})")
     for vname in ("charge", "discharge"):
         v = getattr(sc.valves, vname)
