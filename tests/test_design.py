@@ -4,22 +4,22 @@ import re
 import numpy as np
 import pytest
 
-from frogsim.studies import run_study, studies_in
+from frogsim.studies import studies_in
 
 
 @pytest.fixture(scope="module")
-def tubes():
-    return run_study("design-tubes")
+def tubes(study):
+    return study("design-tubes")
 
 
 @pytest.fixture(scope="module")
-def endurance():
-    return run_study("design-endurance")
+def endurance(study):
+    return study("design-endurance")
 
 
 @pytest.fixture(scope="module")
-def valve():
-    return run_study("design-valve")
+def valve(study):
+    return study("design-valve")
 
 
 def test_design_group_registered():

@@ -4,14 +4,14 @@ import math
 import numpy as np
 import pytest
 
-from frogsim.studies import STUDIES, run_study
+from frogsim.studies import STUDIES
 
 
 @pytest.fixture(scope="module")
-def summaries():
+def summaries(study):
     out = {}
     for name in STUDIES:
-        out.update(run_study(name).summary)
+        out.update(study(name).summary)
     return out
 
 
@@ -50,10 +50,10 @@ def test_fig15_final_pressure_rises_with_source_pressure(summaries):
             assert e["final_muscle_pressure_bar_gauge"] < e["source_pressure_bar_gauge"]
 
 
-def test_fig15_saturated_curves_identical_before_balance():
+def test_fig15_saturated_curves_identical_before_balance(study):
     # paper Sec. 4.3: under saturation "the pressurizing process was identical before the balanced
     # state": the flow is capped by the branch limit, not by the source pressure
-    d = run_study("fig15").table
+    d = study("fig15").table
     early = d.time_s <= 0.1
     p3 = d.loc[early, "hip_pressure_bar_gauge_3bar_saturated"].to_numpy()
     p6 = d.loc[early, "hip_pressure_bar_gauge_6bar_saturated"].to_numpy()
