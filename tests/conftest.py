@@ -71,3 +71,17 @@ def paper_cycle_dict() -> dict:
 @pytest.fixture
 def paper_cycle_raw() -> dict:
     return paper_cycle_dict()
+
+
+@pytest.fixture(scope="session")
+def study():
+    """study(name) -> StudyData, each registered study computed once per test session (the paper
+    and design tests and the README check share the runs)."""
+    from frogsim.studies import run_study
+    cache = {}
+
+    def get(name):
+        if name not in cache:
+            cache[name] = run_study(name)
+        return cache[name]
+    return get

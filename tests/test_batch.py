@@ -68,8 +68,8 @@ def test_batch_equals_one_by_one_whatever_threads_and_chunks(base, points):
     for chunk in (1, 5, 64):
         vals = evaluate_models(models, list(METRICS), "hip", threads=2, chunk=chunk)
         ref = evaluate(singles, list(METRICS), "hip")
-        for m in METRICS:
-            assert np.array_equal(vals[m], ref[m]), (m, chunk)
+        for m in METRICS:      # NaN: a rise time not reached while the valve was open
+            assert np.array_equal(vals[m], ref[m], equal_nan=True), (m, chunk)
 
 
 def test_metrics_equal_result_methods(base, points):
@@ -77,7 +77,7 @@ def test_metrics_equal_result_methods(base, points):
     results = run_models(models)
     vals = evaluate(results, ["rise_time", "aeration_volume", "final_pressure"], "hip")
     for k, r in enumerate(results):
-        assert vals["rise_time"][k] == r.rise_time("hip")
+        assert np.array_equal(vals["rise_time"][k], r.rise_time("hip"), equal_nan=True)
         assert vals["aeration_volume"][k] == pytest.approx(r.aeration_volume("hip") * 1e3, rel=1e-12)
         assert vals["final_pressure"][k] == pytest.approx(
             (r.pressure_at_close("hip") - r.atmospheric_pressure) / 1e5, rel=1e-12)

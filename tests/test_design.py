@@ -4,22 +4,22 @@ import re
 import numpy as np
 import pytest
 
-from frogsim.studies import run_study, studies_in
+from frogsim.studies import studies_in
 
 
 @pytest.fixture(scope="module")
-def tubes():
-    return run_study("design-tubes")
+def tubes(study):
+    return study("design-tubes")
 
 
 @pytest.fixture(scope="module")
-def endurance():
-    return run_study("design-endurance")
+def endurance(study):
+    return study("design-endurance")
 
 
 @pytest.fixture(scope="module")
-def valve():
-    return run_study("design-valve")
+def valve(study):
+    return study("design-valve")
 
 
 def test_design_group_registered():
@@ -30,7 +30,15 @@ def test_tubes_wider_is_never_slower_and_ends_at_the_valve_limit(tubes):
     d = tubes.table
     vo = tubes.summary["design_tubes"]["valve_only_rise_time_90_s"]
     for (mode, count), sub in d.groupby(["mode", "main_tube_count"]):
-        r = sub.sort_values("inner_diameter_mm").rise_time_90_s.to_numpy()
+        sub = sub.sort_values("inner_diameter_mm")
+        r = sub.rise_time_90_s.to_numpy()
+        # a rise not reached in the 1 s pressurise (NaN) only at the narrow end, with less of the
+        # rise reached than any layout that gets there
+        miss = ~np.isfinite(r)
+        k = int(miss.sum())
+        assert not miss[k:].any(), (mode, count)
+        assert np.all(sub.rise_reached_percent.to_numpy()[miss] < 90), (mode, count)
+        r = r[k:]
         assert np.all(np.diff(r) <= 1e-3), (mode, count)          # more flow area never slows it
         assert r[-1] == pytest.approx(vo, rel=0.05)                # 10 mm: the valve limits
         assert np.all(r >= vo * (1 - 1e-3))                        # no tube beats the valve alone

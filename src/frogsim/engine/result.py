@@ -7,7 +7,9 @@ from functools import cached_property
 import numpy as np
 
 from frogsim.circuit import layout as L
-from frogsim.engine.measures import charged_in_phase, pressurise_window, rise_time, value_at_close
+from frogsim.engine.measures import (
+    RiseTimes, charged_in_phase, fraction_of_window, pressurise_window, rise_times, value_at_close,
+)
 
 
 @dataclass
@@ -168,11 +170,49 @@ class Result:
         q = charged_in_phase(self.t, self.charged_mass(muscle)[None, :], u, t_open)
         return float(q[0] / self.reference_density)
 
-    def rise_time(self, muscle: str, fraction: float = 0.9, stroke: int = 0) -> float:
-        """Time [s] from the charge valve opening until the muscle pressure first reaches
-        ``fraction`` of its rise over the phase (see :func:`frogsim.engine.measures.rise_time`)."""
+    def rise(self, muscle: str, fraction: float = 0.9, stroke: int = 0) -> RiseTimes:
+        """The full rise-time measurement of one pressurise phase (time, start and target
+        pressures, level, fraction of the rise reached, status, reason): see
+        :mod:`frogsim.engine.measures` and docs/metrics.md."""
         u, t_open = self._phase(muscle, stroke)
-        return float(rise_time(self.t, self.muscle_pressure(muscle)[None, :], u, t_open, fraction)[0])
+        return rise_times(self.t, self.muscle_pressure(muscle)[None, :], self.source_pressure[None, :],
+                          u, t_open, fraction)
+
+    def rise_time(self, muscle: str, fraction: float = 0.9, stroke: int = 0) -> float:
+        """Time [s] from the charge valve opening (command + dead time) until the muscle pressure
+        first reaches p_start + fraction (p_target - p_start), p_target being the source pressure
+        when the valve closes (the pressure the muscle settles to). NaN when the muscle does not
+        get there while the valve is open; :meth:`rise_time_reason` says why."""
+        return float(self.rise(muscle, fraction, stroke).seconds[0])
+
+    def rise_time_reason(self, muscle: str, fraction: float = 0.9, stroke: int = 0) -> str | None:
+        """Why :meth:`rise_time` is NaN (e.g. "not reached before the charge valve closed (reached
+        53 % of the rise, needs 90 %)"); None when it is a number."""
+        return self.rise(muscle, fraction, stroke).reason(0)
+
+    def branch_limited_fraction(self, muscle: str, stroke: int = 0, until: str = "phase") -> float:
+        """Fraction of time during which the Eq. (9) per-branch limit (``supply.mode = "paper"``)
+        capped the muscle's charge flow; 0 in the other modes.
+
+        ``until="phase"``: over the pressurise phase (valve opening to close); ``until="rise"``:
+        over the rise, from the opening until the 90 % rise level is reached (to the close if it
+        is not). Exact on the output grid: the engine clips the valve's flow to the limit, so the
+        flow equals the limit exactly while the cap binds (evaluated at each output point by the
+        engine's own right-hand side)."""
+        if until not in ("phase", "rise"):
+            raise ValueError(f"until must be 'phase' or 'rise', not {until!r}")
+        if int(self.model.g[L.G_SUPPLY_MODE]) != L.SUPPLY_PAPER:
+            return 0.0
+        u, t_open = self._phase(muscle, stroke)
+        limit = float(self.model.g[L.G_BRANCH_LIMIT])
+        capped = np.abs(self.charge_flow(muscle)) >= limit * (1.0 - 1e-9)
+        _, t_close = self.pressurise_window(muscle, stroke)
+        t_end = t_close
+        if until == "rise":
+            rt = self.rise_time(muscle, 0.9, stroke)
+            if np.isfinite(rt):
+                t_end = t_open[0] + rt
+        return float(fraction_of_window(self.t, capped[None, :], t_open, np.array([t_end]))[0])
 
     def pressurise_window(self, muscle: str, stroke: int = 0) -> tuple[float, float]:
         """(time the charge valve opens, first output time it is closed again) [s]; the end of

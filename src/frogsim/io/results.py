@@ -1,12 +1,49 @@
 """Run results: the summary of a run and its pressure plot (files written by :mod:`frogsim._files`)."""
 from __future__ import annotations
 
+import logging
 
 import numpy as np
 
 
-def run_summary(result) -> dict:
-    """Headline figures of one run, in display units with the unit in each key."""
+log = logging.getLogger("frogsim")
+
+DOMINANT_FRACTION = 0.5     # a limit "dominates" a charge when it binds for more than half of it
+
+
+def limit_notes(result) -> list[str]:
+    """One-line notes on limits that dominate the run's charges (empty when none does).
+
+    Today: the Eq. (9) per-branch limit of ``supply.mode = "paper"``, when it caps a muscle's
+    charge flow for more than half of its rise (valve opening to the 90 % rise level, or to the
+    close if that is not reached). While it binds, the flow equals the limit whatever the valve,
+    so changing the valve's C or b changes nothing there.
+    """
+    from frogsim.circuit import layout as L
+    if int(result.model.g[L.G_SUPPLY_MODE]) != L.SUPPLY_PAPER:
+        return []
+    capped = [(name, result.branch_limited_fraction(name, until="rise")) for name in result.names
+              if len(result.charge_open_times(name))]
+    capped = [(n, f) for n, f in capped if f > DOMINANT_FRACTION]
+    if not capped:
+        return []
+    limit = result.model.g[L.G_BRANCH_LIMIT] / result.reference_density * 6e4
+    groups = {}
+    for n, f in capped:
+        groups.setdefault(round(100 * f), []).append(n)
+    who = "; ".join(f"{', '.join(names)} for {pct} %" for pct, names in
+                    sorted(groups.items(), reverse=True))
+    return [f"the Eq. (9) branch limit ({limit:.1f} L/min) capped the charge flow of {who} of the "
+            f"rise to 90 %; valve changes cannot matter while it does"]
+
+
+def run_summary(result, notes: bool = True) -> dict:
+    """Headline figures of one run, in display units with the unit in each key (docs/metrics.md).
+
+    A rise time that is not reached is None (JSON null) with ``rise_time_90_reason`` saying why.
+    Limits that dominate the charging are listed under "notes" and, with ``notes``, logged on the
+    "frogsim" logger as warnings (one line each on stderr unless logging is configured otherwise).
+    """
     patm = result.atmospheric_pressure
     rho = result.reference_density
     ps = result.source_pressure
@@ -16,9 +53,19 @@ def run_summary(result) -> dict:
         entry = {"final_pressure_bar_gauge": float((result.muscle_pressure(name)[-1] - patm) / 1e5),
                  "charged_L_std": float(result.charged_mass(name)[-1] / rho * 1e3)}
         if len(result.charge_open_times(name)):
-            entry["rise_time_90_s"] = result.rise_time(name)
+            rise = result.rise(name)
+            entry["rise_time_90_s"] = float(rise.seconds[0]) if rise.reason(0) is None else None
+            entry["rise_time_90_reason"] = rise.reason(0)
+            entry["rise_target_pressure_bar_gauge"] = float((rise.p_target[0] - patm) / 1e5)
+            entry["pressure_at_close_bar_gauge"] = float((result.pressure_at_close(name) - patm) / 1e5)
             entry["aeration_volume_L"] = result.aeration_volume(name) * 1e3
+            entry["branch_limited_fraction_of_rise"] = result.branch_limited_fraction(name, until="rise")
+            entry["branch_limited_fraction_of_phase"] = result.branch_limited_fraction(name)
         muscles[name] = entry
+    found = limit_notes(result)
+    if notes:
+        for note in found:
+            log.warning("note: %s", note)
     return {
         "scenario": result.model.scenario.name,
         "duration_s": float(result.t[-1]),
@@ -28,9 +75,22 @@ def run_summary(result) -> dict:
         "exhaust": {"final_pressure_bar_gauge": float((result.exhaust_pressure[-1] - patm) / 1e5)},
         "pump_moved_L_std": float(result.pumped_mass[-1] / rho * 1e3),
         "muscles": muscles,
+        "notes": found,
         "air_mass_relative_drift": float(np.ptp(m_total) / m_total[0]),
         "solver": result.stats,
     }
+
+
+def muscle_colors(n: int) -> list:
+    """n distinct colours: the 10 of tab10 up to ten muscles, then the 20 of tab20, then a
+    continuous map (never a repeated colour)."""
+    import matplotlib
+    if n <= 10:
+        return [matplotlib.colormaps["tab10"](i) for i in range(n)]
+    if n <= 20:
+        return [matplotlib.colormaps["tab20"](i) for i in range(n)]
+    cmap = matplotlib.colormaps["turbo"]
+    return [cmap(i / (n - 1)) for i in range(n)]
 
 
 def plot_run(result, path: str) -> None:
@@ -38,18 +98,20 @@ def plot_run(result, path: str) -> None:
     from frogsim._plotting import figure, save
     patm = result.atmospheric_pressure
     n = result.n
-    fig, ax = figure(2, 1, height=6.0, sharex=True, gridspec_kw={"height_ratios": [3, 1.2]})
+    colors = muscle_colors(n)
+    fig, ax = figure(2, 1, width=10.0, height=5.0 + 0.25 * n, sharex=True,
+                     gridspec_kw={"height_ratios": [3, 0.6 + 0.2 * n]})
     a, b = ax[0, 0], ax[1, 0]
     a.plot(result.t, (result.source_pressure - patm) / 1e5, "k", lw=2, label="source")
     a.plot(result.t, (result.exhaust_pressure - patm) / 1e5, "k--", lw=1, label="exhaust")
-    for name in result.names:
-        a.plot(result.t, (result.muscle_pressure(name) - patm) / 1e5, label=name)
+    for name, c in zip(result.names, colors):
+        a.plot(result.t, (result.muscle_pressure(name) - patm) / 1e5, color=c, label=name)
     a.set_ylabel("pressure [bar gauge]")
     a.set_title(f"Scenario {result.model.scenario.name!r}")
-    a.legend(fontsize=8, ncol=2, loc="best")
-    for i, name in enumerate(result.names):
-        b.step(result.t, result.u[:, 2 * i] * 0.8 + i, where="post", color=f"C{i % 10}")
-        b.step(result.t, -result.u[:, 2 * i + 1] * 0.4 + i, where="post", color=f"C{i % 10}", ls=":")
+    a.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))     # outside: hides no curve
+    for i, (name, c) in enumerate(zip(result.names, colors)):
+        b.step(result.t, result.u[:, 2 * i] * 0.8 + i, where="post", color=c)
+        b.step(result.t, -result.u[:, 2 * i + 1] * 0.4 + i, where="post", color=c, ls=":")
     b.set_yticks(range(n), result.names, fontsize=7)
     b.set_xlabel("time [s]")
     b.set_title("valves: step up = charge open, dotted down = discharge open", fontsize=9)

@@ -17,6 +17,7 @@ import pandas as pd
 
 from frogsim.circuit import layout as L
 from frogsim.engine.batch import build_models, run_models
+from frogsim.engine.measures import format_rise
 from frogsim.scenario.load import load_scenario
 from frogsim.physics.flow import pump_mass_flow
 from frogsim.studies.paper import HIP, NOTE
@@ -41,20 +42,35 @@ VALVE_C = tuple(np.round(np.arange(0.1, 1.01, 0.1), 2))     # L/(s bar); MHJ9 is
 VALVE_B = tuple(np.round(np.arange(0.15, 0.61, 0.05), 2))   # MHJ9 is 0.38
 
 
-def _rise_times(base: str, points: list[dict]) -> np.ndarray:
+def _rise_table(base: str, points: list[dict]) -> pd.DataFrame:
+    """Hip 90 % rise time [s] of each point (NaN: not reached while the valve was open, see
+    docs/metrics.md) and the share of that rise it reached [%]."""
     models = build_models(load_scenario(base), points)
-    return evaluate(run_models(models), ["rise_time"], HIP)["rise_time"]
+    v = evaluate(run_models(models), ["rise_time", "rise_reached"], HIP)
+    return pd.DataFrame({"rise_time_90_s": v["rise_time"], "rise_reached_percent": 100 * v["rise_reached"]})
+
+
+def _rise_times(base: str, points: list[dict]) -> np.ndarray:
+    return _rise_table(base, points)["rise_time_90_s"].to_numpy()
+
+
+def _bore(x: float) -> str:
+    """A crossing diameter for text; NaN: the valve never takes over in the range studied."""
+    return f"{x:.1f} mm" if np.isfinite(x) else f"no bore up to {TUBE_DIAMETERS_MM[-1]:g} mm"
 
 
 def _crossing(x, y, level):
-    """First x where the decreasing curve y(x) falls to level (linear interpolation), or NaN."""
+    """First x where the decreasing curve y(x) falls to level (linear interpolation), or NaN.
+
+    NaN entries of y (rise not reached) never count as below the level; if the point before the
+    first one below the level is NaN, that first x is returned."""
     x, y = np.asarray(x, float), np.asarray(y, float)
     below = np.nonzero(y <= level)[0]
     if not below.size:
         return float("nan")
     k = below[0]
-    if k == 0:
-        return float(x[0])
+    if k == 0 or not np.isfinite(y[k - 1]):     # first point, or the one before has no rise time
+        return float(x[k])
     return float(x[k - 1] + (level - y[k - 1]) / (y[k] - y[k - 1]) * (x[k] - x[k - 1]))
 
 
@@ -70,8 +86,7 @@ def design_tubes() -> StudyData:
                 points.append({"supply.mode": mode, "supply.main_tube_count": int(count),
                                "supply.main_tube_inner_diameter": d * MM})
                 rows.append({"mode": mode, "main_tube_count": count, "inner_diameter_mm": d})
-    table = pd.DataFrame(rows)
-    table["rise_time_90_s"] = _rise_times("paper-cycle", points)
+    table = pd.concat([pd.DataFrame(rows), _rise_table("paper-cycle", points)], axis=1)
     table["valve_only_rise_time_90_s"] = valve_only
     level = valve_only * (1 + VALVE_LIMITED_MARGIN)
     crossings = {}
@@ -84,16 +99,26 @@ def design_tubes() -> StudyData:
                       & (table.inner_diameter_mm == 4.0)].rise_time_90_s.iloc[0]
     phys_4mm = table[(table["mode"] == "physical") & (table.main_tube_count == 1)
                      & (table.inner_diameter_mm == 4.0)].rise_time_90_s.iloc[0]
+    missing = table[~np.isfinite(table.rise_time_90_s)]
+    if len(missing):
+        worst = missing.sort_values("rise_reached_percent").iloc[0]
+        unreached = (
+            f" {len(missing)} of the {len(table)} layouts do not reach 90 % of the rise within the 1 s "
+            f"pressurise (rise time \"not reached\", crosses in the figure); the worst ({worst['mode']} "
+            f"mode, {worst.main_tube_count} tube(s) of {worst.inner_diameter_mm:g} mm) reaches "
+            f"{worst.rise_reached_percent:.0f} % of it.")
+    else:
+        unreached = ""
     conclusion = (
         f"Six muscles charged at once from 6 bar. The valves alone (MHJ9, C = 0.4 L/(s bar)) give a "
-        f"hip rise time of {valve_only:.3f} s. With the paper's Eq. (9) limit, one 4 mm main tube "
-        f"gives {paper_4mm:.3f} s and the valve takes over (rise within 5 % of the valve-only value) "
-        f"from a {crossings['paper']['1']:.1f} mm bore with one tube, {crossings['paper']['2']:.1f} mm "
-        f"with two, {crossings['paper']['3']:.1f} mm with three. A physical tube, whose choked flow "
-        f"grows with the upstream density, gives {phys_4mm:.3f} s with one 4 mm tube and lets the "
-        f"valve take over from {crossings['physical']['1']:.1f} mm ({crossings['physical']['2']:.1f} mm "
+        f"hip rise time of {format_rise(valve_only)}. With the paper's Eq. (9) limit, one 4 mm main tube "
+        f"gives {format_rise(paper_4mm)} and the valve takes over (rise within 5 % of the valve-only "
+        f"value) from {_bore(crossings['paper']['1'])} with one tube, {_bore(crossings['paper']['2'])} "
+        f"with two, {_bore(crossings['paper']['3'])} with three. A physical tube, whose choked flow "
+        f"grows with the upstream density, gives {format_rise(phys_4mm)} with one 4 mm tube and lets the "
+        f"valve take over from {_bore(crossings['physical']['1'])} ({_bore(crossings['physical']['2'])} "
         f"with two tubes): Eq. (9) understates a 6 bar tube's capacity several times, so the paper's "
-        f"advice to widen the main pipe matters far less than Eq. (9) suggests.")
+        f"advice to widen the main pipe matters far less than Eq. (9) suggests.{unreached}")
     return StudyData(table, {"design_tubes": {
         "valve_only_rise_time_90_s": valve_only,
         "valve_limited_from_inner_diameter_mm": crossings,
@@ -104,24 +129,32 @@ def design_tubes() -> StudyData:
 @design_tubes.draws
 def _draw_tubes(data: StudyData, path: str) -> None:
     d = data.table
-    fig, ax = figure(1, 2, width=11.5, sharey=True)
+    fig, ax = figure(1, 2, width=11.5, height=4.8, sharey=True)
     vo = data.summary["design_tubes"]["valve_only_rise_time_90_s"]
+    top = np.nanmax(d.rise_time_90_s) * 1.08
     for a, mode, title in ((ax[0, 0], "paper", "paper mode: Eq. (9) per-branch limit"),
                            (ax[0, 1], "physical", "physical mode: shared choked tube")):
         for count in TUBE_COUNTS:
             sub = d[(d["mode"] == mode) & (d.main_tube_count == count)]
-            a.plot(sub.inner_diameter_mm, sub.rise_time_90_s, "o-", ms=3, label=f"{count} main tube(s)")
             x = data.summary["design_tubes"]["valve_limited_from_inner_diameter_mm"][mode][str(count)]
+            where = f"valve limits from {x:.1f} mm" if np.isfinite(x) else "tube limits throughout"
+            a.plot(sub.inner_diameter_mm, sub.rise_time_90_s, "o-", ms=3, color=f"C{count - 1}",
+                   label=f"{count} main tube(s); {where}")
             if np.isfinite(x):
                 a.axvline(x, color=f"C{count - 1}", ls=":", lw=1)
-        a.axhline(vo, color="k", ls="--", lw=1, label=f"valves only: {vo:.3f} s")
-        a.axhspan(vo, data.extras["level"], color="0.85", alpha=0.6, lw=0, label="valve-limited (within 5 %)")
+            miss = sub[~np.isfinite(sub.rise_time_90_s)]
+            a.plot(miss.inner_diameter_mm, np.full(len(miss), top * (1 + 0.04 * (count - 1))), "x",
+                   color=f"C{count - 1}", ms=8, mew=2)
+        if not np.isfinite(d[d["mode"] == mode].rise_time_90_s).all():
+            a.plot([], [], "x", color="0.3", ms=8, mew=2, label="not reached in the 1 s pressurise")
+        a.axhline(vo, color="k", ls="--", lw=1, label=f"valves only: {format_rise(vo)}")
         a.set_xlabel("main tube inner diameter [mm]")
         a.set_title(title)
-        a.legend(fontsize=8)
+        a.legend(fontsize=8, loc="upper right")
     ax[0, 0].set_ylabel("hip muscle 90 % rise time [s]")
     fig.suptitle("Where does the valve, not the tube, limit the pressurising? (six muscles at once, 6 bar)")
-    save(fig, path, NOTE + "; dotted lines: diameter from which the valve limits")
+    save(fig, path, NOTE + f"; dotted lines: diameter from which the rise time is within "
+                           f"{VALVE_LIMITED_MARGIN:.0%} of the valves-only value")
 
 
 # --- source volume and pump -------------------------------------------------------------------------
@@ -261,22 +294,28 @@ def design_valve() -> StudyData:
                            "valves.discharge.sonic_conductance": c * L_PER_S_BAR,
                            "valves.discharge.critical_ratio": float(b)})
             rows.append({"sonic_conductance_L_per_s_bar": c, "critical_ratio": b})
-    table = pd.DataFrame(rows)
-    table["rise_time_90_s"] = _rise_times("paper-cycle", points)
+    table = pd.concat([pd.DataFrame(rows), _rise_table("paper-cycle", points)], axis=1)
     at_b = table[np.isclose(table.critical_ratio, 0.4)]
-    slope = np.polyfit(np.log(at_b.sonic_conductance_L_per_s_bar), np.log(at_b.rise_time_90_s), 1)[0]
+    fit = at_b[np.isfinite(at_b.rise_time_90_s)]
+    slope = np.polyfit(np.log(fit.sonic_conductance_L_per_s_bar), np.log(fit.rise_time_90_s), 1)[0]
     at_c = table[np.isclose(table.sonic_conductance_L_per_s_bar, 0.4)]
     spread = (at_c.rise_time_90_s.max() - at_c.rise_time_90_s.min()) / at_c.rise_time_90_s.mean()
+    if not np.isfinite(at_c.rise_time_90_s).all():
+        spread = float("nan")         # some b do not reach the level: no spread to quote
     t_lo = at_b.rise_time_90_s.iloc[0]
     t_hi = at_b.rise_time_90_s.iloc[-1]
+    n_miss = int((~np.isfinite(table.rise_time_90_s)).sum())
     conclusion = (
         f"Valve-limited charging (no tube limit), six muscles from 6 bar. At b = 0.4 the hip rise time "
-        f"falls from {t_lo:.3f} s at C = {VALVE_C[0]:g} to {t_hi:.3f} s at C = {VALVE_C[-1]:g} "
+        f"falls from {format_rise(t_lo)} at C = {VALVE_C[0]:g} to {format_rise(t_hi)} at C = {VALVE_C[-1]:g} "
         f"L/(s bar), a fitted rise time ~ C^{slope:.2f}: steeper than the 1/C of a choked fill into a "
         f"fixed volume, because a slow valve is still filling while the muscle contracts (0.1 to "
         f"0.4 s after the command) and its volume grows. At C = 0.4 L/(s bar) the critical ratio b "
-        f"from {VALVE_B[0]:g} to {VALVE_B[-1]:g} changes the rise time by {spread:.0%}: choose "
-        f"valves by C first.")
+        f"from {VALVE_B[0]:g} to {VALVE_B[-1]:g} changes the rise time by "
+        f"{f'{spread:.0%}' if np.isfinite(spread) else 'an amount not measurable (some rises not reached)'}"
+        f": choose valves by C first."
+        + (f" {n_miss} of the {len(table)} valves do not reach 90 % of the rise within the 1 s "
+           f"pressurise (\"not reached\", crosses in the figure)." if n_miss else ""))
     return StudyData(table, {"design_valve": {"rise_time_exponent_in_C": float(slope),
                                               "rise_time_spread_over_b_at_C_0p4": float(spread),
                                               "conclusion": conclusion}})
@@ -292,6 +331,10 @@ def _draw_valve(data: StudyData, path: str) -> None:
     lines = a.contour(grid.columns, grid.index, grid.values, levels=[0.05, 0.075, 0.1, 0.15, 0.2, 0.3],
                       colors="w", linewidths=0.8)
     a.clabel(lines, fmt="%.3g s", fontsize=8)
+    miss = d[~np.isfinite(d.rise_time_90_s)]
+    if len(miss):
+        a.plot(miss.sonic_conductance_L_per_s_bar, miss.critical_ratio, "wx", ms=7, mew=2,
+               label="90 % rise not reached in the 1 s pressurise")
     a.plot([0.4], [0.38], "r*", ms=12, label="MHJ9 (paper): C = 0.4, b = 0.38")
     fig.colorbar(cs, ax=a, label="hip muscle 90 % rise time [s]")
     a.set_xlabel("sonic conductance C [L/(s bar)]")

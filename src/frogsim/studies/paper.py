@@ -11,6 +11,7 @@ import numpy as np
 import pandas as pd
 
 from frogsim.circuit.model import branch_limit_standard
+from frogsim.engine.measures import format_rise
 from frogsim.engine.pneumatic import simulate
 from frogsim.scenario.load import load_scenario
 from frogsim.scenario.schema import Motion, Program
@@ -43,6 +44,14 @@ def gauge_bar(result, p):
     return (p - result.atmospheric_pressure) / BAR
 
 
+def rise_entry(result, muscle=HIP, key="rise_time_90_s") -> dict:
+    """{key: rise time [s] or None when not reached, key_reason: None or why not} (docs/metrics.md)."""
+    rise = result.rise(muscle)
+    reason = rise.reason(0)
+    return {key: None if reason else float(rise.seconds[0]),
+            key.removesuffix("_s") + "_reason": reason}
+
+
 def final_pressure_bar(result, muscle=HIP) -> float:
     """Muscle pressure when the charge valve closes [bar gauge]."""
     return float(gauge_bar(result, result.pressure_at_close(muscle)))
@@ -62,7 +71,7 @@ def fig13() -> StudyData:
         "exhaust_pressure_bar_gauge": gauge_bar(r, r.exhaust_pressure),
     })
     return StudyData(table, {"hip_cycle": {
-        "rise_time_90_s": r.rise_time(HIP),
+        **rise_entry(r),
         "final_muscle_pressure_bar_gauge": final_pressure_bar(r),
         "end_pressure_after_release_bar_gauge": float(table.hip_pressure_bar_gauge.iloc[-1]),
         "exhaust_pressure_end_bar_gauge": float(table.exhaust_pressure_bar_gauge.iloc[-1]),
@@ -107,18 +116,20 @@ def fig14() -> StudyData:
 @fig14.draws
 def _draw14(data: StudyData, path: str) -> None:
     d = data.table
-    fig, ax = figure()
-    a = ax[0, 0]
-    shade_valve_phases(a, *data.extras["window"])
+    fig, ax = figure(2, 1, height=6.0, sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+    a, b = ax[0, 0], ax[1, 0]
+    for axis in (a, b):
+        shade_valve_phases(axis, *data.extras["window"])
     a.plot(d.time_s, d.source_pressure_bar_gauge, lw=2, label="source chamber (4 L)")
-    a.set_xlabel("time [s]")
     a.set_ylabel("pressure [bar gauge]")
     drop = data.summary["source_chamber"]["pressure_drop_bar"]
     a.set_title(f"Source chamber pressure: six muscles charged at once, drop {drop:.2f} bar (cf. Fig. 14)")
-    a2 = a.twinx()
-    a2.plot(d.time_s, d.source_temperature_K, color="tab:red", lw=1, ls="--", label="temperature")
-    a2.set_ylabel("temperature [K]", color="tab:red")
-    a.legend(loc="lower left")
+    a.legend(loc="upper right")
+    cool = data.summary["source_chamber"]["temperature_drop_K"]
+    b.plot(d.time_s, d.source_temperature_K, color="tab:red", lw=1.5)
+    b.set_ylabel("temperature [K]")
+    b.set_xlabel("time [s]")
+    b.set_title(f"Source chamber temperature: adiabatic expansion cools it by {cool:.1f} K", fontsize=10)
     save(fig, path, NOTE)
 
 
@@ -132,8 +143,7 @@ def fig15() -> StudyData:
             r = run({"source.initial_pressure_gauge": ps * BAR, "supply.mode": mode})
             cols.setdefault("time_s", r.t)
             cols[f"hip_pressure_bar_gauge_{ps}bar_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
-            summary[label].append({"source_pressure_bar_gauge": ps,
-                                   "rise_time_90_s": r.rise_time(HIP),
+            summary[label].append({"source_pressure_bar_gauge": ps, **rise_entry(r),
                                    "final_muscle_pressure_bar_gauge": final_pressure_bar(r)})
     return StudyData(pd.DataFrame(cols), {"source_pressure_sweep": summary})
 
@@ -163,7 +173,7 @@ def _draw15(data: StudyData, path: str) -> None:
         for e in data.summary["source_pressure_sweep"][label]:
             ps = e["source_pressure_bar_gauge"]
             yield (f"hip_pressure_bar_gauge_{ps}bar_{label}",
-                   f"source {ps} bar: 90 % rise {e['rise_time_90_s']:.2f} s")
+                   f"source {ps} bar: 90 % rise {format_rise(e['rise_time_90_s'], 2)}")
     _draw_saturation_panels(data.table, curves,
                             "Hip muscle pressurising under various source pressures (cf. paper Fig. 15)", path)
 
@@ -183,7 +193,7 @@ def fig16() -> StudyData:
             cols.setdefault("time_s", r.t)
             cols[f"hip_pressure_bar_gauge_{frac}pct_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
             key = "rise_time_90_s" if label == "saturated" else "unsaturated_rise_time_90_s"
-            entry[key] = r.rise_time(HIP)
+            entry.update(rise_entry(r, HIP, key))
             if label == "saturated":
                 entry["muscle_volume_cm3"] = float(r.volumes[0, r.index(HIP)] * 1e6)
         entries.append(entry)
@@ -197,7 +207,7 @@ def _draw16(data: StudyData, path: str) -> None:
         for e in data.summary["muscle_volume_sweep"]:
             f = e["volume_constant_percent"]
             yield (f"hip_pressure_bar_gauge_{f}pct_{label}",
-                   f"{f} % ({e['muscle_volume_cm3']:.0f} cm$^3$): rise {e[key]:.3f} s")
+                   f"{f} % ({e['muscle_volume_cm3']:.0f} cm$^3$): rise {format_rise(e[key])}")
     _draw_saturation_panels(data.table, curves,
                             "Hip muscle pressurising at fixed muscle volumes, 6 bar source (cf. paper Fig. 16)",
                             path)
@@ -212,30 +222,42 @@ def fig17() -> StudyData:
         r = run({"supply.branch_limit": q * L_PER_MIN})
         cols.setdefault("time_s", r.t)
         cols[f"hip_pressure_bar_gauge_{q}Lpm"] = gauge_bar(r, r.muscle_pressure(HIP))
-        entries.append({"branch_limit_L_per_min": q, "rise_time_90_s": r.rise_time(HIP),
-                        "final_muscle_pressure_bar_gauge": final_pressure_bar(r)})
+        entries.append({"branch_limit_L_per_min": q, **rise_entry(r),
+                        "final_muscle_pressure_bar_gauge": final_pressure_bar(r),
+                        "rise_target_pressure_bar_gauge": float(gauge_bar(r, r.rise(HIP).p_target[0]))})
     return StudyData(pd.DataFrame(cols), {"saturation_sweep": entries})
 
 
 @fig17.draws
 def _draw17(data: StudyData, path: str) -> None:
     d = data.table
-    fig, ax = figure(1, 2, width=11, gridspec_kw={"width_ratios": [1.6, 1]})
+    fig, ax = figure(1, 2, width=11.5, height=4.8, gridspec_kw={"width_ratios": [1.6, 1]})
     a, b = ax[0, 0], ax[0, 1]
     entries = data.summary["saturation_sweep"]
     for e in entries:
         q = e["branch_limit_L_per_min"]
-        a.plot(d.time_s, d[f"hip_pressure_bar_gauge_{q}Lpm"], label=f"{q} L/min")
+        a.plot(d.time_s, d[f"hip_pressure_bar_gauge_{q}Lpm"],
+               label=f"{q} L/min: {format_rise(e['rise_time_90_s'], 2)}")
     a.set_xlim(0, 1.05)
     a.set_xlabel("time [s]")
     a.set_ylabel("hip muscle pressure [bar gauge]")
     a.set_title("Pressure response under various saturations (cf. Fig. 17)")
-    a.legend(loc="lower right", fontsize=8, title="branch limit")
-    b.plot([e["branch_limit_L_per_min"] for e in entries], [e["rise_time_90_s"] for e in entries], "o-")
+    # outside the axes, to the right: no curve is hidden
+    a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, title="branch limit: 90 % rise",
+             title_fontsize=8)
+    q = np.array([e["branch_limit_L_per_min"] for e in entries], float)
+    rt = np.array([np.nan if e["rise_time_90_s"] is None else e["rise_time_90_s"] for e in entries])
+    b.plot(q, rt, "o-", label="90 % rise time")
+    miss = ~np.isfinite(rt)
+    if miss.any():
+        top = np.nanmax(rt) if np.isfinite(rt).any() else 1.0
+        b.plot(q[miss], np.full(miss.sum(), 1.08 * top), "x", color="tab:red", ms=9, mew=2,
+               label="not reached while the valve was open")
+        b.legend(loc="upper right", fontsize=8)
     b.set_xlabel("branch saturation limit [L/min standard]")
     b.set_ylabel("90 % rise time [s]")
     b.set_title("Rise time falls as the limit rises")
-    save(fig, path, NOTE)
+    save(fig, path, NOTE + "; rise to 90 % of the way to the source pressure at the valve's close")
 
 
 # --- Aeration volumes -------------------------------------------------------------------------------
@@ -293,7 +315,7 @@ def tube_modes() -> StudyData:
             cols[f"hip_charge_flow_L_per_min_std_{mode}_{label}"] = q
             cols[f"hip_pressure_bar_gauge_{mode}_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
             summary[mode][f"{label}_L_per_min"] = float(q.max())
-            summary[mode][f"{label}_rise_time_90_s"] = r.rise_time(HIP)
+            summary[mode].update(rise_entry(r, HIP, f"{label}_rise_time_90_s"))
     sc = load_scenario(BASE)
     limit = branch_limit_standard(sc.supply) / L_PER_MIN
     return StudyData(pd.DataFrame(cols), {"tube_modes": summary, "branch_saturation_L_per_min": limit})

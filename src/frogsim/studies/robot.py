@@ -68,7 +68,7 @@ def leg_in_air() -> StudyData:
 @leg_in_air.draws
 def _draw_leg(data: StudyData, path: str) -> None:
     d = data.table
-    fig, ax = figure(2, 1, height=6.4, sharex=True)
+    fig, ax = figure(2, 1, width=10.0, height=6.4, sharex=True)
     a, b = ax[0, 0], ax[1, 0]
     for j in ("hip", "knee", "ankle"):
         delay = data.extras["delays"][f"{j}_left"]
@@ -79,7 +79,7 @@ def _draw_leg(data: StudyData, path: str) -> None:
         a.text(x + 0.01, a.get_ylim()[1] * 0.97, lab, fontsize=8, va="top", color="0.3")
     a.set_ylabel("joint angle from flexed stop [deg]")
     a.set_title("Leg in air, body fixed: joint angles (cf. paper Fig. 12)")
-    a.legend(loc="center right", fontsize=8)
+    a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)     # outside: hides no curve
     b.plot(d.time_s, d.hip_pressure_bar_gauge, lw=2, label="hip muscle, volume from the joint angles")
     b.plot(d.time_s, d.hip_pressure_prescribed_motion_bar_gauge, lw=1, ls="--", color="0.35",
            label="paper-cycle: prescribed muscle motion")
@@ -87,9 +87,12 @@ def _draw_leg(data: StudyData, path: str) -> None:
     b.set_xlabel("time [s]")
     b.set_title("Hip muscle pressure (cf. paper Fig. 13)")
     b2 = b.twinx()
-    b2.plot(d.time_s, d.hip_volume_cm3, color="tab:purple", lw=1, alpha=0.7)
+    b2.plot(d.time_s, d.hip_volume_cm3, color="tab:purple", lw=1, alpha=0.7, label="hip muscle volume (right axis)")
     b2.set_ylabel("hip muscle volume [cm$^3$]", color="tab:purple")
-    b.legend(loc="center right", fontsize=8)
+    lines = b.get_legend_handles_labels()
+    more = b2.get_legend_handles_labels()
+    b.legend(lines[0] + more[0], lines[1] + more[1], loc="upper left", bbox_to_anchor=(1.1, 1.0),
+             fontsize=8)
     save(fig, path, NOTE)
 
 
@@ -98,7 +101,7 @@ def plot_swim(result, path: str, summary: dict | None = None) -> None:
     """Four panels against time: forward motion, water forces, joint angles, pressures."""
     s = summary or result.summary()
     t = result.t
-    fig, ax = figure(4, 1, width=9.0, height=10.5, sharex=True)
+    fig, ax = figure(4, 1, width=11.0, height=10.5, sharex=True)
     a, b, c, e = (ax[k, 0] for k in range(4))
     for x0, x1 in result.extension_windows():
         for axis in (a, b, c, e):
@@ -116,13 +119,14 @@ def plot_swim(result, path: str, summary: dict | None = None) -> None:
     b.plot(t, result.hull_force, lw=1.2, label="hull")
     b.axhline(0, color="0.5", lw=0.6)
     b.set_ylabel("water force along heading [N]")
-    b.legend(loc="upper right", fontsize=8)
+    outside = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "fontsize": 8}   # hides no curve
+    b.legend(**outside)
     for j in ("hip", "knee", "ankle"):
         c.plot(t, np.degrees(result.joint_angles[:, result.joint_names.index(f"{j}_left")]),
                color=JOINT_COLORS[j], label=j)
     c.plot(t, 40 * result.palm_opening[:, 0], color="0.5", ls=":", label="palm open (x 40)")
     c.set_ylabel("left leg joint angle [deg]")
-    c.legend(loc="upper right", fontsize=8, ncol=4)
+    c.legend(**outside)
     e.plot(t, _gauge(result, result.source_pressure), "k", lw=2, label="source")
     e.plot(t, _gauge(result, result.exhaust_pressure), "k--", lw=1, label="exhaust")
     for j in ("hip", "knee", "ankle"):
@@ -130,7 +134,7 @@ def plot_swim(result, path: str, summary: dict | None = None) -> None:
         e.plot(t, _gauge(result, result.pressures[:, i]), color=JOINT_COLORS[j], lw=1, label=f"{j} driving")
     e.set_ylabel("pressure [bar gauge]")
     e.set_xlabel("time [s]")
-    e.legend(loc="upper right", fontsize=8, ncol=5)
+    e.legend(**outside)
     save(fig, path, NOTE)
 
 

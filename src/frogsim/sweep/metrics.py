@@ -15,7 +15,7 @@ import numpy as np
 from frogsim._parallel import map_pieces
 
 from frogsim.circuit import layout as L
-from frogsim.engine.measures import charged_in_phase, rise_time, value_at_close
+from frogsim.engine.measures import charged_in_phase, rise_times, value_at_close
 
 BAR = 1e5
 
@@ -81,9 +81,25 @@ def register_metric(name: str, unit: str, description: str):
     return deco
 
 
-@register_metric("rise_time", "s", "time from the charge valve opening to 90 % of the muscle's pressure rise")
+def _rise(c: Chunk, i: int):
+    key = ("rise", i)
+    if key not in c._cache:
+        c._cache[key] = rise_times(c.t, c.pressure(i), c.state(L.Y_PS), c.charge_valve(i), c.t_open[:, i], 0.9)
+    return c._cache[key]
+
+
+@register_metric("rise_time", "s", "time from the charge valve opening until the muscle pressure first "
+                 "reaches 90 % of the way from its opening pressure to the source pressure at the "
+                 "valve's close; NaN (a gap) where it does not get there while the valve is open")
 def _rise_time(c: Chunk, i: int):
-    return rise_time(c.t, c.pressure(i), c.charge_valve(i), c.t_open[:, i], 0.9)
+    return _rise(c, i).seconds
+
+
+@register_metric("rise_reached", "1", "largest fraction of that rise (muscle pressure from its opening "
+                 "value to the source pressure at the close) reached while the charge valve was open; "
+                 ">= 0.9 exactly where rise_time is a number")
+def _rise_reached(c: Chunk, i: int):
+    return _rise(c, i).reached
 
 
 @register_metric("final_pressure", "bar (gauge)", "muscle pressure when the first pressurise phase ends")

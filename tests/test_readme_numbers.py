@@ -1,0 +1,103 @@
+"""The numbers the README quotes are the code's: each is recomputed from the studies and must
+read the same at the precision the README writes it. A change that moves a number fails here;
+update the README with it."""
+import re
+from pathlib import Path
+
+import pytest
+
+README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+
+
+def table_rows(heading_text: str) -> dict:
+    """{first cell: [cells]} of the first Markdown table after the line containing heading_text."""
+    start = README.index(heading_text)
+    rows = {}
+    for line in README[start:].splitlines()[1:]:
+        if not line.startswith("|"):
+            if rows:
+                break
+            continue
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if set(cells[0]) <= set("-: "):
+            continue
+        rows[cells[0]] = cells
+    return rows
+
+
+def same_as_written(text: str, value: float) -> bool:
+    """value rounded to the decimals of text equals text."""
+    decimals = len(text.split(".")[1]) if "." in text else 0
+    return f"{value:.{decimals}f}" == text
+
+
+NUM = r"(\d+(?:\.\d+)?)"
+
+
+def check(cell: str, patterns: list) -> None:
+    """Each (regex with one number group, value) must match the cell once and read the value."""
+    for pattern, value in patterns:
+        found = re.findall(pattern, cell)
+        assert len(found) == 1, (pattern, cell)
+        assert same_as_written(found[0], value), (pattern, found[0], value)
+
+
+@pytest.fixture(scope="module")
+def paper(study):
+    out = {}
+    for name in ("fig15", "fig14", "aeration", "tube-modes"):
+        out.update(study(name).summary)
+    return out
+
+
+def test_measured_table(paper):
+    rows = table_rows("Measured with the committed parameter set")
+    aer = paper["aeration_volume_L"]
+    check(rows["aeration volume hip / knee / ankle"][1],
+          [(NUM + r" / [\d.]+ / [\d.]+ L", aer["hip"]), (r"[\d.]+ / " + NUM + r" / [\d.]+ L", aer["knee"]),
+           (r"[\d.]+ / [\d.]+ / " + NUM + " L", aer["ankle"])])
+    check(rows["Eq. (9) branch limit"][1], [(NUM + " L/min", paper["branch_saturation_L_per_min"])])
+    sweep = paper["source_pressure_sweep"]
+    sat = next(e for e in sweep["saturated"] if e["source_pressure_bar_gauge"] == 6)
+    uns = next(e for e in sweep["unsaturated"] if e["source_pressure_bar_gauge"] == 6)
+    check(rows["hip 90 % rise at 6 bar, saturated / unsaturated"][1],
+          [(NUM + r" s / ", sat["rise_time_90_s"]), (r" / " + NUM + " s", uns["rise_time_90_s"])])
+    check(rows["source drop, six muscles charged at once"][1],
+          [(NUM + " bar", paper["source_chamber"]["pressure_drop_bar"])])
+    phys = paper["tube_modes"]["physical"]
+    check(rows["hip branch flow, physical tube, 1 / 6 branches open"][1],
+          [(NUM + r" / \d+ L/min", phys["one_branch_L_per_min"]),
+           (r"\d+ / " + NUM + " L/min", phys["six_branches_L_per_min"])])
+
+
+def test_design_table(study):
+    rows = table_rows("| study | question | answer with fan2017 |")
+    tubes = study("design-tubes")
+    s = tubes.summary["design_tubes"]
+    d = tubes.table
+    one4 = d[(d.main_tube_count == 1) & (d.inner_diameter_mm == 4.0)].set_index("mode").rise_time_90_s
+    check(rows["`design-tubes`"][2], [
+        (r"valves alone: " + NUM + " s", s["valve_only_rise_time_90_s"]),
+        (r"one 4 mm tube: " + NUM + " s in the paper", one4["paper"]),
+        (NUM + " s in the physical mode", one4["physical"]),
+        (r"limits from " + NUM + r" mm \(Eq. 9\)", s["valve_limited_from_inner_diameter_mm"]["paper"]["1"]),
+        (r"or " + NUM + r" mm \(physical\)", s["valve_limited_from_inner_diameter_mm"]["physical"]["1"]),
+    ])
+    e = study("design-endurance").summary["design_endurance"]
+    check(rows["`design-endurance`"][2], [
+        (r"give " + NUM + " full strokes", e["paper_robot"]["strokes_before_short"]),
+        (r"sustain " + NUM + " strokes/min", e["paper_robot"]["sustainable_strokes_per_min"]),
+        (r"about " + NUM + " L/min", e["pump_for_paper_timing_L_per_min"]["source_4_L"]),
+    ])
+    v = study("design-valve").summary["design_valve"]
+    check(rows["`design-valve`"][2], [
+        (r"C\^−" + NUM, -v["rise_time_exponent_in_C"]),
+        (r"changes it by " + NUM + " %", 100 * v["rise_time_spread_over_b_at_C_0p4"]),
+    ])
+
+
+def test_readme_check_catches_a_moved_number():
+    # the check itself: a number one unit off in its last written digit fails
+    assert same_as_written("0.081", 0.0806)
+    assert not same_as_written("0.078", 0.0806)
+    assert not same_as_written("88", 86.9)
