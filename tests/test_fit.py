@@ -79,9 +79,10 @@ def test_parameters_entering_only_through_their_sum_are_flagged(tmp_path):
                                         "muscle_types.hip.nominal_length": {"min": "150 mm", "max": "220 mm"}},
                    noise="0.02 bar", starts=1))
     text = " ".join(res.warnings)
-    assert "muscle_types.hip.dead_volume and muscle_types.hip.nominal_length cannot be told apart" in text \
-        or "near-singular" in text, res.warnings
-    assert "near-singular" in text or abs(res.correlation[0, 1]) > 0.95
+    pair = ("muscle_types.hip.dead_volume and muscle_types.hip.nominal_length cannot be told apart",
+            "a combination of muscle_types.hip.dead_volume and muscle_types.hip.nominal_length")
+    assert any(p in text for p in pair), res.warnings
+    assert res.condition_number > 1e4 or abs(res.correlation[0, 1]) > 0.95
 
 
 def test_pooling_two_source_pressures_narrows_the_intervals(rig_dir):

@@ -264,8 +264,11 @@ def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
                                 "experiment that moves them differently")
     if cond > CONDITION_LIMIT:
         extra = "no interval can be given" if not np.all(np.isfinite(std)) else "the intervals are unreliable"
+        v = np.linalg.svd(J / safe)[2][-1]            # the direction the data do not see
+        involved = [paths[j] for j in range(p) if abs(v[j]) > 0.2 * np.abs(v).max()]
         warnings.append(f"J^T J is near-singular (condition number {cond:.3g} after scaling its columns, "
-                        f"limit {CONDITION_LIMIT:g}): the data do not determine all {p} parameters; {extra}")
+                        f"limit {CONDITION_LIMIT:g}): the data determine only a combination of "
+                        f"{' and '.join(involved)}, not each of them; {extra}")
     return dict(std=std, ci_low=x - q * std, ci_high=x + q * std, correlation=corr, condition_number=cond,
                 residual_variance=s2, dof=dof, n_points=n, quantile=q, warnings=warnings)
 
