@@ -23,11 +23,14 @@ or correlated in time.
 from __future__ import annotations
 
 import sys
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from frogsim._parallel import default_threads
 from frogsim.engine.batch import build_models, run_models
 from frogsim.fit.spec import FitSpec
 from frogsim.fit.traces import information_factor, model_grid, simulated
@@ -104,6 +107,8 @@ class Evaluator:
                 self.n_points += f * t.size
             self.blocks.append((t, rows, f))
         self.model_runs = 0
+        self.threads = spec.threads
+        self._lock = threading.Lock()
 
     def x(self, theta) -> np.ndarray:
         """SI values of a point of the unit box."""
@@ -118,8 +123,9 @@ class Evaluator:
         models = []
         for e in self.spec.experiments:
             models.extend(build_models(e.scenario, points))
-        runs = run_models(models, threads=self.spec.threads)
-        self.model_runs += len(models)
+        runs = run_models(models, threads=self.threads)
+        with self._lock:
+            self.model_runs += len(models)
         n = len(points)
         return [[runs[k * n + j] for k in range(len(self.spec.experiments))] for j in range(n)]
 
@@ -193,18 +199,24 @@ def fit_spec(spec: FitSpec, progress: bool = False) -> FitResult:
     t0 = time.perf_counter()
     ev = Evaluator(spec)
     thetas0 = start_points(spec, ev)
-    starts = []
-    for k, th0 in enumerate(thetas0):
-        bar = None
-        if progress:
-            from tqdm import tqdm
-            bar = tqdm(desc=f"start {k + 1}/{len(thetas0)}", unit=" eval", file=sys.stderr, leave=True,
-                       dynamic_ncols=True)
-        try:
-            starts.append(_least_squares(ev, th0, spec, bar))
-        finally:
-            if bar is not None:
-                bar.close()
+    workers = min(default_threads(spec.threads), len(thetas0))
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(desc=f"{len(thetas0)} start(s)", unit=" eval", file=sys.stderr, dynamic_ncols=True)
+    try:
+        if workers > 1:
+            # the starts side by side, one thread each, each running its batches on that thread:
+            # more of the cores busy than with small batches spread over the pool one at a time
+            ev.threads = 1
+            with ThreadPoolExecutor(workers) as pool:
+                starts = list(pool.map(lambda th0: _least_squares(ev, th0, spec, bar), thetas0))
+            ev.threads = spec.threads
+        else:
+            starts = [_least_squares(ev, th0, spec, bar) for th0 in thetas0]
+    finally:
+        if bar is not None:
+            bar.close()
     best = min(starts, key=lambda s: s.cost)
     theta = best.theta
     before_runs, after_runs = ev.results([thetas0[0], theta])
