@@ -16,7 +16,6 @@ Every refusal is a one-line :class:`frogsim.ScenarioError` naming the file and t
 """
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -219,7 +218,3 @@ def information_factor(trace: Trace, scenario) -> float:
     the fit counts the trace's own number of samples (never more), and its intervals stay honest.
     """
     return min(1.0, scenario.output_interval / trace.median_step) if trace.median_step > 0 else 1.0
-
-
-def is_finite_number(x) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
