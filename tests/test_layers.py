@@ -25,6 +25,7 @@ LAYERS = (
     ("robot",),
     ("engine",),
     ("sweep",),
+    ("fit",),
     ("io",),
     ("studies",),
     ("cli", "__init__", "__main__"),

@@ -10,6 +10,7 @@
     frogsim params [NAME]                   show a parameter set with the source of every value
     frogsim sweep SPEC.toml --out RESULTS.nc run a parameter sweep (resumable; see docs/sweeps.md)
     frogsim plot RESULTS.nc --x P --metric M a sweep's metric against one or two swept parameters
+    frogsim fit FIT.toml --out DIR          calibrate parameters to measured traces (docs/fitting.md)
 
 Exit codes: 0 success, 1 simulation failure, 2 bad input (one-line message, nothing written).
 """
@@ -240,6 +241,26 @@ def cmd_plot(args) -> int:
     return 0
 
 
+def cmd_fit(args) -> int:
+    from frogsim.fit import fit, load_fit_spec
+    from frogsim.fit.report import check_out, write_outputs
+    check_out(args.out)
+    spec = load_fit_spec(args.spec, starts=args.starts, threads=args.threads)   # traces too: before any write
+    _progress(f"fitting {len(spec.parameters)} parameters to {len(spec.experiments)} trace(s), "
+              f"{spec.starts} start(s) ...")
+    res = fit(spec, progress=not args.quiet)
+    files = write_outputs(res, args.out)
+    for j, path in enumerate(res.paths):
+        prm = spec.parameters[j]
+        _progress(f"  {path} = {prm.shown(res.values[j])}  [{prm.shown(res.ci_low[j])} .. "
+                  f"{prm.shown(res.ci_high[j])}]")
+    for w in res.warnings:
+        _progress(f"warning: {w}")
+    _progress(f"{res.model_runs} model runs in {res.wall_s:.1f} s; wrote "
+              + ", ".join(str(p) for p in files.values()))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="frogsim", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -301,6 +322,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default=None, metavar="FIG.png",
                    help="figure file (default: beside the results, named after the metric and axes)")
     s.set_defaults(func=cmd_plot)
+    s = sub.add_parser("fit", help="fit parameters to measured traces: fitted-parameters.toml, figures, "
+                                   "report.html, summary.json (see docs/fitting.md)")
+    s.add_argument("spec", metavar="FIT.toml", help="fit spec: base scenario, experiments, parameters")
+    s.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    s.add_argument("--starts", type=int, default=None, metavar="N", help="least-squares starts (default: the spec's)")
+    s.add_argument("--threads", type=int, default=None, metavar="N", help="threads (default: all cores)")
+    s.add_argument("--quiet", action="store_true", help="no progress bars")
+    s.set_defaults(func=cmd_fit)
     return p
 
 

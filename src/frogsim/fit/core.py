@@ -1,0 +1,326 @@
+"""Weighted nonlinear least squares of the pneumatic model against measured traces.
+
+The residual of experiment e, signal s at output time t_k is
+
+    r = weight_s * sqrt(f_e) * (simulated_s(t_k) - measured_s(t_k)) / noise_s
+
+(``f_e`` <= 1 discounts a trace sampled more coarsely than the model's output grid, see
+:func:`frogsim.fit.traces.information_factor`). The parameters are fitted in the unit box: each
+runs from 0 at its ``min`` to 1 at its ``max`` (:func:`scipy.optimize.least_squares`, trust
+region reflective, bounds [0, 1]). Every Jacobian is one batch of variants run by the batched
+engine (:func:`frogsim.engine.batch.run_models`): forward differences of ``diff_step`` (a fraction
+of each parameter's range; backward at the upper bound) during the search, central differences for
+the final covariance. Several starts (the given start plus Latin-hypercube points,
+:class:`scipy.stats.qmc.LatinHypercube`) guard against local minima; the lowest cost wins.
+
+Uncertainty: cov = s^2 (J^T J)^-1 in the unit box, s^2 = sum r^2 / (n - p) the residual variance
+(n: the number of independent data points), mapped to SI; the intervals are value +- q * std with
+q the two-sided Student-t (default) or normal quantile. These are linearised intervals: they
+assume independent errors and a model that fits; the warnings say when the data cannot separate
+the parameters, when a value sits on its bound, when the residuals are far from the stated noise
+or correlated in time.
+"""
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from frogsim._parallel import default_threads
+from frogsim.engine.batch import build_models, run_models
+from frogsim.fit.spec import FitSpec
+from frogsim.fit.traces import information_factor, model_grid, simulated
+
+#: |correlation| above which two parameters are reported as indistinguishable
+CORRELATION_LIMIT = 0.95
+#: condition number of the column-normalised J^T J above which it is reported as near-singular
+CONDITION_LIMIT = 1.0e4
+#: above this the matrix is singular for all purposes: no interval is given
+SINGULAR_LIMIT = 1.0e12
+#: a fitted value within this fraction of its range of a bound "sits on" it
+BOUND_TOLERANCE = 1.0e-3
+
+
+@dataclass
+class Start:
+    """One least-squares start: where it began and ended (unit box), cost, evaluations, message."""
+    theta0: np.ndarray
+    theta: np.ndarray
+    cost: float
+    evaluations: int
+    jacobians: int
+    message: str
+
+
+@dataclass
+class FitResult:
+    """A finished fit. Values are SI; ``std`` the standard errors; ``ci_low``/``ci_high`` the
+    two-sided ``spec.confidence`` intervals (NaN where the data cannot determine them)."""
+    spec: FitSpec
+    values: np.ndarray
+    start_values: np.ndarray
+    std: np.ndarray
+    ci_low: np.ndarray
+    ci_high: np.ndarray
+    correlation: np.ndarray
+    condition_number: float
+    residual_variance: float
+    dof: float
+    n_points: float
+    quantile: float
+    rms_residual: dict                  # (experiment, signal) -> rms of sim - measured [SI], after
+    rms_residual_before: dict
+    warnings: list
+    starts: list
+    model_runs: int
+    wall_s: float
+    on_bound: dict                      # path -> "lower" / "upper"
+    curves: list = field(default_factory=list, repr=False)  # per experiment: t, measured, before, after
+
+    @property
+    def paths(self) -> list[str]:
+        return [p.path for p in self.spec.parameters]
+
+
+class Evaluator:
+    """Residual vectors of many parameter points at once, on the batched engine."""
+
+    def __init__(self, spec: FitSpec):
+        self.spec = spec
+        self.paths = [p.path for p in spec.parameters]
+        self.lower = np.array([p.lower for p in spec.parameters])
+        self.span = np.array([p.upper - p.lower for p in spec.parameters])
+        self.blocks = []       # per experiment: [(signal, measured, scale)]
+        self.n_points = 0.0
+        for e in spec.experiments:
+            t = model_grid(e.scenario)
+            meas = e.trace.resample(t)
+            f = information_factor(e.trace, e.scenario)
+            rows = []
+            for s in sorted(meas):
+                scale = spec.weights[s] * np.sqrt(f) / spec.noise[s]
+                rows.append((s, meas[s], scale))
+                self.n_points += f * t.size
+            self.blocks.append((t, rows, f))
+        self.model_runs = 0
+        self.threads = spec.threads
+        self._lock = threading.Lock()
+
+    def x(self, theta) -> np.ndarray:
+        """SI values of a point of the unit box."""
+        return self.lower + np.asarray(theta, dtype=float) * self.span
+
+    def theta(self, x) -> np.ndarray:
+        return (np.asarray(x, dtype=float) - self.lower) / self.span
+
+    def results(self, thetas) -> list[list]:
+        """Results [point][experiment], all points and experiments run as one batch."""
+        points = [dict(zip(self.paths, map(float, self.x(th)))) for th in thetas]
+        models = []
+        for e in self.spec.experiments:
+            models.extend(build_models(e.scenario, points))
+        runs = run_models(models, threads=self.threads)
+        with self._lock:
+            self.model_runs += len(models)
+        n = len(points)
+        return [[runs[k * n + j] for k in range(len(self.spec.experiments))] for j in range(n)]
+
+    def residual(self, runs) -> np.ndarray:
+        parts = []
+        for (t, rows, _), r in zip(self.blocks, runs):
+            for s, meas, scale in rows:
+                parts.append(scale * (simulated(r, s) - meas))
+        return np.concatenate(parts)
+
+    def residuals(self, thetas) -> np.ndarray:
+        return np.array([self.residual(runs) for runs in self.results(thetas)])
+
+    def jacobian(self, theta, f0, step: float) -> np.ndarray:
+        """Forward differences (backward where a step would leave the box), one batch."""
+        p = len(theta)
+        h = np.where(theta + step <= 1.0, step, -step)
+        pts = [theta + h[j] * np.eye(p)[j] for j in range(p)]
+        fs = self.residuals(pts)
+        return ((fs - f0) / h[:, None]).T
+
+    def central_jacobian(self, theta, step: float) -> np.ndarray:
+        """Central differences, one-sided at a bound; one batch of 2p points."""
+        p = len(theta)
+        up = np.minimum(theta + step, 1.0)
+        down = np.maximum(theta - step, 0.0)
+        pts = [np.where(np.arange(p) == j, up[j], theta) for j in range(p)] + \
+              [np.where(np.arange(p) == j, down[j], theta) for j in range(p)]
+        fs = self.residuals(pts)
+        return ((fs[:p] - fs[p:]) / (up - down)[:, None]).T
+
+
+def _least_squares(ev: Evaluator, theta0, spec: FitSpec, bar) -> Start:
+    from scipy.optimize import least_squares
+    cache = {}
+    counts = {"f": 0, "j": 0}
+
+    def fun(theta):
+        key = theta.tobytes()
+        if key not in cache:
+            cache.clear()
+            cache[key] = ev.residuals([theta])[0]
+            counts["f"] += 1
+            if bar is not None:
+                bar.update(1)
+                bar.set_postfix(cost=f"{0.5 * float(cache[key] @ cache[key]):.4g}", refresh=False)
+        return cache[key]
+
+    def jac(theta):
+        f0 = fun(theta)
+        counts["j"] += 1
+        return ev.jacobian(theta, f0, spec.diff_step)
+
+    sol = least_squares(fun, np.asarray(theta0, dtype=float), jac=jac, bounds=(0.0, 1.0), method="trf",
+                        x_scale=1.0, max_nfev=spec.max_evaluations)
+    return Start(np.asarray(theta0, dtype=float), sol.x, float(sol.cost), counts["f"], counts["j"], sol.message)
+
+
+def start_points(spec: FitSpec, ev: Evaluator) -> np.ndarray:
+    """The given start, then ``starts - 1`` Latin-hypercube points of the unit box (seeded)."""
+    first = ev.theta([p.start for p in spec.parameters])
+    if spec.starts == 1:
+        return first[None, :]
+    from scipy.stats import qmc
+    lhs = qmc.LatinHypercube(d=len(first), seed=spec.seed).random(spec.starts - 1)
+    return np.vstack([first, lhs])
+
+
+def fit_spec(spec: FitSpec, progress: bool = False) -> FitResult:
+    """Fit a loaded spec (see :func:`frogsim.fit.spec.load_fit_spec`); writes nothing."""
+    t0 = time.perf_counter()
+    ev = Evaluator(spec)
+    thetas0 = start_points(spec, ev)
+    workers = min(default_threads(spec.threads), len(thetas0))
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(desc=f"{len(thetas0)} start(s)", unit=" eval", file=sys.stderr, dynamic_ncols=True)
+    try:
+        if workers > 1:
+            # the starts side by side, one thread each, each running its batches on that thread:
+            # more of the cores busy than with small batches spread over the pool one at a time
+            ev.threads = 1
+            with ThreadPoolExecutor(workers) as pool:
+                starts = list(pool.map(lambda th0: _least_squares(ev, th0, spec, bar), thetas0))
+            ev.threads = spec.threads
+        else:
+            starts = [_least_squares(ev, th0, spec, bar) for th0 in thetas0]
+    finally:
+        if bar is not None:
+            bar.close()
+    best = min(starts, key=lambda s: s.cost)
+    theta = best.theta
+    before_runs, after_runs = ev.results([thetas0[0], theta])
+    f = ev.residual(after_runs)
+    J = ev.central_jacobian(theta, spec.diff_step)
+    res = _uncertainty(spec, ev, theta, f, J)
+    res.update(_bound_and_start_warnings(spec, ev, theta, starts, best, res["warnings"]))
+    res["warnings"] += _residual_warnings(spec, ev, after_runs, res["residual_variance"])
+    curves, rms_after, rms_before = [], {}, {}
+    for e, (t, rows, _), rb, ra in zip(spec.experiments, ev.blocks, before_runs, after_runs):
+        c = {"name": e.name, "t": t, "signals": {}}
+        for s, meas, _ in rows:
+            sb, sa = simulated(rb, s), simulated(ra, s)
+            c["signals"][s] = {"measured": meas, "before": sb, "after": sa}
+            rms_after[(e.name, s)] = float(np.sqrt(np.mean((sa - meas) ** 2)))
+            rms_before[(e.name, s)] = float(np.sqrt(np.mean((sb - meas) ** 2)))
+        curves.append(c)
+    return FitResult(spec=spec, values=ev.x(theta), start_values=ev.x(thetas0[0]), starts=starts,
+                     model_runs=ev.model_runs, wall_s=time.perf_counter() - t0, curves=curves,
+                     rms_residual=rms_after, rms_residual_before=rms_before, **res)
+
+
+def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
+    from scipy import stats
+    p = len(theta)
+    n = ev.n_points
+    dof = n - p
+    warnings = []
+    s2 = float(f @ f) / dof if dof > 0 else float("nan")
+    norms = np.linalg.norm(J, axis=0)
+    dead = [spec.parameters[j].path for j in range(p) if not norms[j] > 0]
+    for path in dead:
+        warnings.append(f"{path} has no effect on the measured signals: it cannot be fitted from them")
+    safe = np.where(norms > 0, norms, 1.0)
+    sv = np.linalg.svd(J / safe, compute_uv=False)
+    cond = float((sv[0] / sv[-1]) ** 2) if sv[-1] > 0 else float("inf")
+    q = float(stats.t.ppf(0.5 + spec.confidence / 2, dof) if spec.interval == "t" and dof > 0
+              else stats.norm.ppf(0.5 + spec.confidence / 2))
+    if cond > SINGULAR_LIMIT or dead or dof <= 0:
+        cov = np.full((p, p), np.nan)
+    else:
+        Jn = J / safe
+        cov_theta = s2 * np.linalg.inv(Jn.T @ Jn) / np.outer(safe, safe)
+        cov = cov_theta * np.outer(ev.span, ev.span)
+    std = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(std, std)
+    x = ev.x(theta)
+    paths = [q_.path for q_ in spec.parameters]
+    for i in range(p):
+        for j in range(i + 1, p):
+            c = corr[i, j]
+            if np.isfinite(c) and abs(c) > CORRELATION_LIMIT:
+                warnings.append(f"{paths[i]} and {paths[j]} cannot be told apart well from these data "
+                                f"(correlation {c:+.3f}): the data fix mainly a combination of the two, and a "
+                                "change of one is largely made up by the other; fix one of them, or add an "
+                                "experiment that moves them differently")
+    if cond > CONDITION_LIMIT:
+        extra = "no interval can be given" if not np.all(np.isfinite(std)) else "the intervals are unreliable"
+        v = np.linalg.svd(J / safe)[2][-1]            # the direction the data do not see
+        involved = [paths[j] for j in range(p) if abs(v[j]) > 0.2 * np.abs(v).max()]
+        warnings.append(f"J^T J is near-singular (condition number {cond:.3g} after scaling its columns, "
+                        f"limit {CONDITION_LIMIT:g}): the data determine only a combination of "
+                        f"{' and '.join(involved)}, not each of them; {extra}")
+    return dict(std=std, ci_low=x - q * std, ci_high=x + q * std, correlation=corr, condition_number=cond,
+                residual_variance=s2, dof=dof, n_points=n, quantile=q, warnings=warnings)
+
+
+def _bound_and_start_warnings(spec, ev, theta, starts, best, warnings) -> dict:
+    on_bound = {}
+    for j, prm in enumerate(spec.parameters):
+        side = "lower" if theta[j] < BOUND_TOLERANCE else "upper" if theta[j] > 1 - BOUND_TOLERANCE else None
+        if side:
+            on_bound[prm.path] = side
+            b = prm.lower if side == "lower" else prm.upper
+            warnings.append(f"{prm.path} = {prm.shown(ev.x(theta)[j])} sits on its {side} bound "
+                            f"{prm.shown(b)}: the data would take it further; its interval means little "
+                            "(widen the bounds, or check the model and the data)")
+    worse = [s for s in starts if s.cost > best.cost * (1 + 1e-3) + 1e-12]
+    if worse:
+        warnings.append(f"{len(worse)} of {len(starts)} starts ended in a worse minimum (cost up to "
+                        f"{max(s.cost for s in worse) / max(best.cost, 1e-300):.3g} x the best): the "
+                        "problem has local minima; the best is reported")
+    return {"on_bound": on_bound}
+
+
+def _residual_warnings(spec, ev, runs, s2) -> list:
+    out = []
+    if spec.noise_given and np.isfinite(s2) and not 0.5 <= s2 <= 2.0:
+        out.append(f"the residuals are {np.sqrt(s2):.3g} x the stated noise (reduced chi-square {s2:.3g}): "
+                   + ("the model does not fit the data to within the noise, or the noise is understated"
+                      if s2 > 2 else "the noise is overstated")
+                   + "; the intervals use the residual variance, not the stated noise")
+    worst = 0.0
+    for (t, rows, f), r in zip(ev.blocks, runs):
+        step = max(1, int(round(1.0 / f)))        # the trace's own samples, not interpolated ones
+        for s, meas, _ in rows:
+            d = (simulated(r, s) - meas)[::step]
+            d = d - d.mean()
+            den = float(d @ d)
+            if den > 0:
+                worst = max(worst, float(d[1:] @ d[:-1]) / den)
+    if worst > 0.5:
+        out.append(f"the residuals are correlated in time (lag-1 autocorrelation up to {worst:.2f}): the "
+                   "intervals assume independent errors and are then too narrow; look at the residual plots "
+                   "for what the model misses")
+    return out

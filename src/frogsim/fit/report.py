@@ -1,0 +1,233 @@
+"""A fit's outputs: the fitted parameter set, figures, a one-page HTML report, summary.json.
+
+``fitted-parameters.toml``  the base parameter set with the fitted values merged in, every one
+                            written with its unit and ``source = "fitted to <trace> on <date>,
+                            95 % CI ..."``; usable as ``parameters = "fitted-parameters.toml"``
+``fit-<k>-<name>.png``      per experiment and signal: measured and simulated (at the start and
+                            fitted values) against time, and the residuals after the fit
+``report.html``             one page: parameters, intervals, correlations, warnings, the figures
+                            embedded as base64 PNG (no network needed)
+``summary.json``            every number, SI units named in the keys
+"""
+from __future__ import annotations
+
+import base64
+import datetime
+import html
+import re
+from pathlib import Path
+
+import numpy as np
+
+from frogsim._files import atomic_write, write_figure, write_json
+from frogsim._plotting import figure, save
+from frogsim.errors import ScenarioError
+from frogsim.fit.core import FitResult
+from frogsim.scenario.load import PARAM_SECTIONS, load_parameter_set
+from frogsim.scenario.units import SI_UNITS, display_factor
+from frogsim.sweep.spec import dumps_toml
+
+PARAMETER_FILE = "fitted-parameters.toml"
+
+
+def check_out(out) -> Path:
+    """The output folder; ScenarioError (nothing written) if the path is a file."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ScenarioError("--out", str(out), "exists and is not a directory")
+    return out
+
+
+def _display(x: float, meta: dict, digits: int = 6) -> str:
+    disp, kind = meta.get("display"), meta.get("kind")
+    if disp and kind:
+        return f"{x / display_factor(disp, kind):.{digits}g} {disp}"
+    return f"{x:.{digits}g}"
+
+
+def _ci_text(res: FitResult, j: int) -> str:
+    meta = res.spec.parameters[j].meta
+    conf = f"{res.spec.confidence * 100:g} % CI"
+    lo, hi = res.ci_low[j], res.ci_high[j]
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return f"{conf} not determined (the data cannot fix this parameter; see the fit's warnings)"
+    disp, kind = meta.get("display"), meta.get("kind")
+    f = display_factor(disp, kind) if disp else 1.0
+    return f"{conf} {lo / f:.4g} .. {hi / f:.4g}" + (f" {disp}" if disp else "")
+
+
+def parameter_file_text(res: FitResult, date: str) -> tuple[str, list[str]]:
+    """(TOML text of the fitted parameter set, fitted paths that are run settings and not in it)."""
+    base = res.spec.base
+    raw = load_parameter_set(base.parameters, base.base_dir)
+    traces = ", ".join(e.trace.name for e in res.spec.experiments)
+    left_out = []
+    for j, prm in enumerate(res.spec.parameters):
+        keys = prm.path.split(".")
+        if keys[0] not in PARAM_SECTIONS:
+            left_out.append(prm.path)
+            continue
+        node = raw
+        for key in keys[:-1]:
+            node = node.setdefault(key, {})
+        note = _ci_text(res, j)
+        if prm.path in res.on_bound:
+            note += f"; on its {res.on_bound[prm.path]} bound"
+        node[keys[-1]] = {"value": _display(res.values[j], prm.meta),
+                          "source": f"fitted to {traces} on {date}, {note}"}
+    name = f"{Path(base.parameters).stem}-fitted"
+    meta = {"meta": {"name": name, "title": f"{base.parameters} with {len(res.spec.parameters) - len(left_out)} "
+                                             f"values fitted to {traces} ({date})"}}
+    head = (f"# Parameter set {name!r}: {base.parameters} with values fitted by `frogsim fit "
+            f"{Path(res.spec.path).name}` on {date}.\n# Every fitted value's source gives its trace(s) and "
+            "confidence interval; the other values are the base set's.\n")
+    return head + dumps_toml({**meta, **raw}), left_out
+
+
+def _bar_gauge(p: np.ndarray, patm: float) -> np.ndarray:
+    return (p - patm) / 1e5
+
+
+def draw_experiment(res: FitResult, k: int, path: str) -> None:
+    c = res.curves[k]
+    e = res.spec.experiments[k]
+    patm = e.scenario.air.atmospheric_pressure_abs
+    sigs = list(c["signals"])
+    fig, axes = figure(2 * len(sigs), 1, width=8.0, height=2.6 * 2 * len(sigs), sharex=True)
+    t = c["t"]
+    for i, s in enumerate(sigs):
+        d = c["signals"][s]
+        ax, axr = axes[2 * i, 0], axes[2 * i + 1, 0]
+        ax.plot(t, _bar_gauge(d["measured"], patm), ".", ms=2, color="0.55", label="measured")
+        ax.plot(t, _bar_gauge(d["before"], patm), "--", color="tab:blue", lw=1.2, label="model, start values")
+        ax.plot(t, _bar_gauge(d["after"], patm), "-", color="tab:red", lw=1.4, label="model, fitted")
+        ax.set_ylabel(f"{s} [bar gauge]")
+        ax.legend(fontsize=8, loc="best")
+        ax.set_title(f"{e.name}: {s}", fontsize=10)
+        axr.plot(t, (d["after"] - d["measured"]) / 1e5, ".", ms=2, color="tab:red", label="fitted - measured")
+        axr.axhline(0.0, color="k", lw=0.8)
+        noise = res.spec.noise[s] / 1e5
+        axr.axhspan(-2 * noise, 2 * noise, color="tab:green", alpha=0.1, lw=0, label="+-2 x stated noise")
+        axr.set_ylabel("residual [bar]")
+        axr.legend(fontsize=8, loc="best")
+    axes[-1, 0].set_xlabel("time [s]")
+    save(fig, path, source_note=f"trace {e.trace.name}; scenario {e.scenario.name}")
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "-", text).strip("-") or "experiment"
+
+
+def summary(res: FitResult, date: str, left_out: list) -> dict:
+    spec = res.spec
+    params = {}
+    for j, prm in enumerate(spec.parameters):
+        unit = SI_UNITS[prm.meta["kind"]][0] or "1"
+        params[prm.path] = {
+            "si_unit": unit, "display_unit": prm.meta.get("display") or "",
+            "value_si": res.values[j], "value": _display(res.values[j], prm.meta),
+            "std_si": res.std[j], "ci_low_si": res.ci_low[j], "ci_high_si": res.ci_high[j],
+            "start_si": res.start_values[j], "min_si": prm.lower, "max_si": prm.upper,
+            "on_bound": res.on_bound.get(prm.path), "in_parameter_file": prm.path not in left_out,
+        }
+    exps = []
+    for e, c in zip(spec.experiments, res.curves):
+        exps.append({"name": e.name, "trace": e.trace.path, "overrides_si": e.overrides,
+                     "trace_samples": int(e.trace.time.size), "trace_median_step_s": e.trace.median_step,
+                     "model_points": int(c["t"].size),
+                     "signals": {s: {"column": e.trace.columns[s], "noise_Pa": spec.noise[s], "weight": spec.weights[s],
+                                     "rms_residual_start_Pa": res.rms_residual_before[(e.name, s)],
+                                     "rms_residual_fitted_Pa": res.rms_residual[(e.name, s)]}
+                                 for s in c["signals"]}})
+    return {
+        "fit_spec": spec.path, "date": date, "base_scenario": spec.base.name, "parameter_set": spec.base.parameters,
+        "parameters": params,
+        "confidence": spec.confidence, "interval": spec.interval, "quantile": res.quantile,
+        "independent_points": res.n_points, "degrees_of_freedom": res.dof,
+        "residual_variance": res.residual_variance,
+        "residual_variance_meaning": ("reduced chi-square: mean squared residual in units of the stated noise"
+                                      if spec.noise_given else
+                                      "mean squared residual in units of 1 kPa (no noise was stated)"),
+        "condition_number": res.condition_number,
+        "correlation": {"paths": res.paths, "matrix": res.correlation.tolist()},
+        "warnings": list(res.warnings),
+        "experiments": exps,
+        "starts": [{"start_si": dict(zip(res.paths, _x(res, s.theta0))), "end_si": dict(zip(res.paths, _x(res, s.theta))),
+                    "cost": s.cost, "evaluations": s.evaluations, "jacobians": s.jacobians, "message": s.message}
+                   for s in res.starts],
+        "model_runs": res.model_runs, "wall_s": res.wall_s,
+        "not_in_parameter_file": left_out,
+    }
+
+
+def _x(res: FitResult, theta) -> list:
+    return [p.lower + t * (p.upper - p.lower) for p, t in zip(res.spec.parameters, theta)]
+
+
+def _html(res: FitResult, s: dict, figures: list) -> str:
+    esc = html.escape
+    spec = res.spec
+    rows = []
+    for j, prm in enumerate(spec.parameters):
+        d = s["parameters"][prm.path]
+        rows.append(f"<tr><td><code>{esc(prm.path)}</code></td><td>{esc(d['value'])}</td>"
+                    f"<td>{esc(_ci_text(res, j))}</td><td>{esc(_display(res.start_values[j], prm.meta, 4))}</td>"
+                    f"<td>{esc(_display(prm.lower, prm.meta, 4))} .. {esc(_display(prm.upper, prm.meta, 4))}</td>"
+                    f"<td>{esc(d['on_bound'] or '')}</td></tr>")
+    corr_head = "".join(f"<th>{j + 1}</th>" for j in range(len(res.paths)))
+    corr_rows = "".join(
+        f"<tr><th>{i + 1} <code>{esc(p)}</code></th>" + "".join(
+            f"<td>{'' if not np.isfinite(c) else f'{c:+.3f}'}</td>" for c in res.correlation[i]) + "</tr>"
+        for i, p in enumerate(res.paths))
+    warn = "".join(f"<li>{esc(w)}</li>" for w in res.warnings) or "<li>none</li>"
+    exps = "".join(f"<li>{esc(e['name'])}: <code>{esc(Path(e['trace']).name)}</code>, {e['trace_samples']} samples"
+                   + (f", overrides {esc(str(e['overrides_si']))} (SI)" if e['overrides_si'] else "") + "</li>"
+                   for e in s["experiments"])
+    imgs = "".join(f"<figure><img alt=\"{esc(name)}\" src=\"data:image/png;base64,{b64}\"/>"
+                   f"<figcaption>{esc(name)}</figcaption></figure>" for name, b64 in figures)
+    meaning = esc(s["residual_variance_meaning"])
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>frogsim fit: {esc(Path(spec.path).name)}</title>
+<style>body{{font-family:sans-serif;max-width:60em;margin:1em auto;padding:0 1em}}
+table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:2px 6px;text-align:left}}
+img{{max-width:100%}}li{{margin:0.3em 0}}.w li{{color:#a40}}</style></head><body>
+<h1>Fit of {esc(spec.base.name)} to {len(spec.experiments)} measured run(s)</h1>
+<p>{esc(s['date'])}: <code>{esc(Path(spec.path).name)}</code>, parameter set {esc(spec.base.parameters)};
+{len(res.starts)} start(s), {res.model_runs} model runs in {res.wall_s:.1f} s.</p>
+<h2>Fitted values</h2>
+<table><tr><th>parameter</th><th>fitted</th><th>interval</th><th>start</th><th>bounds</th><th>on bound</th></tr>
+{''.join(rows)}</table>
+<p>Intervals: value &plusmn; {res.quantile:.3f} &times; standard error ({esc(spec.interval)} quantile,
+{res.dof:.0f} degrees of freedom); covariance s&sup2;(J<sup>T</sup>J)<sup>-1</sup> from the Jacobian at the fit
+and the residual variance s&sup2; = {res.residual_variance:.4g} ({meaning}). They are linearised: they hold when
+the errors are independent and the model fits.</p>
+<h2>Warnings</h2><ul class="w">{warn}</ul>
+<h2>Correlation of the estimates</h2>
+<table><tr><th></th>{corr_head}</tr>{corr_rows}</table>
+<p>Condition number of the column-scaled J<sup>T</sup>J: {res.condition_number:.3g}.</p>
+<h2>Experiments</h2><ul>{exps}</ul>
+<h2>Measured and simulated</h2>{imgs}
+</body></html>
+"""
+
+
+def write_outputs(res: FitResult, out) -> dict:
+    """Write every output into the folder ``out``; returns {what: path}."""
+    out = check_out(out)
+    date = datetime.date.today().isoformat()
+    text, left_out = parameter_file_text(res, date)
+    s = summary(res, date, left_out)
+    files = {}
+    figures = []
+    for k, e in enumerate(res.spec.experiments):
+        p = out / f"fit-{k + 1}-{_slug(e.name)}.png"
+        write_figure(p, lambda tmp, k=k: draw_experiment(res, k, tmp))
+        files[f"figure {k + 1}"] = p
+        figures.append((p.name, base64.b64encode(p.read_bytes()).decode("ascii")))
+    atomic_write(out / PARAMETER_FILE, lambda tmp: Path(tmp).write_text(text))
+    files["parameters"] = out / PARAMETER_FILE
+    atomic_write(out / "report.html", lambda tmp: Path(tmp).write_text(_html(res, s, figures)))
+    files["report"] = out / "report.html"
+    write_json(out / "summary.json", s)
+    files["summary"] = out / "summary.json"
+    return files

@@ -1,0 +1,298 @@
+"""A fit spec (FIT.toml): base scenario, experiments (traces), parameters to fit, noise, options.
+
+::
+
+    scenario = "rig.toml"              # base scenario: a path (relative to this file) or shipped name
+    starts = 4                         # least-squares starts: the given start + Latin-hypercube points
+    seed = 1                           # seed of the Latin hypercube
+    noise = "0.02 bar"                 # standard deviation of every pressure signal's noise
+
+    [[experiments]]
+    name = "6 bar"                     # optional; default: the trace's file name
+    trace = "trace-6bar.csv"           # relative to this file
+    ignore_columns = ["hip_left angle [deg]"]
+    overrides = { "source.initial_pressure_gauge" = "6 bar" }   # written with units
+
+    [parameters]
+    "valves.charge.sonic_conductance" = { min = "0.1 L/(s*bar)", max = "1 L/(s*bar)", start = "0.4 L/(s*bar)" }
+    "muscle_types.hip.dead_volume" = { min = "1 cm^3", max = "30 cm^3" }   # start: the base value
+
+    [signals."hip_left pressure"]      # optional, per signal
+    noise = "0.03 bar"
+    weight = 1.0
+
+Everything is read and checked here, traces included, before anything runs or is written: every
+refusal is a one-line :class:`frogsim.ScenarioError` naming the file and the field.
+"""
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from frogsim.errors import MISSING, UNKNOWN, ScenarioError
+from frogsim.fit.traces import Trace, model_signals, read_trace
+from frogsim.scenario.core import Scenario
+from frogsim.scenario.fields import shown, unknown_key_error
+from frogsim.scenario.load import load_scenario, read_toml
+from frogsim.scenario.units import to_si
+
+TOP_KEYS = ("scenario", "experiments", "parameters", "signals", "noise", "starts", "seed", "confidence",
+            "interval", "max_evaluations", "diff_step", "threads")
+EXPERIMENT_KEYS = ("name", "trace", "overrides", "ignore_columns")
+PARAMETER_KEYS = ("min", "max", "start")
+SIGNAL_KEYS = ("noise", "weight")
+#: used when no noise is given: the intervals then rest on the residual variance alone
+DEFAULT_NOISE_PA = 1.0e3
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A parameter to fit: dotted path, bounds and start in SI, field metadata (kind, display unit)."""
+    path: str
+    lower: float
+    upper: float
+    start: float
+    meta: dict
+
+    def shown(self, x: float) -> str:
+        """An SI value in the field's display unit, e.g. "0.4 L/(s*bar)"."""
+        return str(shown(x, self.meta))
+
+
+@dataclass(frozen=True)
+class Experiment:
+    """One measured run: its scenario (the base with the experiment's overrides) and its trace."""
+    name: str
+    scenario: Scenario
+    trace: Trace
+    overrides: dict            # dotted path -> SI value
+
+
+@dataclass(frozen=True)
+class FitSpec:
+    path: str
+    base: Scenario
+    experiments: tuple
+    parameters: tuple
+    noise: dict                # signal -> noise standard deviation [SI]
+    weights: dict              # signal -> weight (dimensionless)
+    noise_given: bool
+    starts: int = 4
+    seed: int = 0
+    confidence: float = 0.95
+    interval: str = "t"
+    max_evaluations: int = 200
+    diff_step: float = 1e-3
+    threads: int | None = None
+
+
+def _where(fname: str, key: str) -> str:
+    return f"{fname}: {key}"
+
+
+def _int(raw, key: str, fname: str, lo: int, hi: int) -> int:
+    if isinstance(raw, bool) or not isinstance(raw, int) or not lo <= raw <= hi:
+        raise ScenarioError(_where(fname, key), raw, f"expected a whole number from {lo} to {hi}")
+    return raw
+
+
+def _quantity(raw, meta: dict, where: str) -> float:
+    """A value written with units, checked against the kind and bounds of a scenario field."""
+    kind = meta.get("kind")
+    if kind is None:
+        raise ScenarioError(where, raw, "is not a continuous quantity (a choice, a flag or a whole "
+                                        "number): it cannot be fitted")
+    x = to_si(raw, kind, where)
+    if not math.isfinite(x):
+        raise ScenarioError(where, raw, "must be a finite number")
+    return x
+
+
+def _path_meta(path: str, variables: dict, where: str) -> dict:
+    if path not in variables:
+        import difflib
+        close = difflib.get_close_matches(path, list(variables), n=2)
+        hint = f"; did you mean {' or '.join(map(repr, close))}?" if close else ""
+        raise ScenarioError(where, UNKNOWN, f"no such setting in the base scenario{hint}")
+    return variables[path]
+
+
+def _overrides(raw, base: Scenario, where: str) -> dict:
+    if not isinstance(raw, dict):
+        raise ScenarioError(where, raw, "expected a table of dotted path = value with units")
+    variables = base.variable_paths()
+    out = {}
+    for path, value in raw.items():
+        meta = _path_meta(path, variables, f"{where}.{path}")
+        if "kind" in meta:
+            out[path] = to_si(value, meta["kind"], f"{where}.{path}")
+        else:
+            out[path] = value
+    return out
+
+
+def load_fit_spec(source, *, starts: int | None = None, threads: int | None = None) -> FitSpec:
+    """Read and check a fit spec (a FIT.toml path or a dict; a dict's relative paths are read from
+    its ``base_dir`` key, default "."). Reads every trace. ``starts``/``threads`` override the file's."""
+    if isinstance(source, (str, os.PathLike)):
+        path = Path(source)
+        raw = read_toml(path, "fit spec")
+        base_dir = path.resolve().parent
+        fname = path.name
+    elif isinstance(source, dict):
+        raw = dict(source)
+        base_dir = Path(raw.pop("base_dir", "."))
+        path, fname = Path(base_dir) / "(fit spec)", "fit spec"
+    else:
+        raise ScenarioError("fit spec", source, "expected a path to a TOML file or a dict")
+    for key in raw:
+        if key not in TOP_KEYS:
+            err = unknown_key_error("", key, TOP_KEYS)
+            raise ScenarioError(_where(fname, err.field), UNKNOWN, err.allowed)
+    if "scenario" not in raw:
+        raise ScenarioError(_where(fname, "scenario"), MISSING, "name the base scenario (a TOML path or shipped name)")
+    scen = raw["scenario"]
+    if not isinstance(scen, str):
+        raise ScenarioError(_where(fname, "scenario"), scen, "expected a TOML path or a shipped scenario name")
+    scen_path = base_dir / scen
+    base = load_scenario(str(scen_path) if scen_path.exists() else scen)
+    variables = base.variable_paths()
+
+    # parameters
+    params_raw = raw.get("parameters")
+    if not isinstance(params_raw, dict) or not params_raw:
+        raise ScenarioError(_where(fname, "parameters"), params_raw if params_raw is not None else MISSING,
+                            'expected a table of "dotted.path" = { min = ..., max = ..., start = ... }')
+    parameters = []
+    for p, spec in params_raw.items():
+        where = _where(fname, f"parameters.{p}")
+        meta = _path_meta(p, variables, where)
+        if not isinstance(spec, dict):
+            raise ScenarioError(where, spec, "expected { min = ..., max = ..., start = ... } with units")
+        for key in spec:
+            if key not in PARAMETER_KEYS:
+                err = unknown_key_error(f"parameters.{p}", key, PARAMETER_KEYS)
+                raise ScenarioError(_where(fname, err.field), UNKNOWN, err.allowed)
+        for key in ("min", "max"):
+            if key not in spec:
+                raise ScenarioError(f"{where}.{key}", MISSING, "required: the fit's bound, with its unit")
+        lo = _quantity(spec["min"], meta, f"{where}.min")
+        hi = _quantity(spec["max"], meta, f"{where}.max")
+        if not lo < hi:
+            raise ScenarioError(f"{where}.max", spec["max"], f"must be above min ({spec['min']})")
+        if "start" in spec:
+            x0 = _quantity(spec["start"], meta, f"{where}.start")
+        else:
+            x0 = _current(base, p)
+        if not lo <= x0 <= hi:
+            raise ScenarioError(f"{where}.start", spec.get("start", shown(x0, meta)),
+                                f"must lie within min and max ({spec['min']} .. {spec['max']})")
+        for key, x in (("min", lo), ("max", hi)):          # the field's own bounds and rules
+            try:
+                base.replace({p: x})
+            except ScenarioError as exc:
+                raise ScenarioError(f"{where}.{key}", spec[key], f"not allowed for this setting ({exc})") from None
+        parameters.append(Parameter(p, lo, hi, x0, meta))
+
+    # experiments
+    exps_raw = raw.get("experiments")
+    if not isinstance(exps_raw, list) or not exps_raw:
+        raise ScenarioError(_where(fname, "experiments"), exps_raw if exps_raw is not None else MISSING,
+                            "expected one or more [[experiments]] with a trace")
+    experiments, names = [], set()
+    for k, e in enumerate(exps_raw):
+        where = _where(fname, f"experiments[{k}]")
+        if not isinstance(e, dict):
+            raise ScenarioError(where, e, "expected a table with trace = ...")
+        for key in e:
+            if key not in EXPERIMENT_KEYS:
+                err = unknown_key_error(f"experiments[{k}]", key, EXPERIMENT_KEYS)
+                raise ScenarioError(_where(fname, err.field), UNKNOWN, err.allowed)
+        if not isinstance(e.get("trace"), str):
+            raise ScenarioError(f"{where}.trace", e.get("trace", MISSING), "expected the path of a trace file")
+        over = _overrides(e.get("overrides", {}), base, f"{where}.overrides")
+        clash = sorted(set(over) & {q.path for q in parameters})
+        if clash:
+            raise ScenarioError(f"{where}.overrides.{clash[0]}", UNKNOWN, "is also fitted: set it in one place")
+        try:
+            scenario = base.replace(over) if over else base
+        except ScenarioError as exc:
+            raise ScenarioError(f"{where}.overrides", UNKNOWN, str(exc)) from None
+        ignore = e.get("ignore_columns", [])
+        if not isinstance(ignore, list) or not all(isinstance(c, str) for c in ignore):
+            raise ScenarioError(f"{where}.ignore_columns", ignore, "expected a list of column headers")
+        trace = read_trace(base_dir / e["trace"], scenario, ignore)
+        name = e.get("name", trace.name)
+        if not isinstance(name, str) or name in names:
+            raise ScenarioError(f"{where}.name", name, "expected a name used by no other experiment")
+        names.add(name)
+        experiments.append(Experiment(name, scenario, trace, over))
+
+    # noise and weights, per signal
+    signals = sorted({s for e in experiments for s in e.trace.signals})
+    default_noise = None
+    if "noise" in raw:
+        default_noise = to_si(raw["noise"], "pressure", _where(fname, "noise"))
+    sig_raw = raw.get("signals", {})
+    if not isinstance(sig_raw, dict):
+        raise ScenarioError(_where(fname, "signals"), sig_raw, 'expected tables [signals."<signal>"]')
+    known = set(model_signals(base))
+    noise, weights = {}, {}
+    for s, spec in sig_raw.items():
+        if s not in known:
+            err = unknown_key_error("signals", s, known)
+            raise ScenarioError(_where(fname, err.field), UNKNOWN, err.allowed)
+        if not isinstance(spec, dict):
+            raise ScenarioError(_where(fname, f"signals.{s}"), spec, "expected { noise = ..., weight = ... }")
+        for key in spec:
+            if key not in SIGNAL_KEYS:
+                err = unknown_key_error(f"signals.{s}", key, SIGNAL_KEYS)
+                raise ScenarioError(_where(fname, err.field), UNKNOWN, err.allowed)
+        if "noise" in spec:
+            noise[s] = to_si(spec["noise"], "pressure", _where(fname, f"signals.{s}.noise"))
+            if not noise[s] > 0:
+                raise ScenarioError(_where(fname, f"signals.{s}.noise"), spec["noise"], "must be > 0")
+        if "weight" in spec:
+            w = spec["weight"]
+            if isinstance(w, bool) or not isinstance(w, (int, float)) or not (math.isfinite(w) and w > 0):
+                raise ScenarioError(_where(fname, f"signals.{s}.weight"), w, "expected a positive number")
+            weights[s] = float(w)
+    if default_noise is not None and not default_noise > 0:
+        raise ScenarioError(_where(fname, "noise"), raw["noise"], "must be > 0")
+    given = all(s in noise for s in signals) or default_noise is not None
+    for s in signals:
+        noise.setdefault(s, default_noise if default_noise is not None else DEFAULT_NOISE_PA)
+        weights.setdefault(s, 1.0)
+
+    # options
+    starts_n = _int(raw.get("starts", 4), "starts", fname, 1, 1000) if starts is None else \
+        _int(starts, "--starts", fname, 1, 1000)
+    seed = _int(raw.get("seed", 0), "seed", fname, 0, 2 ** 32 - 1)
+    conf = raw.get("confidence", 0.95)
+    if isinstance(conf, bool) or not isinstance(conf, (int, float)) or not 0 < conf < 1:
+        raise ScenarioError(_where(fname, "confidence"), conf, "expected a number between 0 and 1, e.g. 0.95")
+    interval = raw.get("interval", "t")
+    if interval not in ("t", "normal"):
+        raise ScenarioError(_where(fname, "interval"), interval, "must be 't' (Student t quantile) or 'normal'")
+    max_eval = _int(raw.get("max_evaluations", 200), "max_evaluations", fname, 1, 100000)
+    step = raw.get("diff_step", 1e-3)
+    if isinstance(step, bool) or not isinstance(step, (int, float)) or not 1e-8 <= step <= 0.1:
+        raise ScenarioError(_where(fname, "diff_step"), step,
+                            "expected the finite-difference step as a fraction of each parameter's "
+                            "range, from 1e-8 to 0.1")
+    thr = raw.get("threads") if threads is None else threads
+    if thr is not None:
+        thr = _int(thr, "threads", fname, 1, 1024)
+    return FitSpec(path=str(path), base=base, experiments=tuple(experiments), parameters=tuple(parameters),
+                   noise=noise, weights=weights, noise_given=given, starts=starts_n, seed=seed,
+                   confidence=float(conf), interval=interval, max_evaluations=max_eval,
+                   diff_step=float(step), threads=thr)
+
+
+def _current(scenario: Scenario, path: str) -> float:
+    node = scenario
+    for key in path.split("."):
+        node = node[key] if isinstance(node, dict) else getattr(node, key)
+    return float(node)

@@ -1,0 +1,191 @@
+"""The fit: recovery of known parameters, interval coverage, identifiability warnings, pooling,
+bad input refused before anything is written, and the outputs (parameter file, report).
+
+Every truth here is a parameter value chosen by the test and put into the traces; nothing is
+copied from the fit's own output.
+"""
+from __future__ import annotations
+
+import base64
+import json
+import re
+
+import numpy as np
+import pytest
+
+import frogsim
+from frogsim.cli import main
+from frogsim.fit import fit, load_fit_spec
+
+from fit_helpers import L_PER_S_BAR, VOLUME_CONSTANT, simulate_truth, spec, write_rig, write_trace
+
+C_PATH, V_PATH = "valves.charge.sonic_conductance", "muscle_types.hip.dead_volume"
+TRUE = {C_PATH: 0.3 * L_PER_S_BAR, V_PATH: 9e-6}          # fan2017: 0.4 L/(s*bar), 5 cm^3
+BOUNDS = {C_PATH: {"min": "0.1 L/(s*bar)", "max": "1 L/(s*bar)", "start": "0.4 L/(s*bar)"},
+          V_PATH: {"min": "1 cm^3", "max": "30 cm^3"}}
+
+
+@pytest.fixture(scope="module")
+def rig_dir(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fit")
+    write_rig(folder)
+    return folder
+
+
+def test_zero_noise_recovers_the_truth(rig_dir):
+    write_trace(rig_dir / "exact.csv", simulate_truth(rig_dir / "rig.toml", TRUE))
+    res = fit(spec(rig_dir, ["exact.csv"], BOUNDS, noise="0.02 bar", starts=2))
+    truth = np.array([TRUE[C_PATH], TRUE[V_PATH]])
+    err = np.abs(res.values - truth) / truth
+    assert np.all(err < 1e-4), err
+    assert np.all(res.ci_low <= truth) and np.all(truth <= res.ci_high)
+
+
+def test_jacobians_run_as_one_batch(rig_dir, monkeypatch):
+    write_trace(rig_dir / "exact.csv", simulate_truth(rig_dir / "rig.toml", TRUE))
+    import frogsim.fit.core as core
+    sizes = []
+    real = core.run_models
+
+    def spy(models, threads=None):
+        sizes.append(len(models))
+        return real(models, threads)
+    monkeypatch.setattr(core, "run_models", spy)
+    res = fit(spec(rig_dir, ["exact.csv"], BOUNDS, noise="0.02 bar", starts=1))
+    jac = res.starts[0].jacobians
+    assert sizes.count(2) >= jac                      # forward-difference Jacobians: p = 2 points at once
+    assert sizes[-1] == 4                             # the final central-difference Jacobian: 2p at once
+    assert sum(sizes) == res.model_runs
+
+
+def test_intervals_cover_the_truth_in_at_least_17_of_20_seeds(rig_dir):
+    result = simulate_truth(rig_dir / "rig.toml", TRUE)
+    truth = np.array([TRUE[C_PATH], TRUE[V_PATH]])
+    covered = np.zeros(2, dtype=int)
+    for seed in range(20):
+        write_trace(rig_dir / f"noisy-{seed}.csv", result, noise_bar=0.02, seed=seed)
+        res = fit(spec(rig_dir, [f"noisy-{seed}.csv"], BOUNDS, noise="0.02 bar", starts=1))
+        covered += (res.ci_low <= truth) & (truth <= res.ci_high)
+    print(f"coverage of the 95 % intervals in 20 seeds: C {covered[0]}, dead volume {covered[1]}")
+    assert np.all(covered >= 17), covered
+
+
+def test_parameters_entering_only_through_their_sum_are_flagged(tmp_path):
+    # a muscle held at a fixed volume: its dead volume and its nominal length (which sets the
+    # braid's volume) act on the pressures only through the total volume
+    write_rig(tmp_path, VOLUME_CONSTANT)
+    write_trace(tmp_path / "t.csv", simulate_truth(tmp_path / "rig.toml", {}), noise_bar=0.02, seed=3)
+    res = fit(spec(tmp_path, ["t.csv"], {V_PATH: {"min": "1 cm^3", "max": "30 cm^3"},
+                                        "muscle_types.hip.nominal_length": {"min": "150 mm", "max": "220 mm"}},
+                   noise="0.02 bar", starts=1))
+    text = " ".join(res.warnings)
+    pair = ("muscle_types.hip.dead_volume and muscle_types.hip.nominal_length cannot be told apart",
+            "a combination of muscle_types.hip.dead_volume and muscle_types.hip.nominal_length")
+    assert any(p in text for p in pair), res.warnings
+    assert res.condition_number > 1e4 or abs(res.correlation[0, 1]) > 0.95
+
+
+def test_pooling_two_source_pressures_narrows_the_intervals(rig_dir):
+    params = {C_PATH: BOUNDS[C_PATH], "valves.charge.critical_ratio": {"min": "0.1", "max": "0.6"}}
+    truth = {C_PATH: TRUE[C_PATH], "valves.charge.critical_ratio": 0.3}
+    low = {"source.initial_pressure_gauge": 3e5}
+    write_trace(rig_dir / "p6.csv", simulate_truth(rig_dir / "rig.toml", truth), 0.02, seed=11)
+    write_trace(rig_dir / "p3.csv", simulate_truth(rig_dir / "rig.toml", truth, low), 0.02, seed=12)
+    one = fit(spec(rig_dir, ["p6.csv"], params, noise="0.02 bar", starts=1))
+    both = fit(spec(rig_dir, ["p6.csv", ("p3.csv", {"source.initial_pressure_gauge": "3 bar"})], params,
+                    noise="0.02 bar", starts=1))
+    w1, w2 = one.ci_high - one.ci_low, both.ci_high - both.ci_low
+    print(f"interval widths, pooled / one run: {w2 / w1}")
+    assert np.all(w2 < w1)
+    t = np.array(list(truth.values()))
+    assert np.all((both.ci_low <= t) & (t <= both.ci_high))
+
+
+def test_a_value_on_its_bound_is_flagged(rig_dir):
+    write_trace(rig_dir / "exact.csv", simulate_truth(rig_dir / "rig.toml", TRUE))
+    res = fit(spec(rig_dir, ["exact.csv"], {C_PATH: {"min": "0.35 L/(s*bar)", "max": "1 L/(s*bar)"},
+                                            V_PATH: BOUNDS[V_PATH]}, noise="0.02 bar", starts=1))
+    assert res.on_bound == {C_PATH: "lower"}
+    assert any("sits on its lower bound 0.35 L/(s*bar)" in w for w in res.warnings)
+
+
+# --- bad input: one line, exit 2, nothing written ----------------------------------------------------
+
+def _write_spec(folder, text: str):
+    p = folder / "FIT.toml"
+    p.write_text(text)
+    return p
+
+
+GOOD_PARAMS = '''
+[parameters]
+"valves.charge.sonic_conductance" = { min = "0.1 L/(s*bar)", max = "1 L/(s*bar)" }
+'''
+
+
+@pytest.mark.parametrize("trace_text, params, expect", [
+    ("time [s],hip pressure [bar gauge]\n0,0\n0.3,1\n0.2,1\n0.5,1\n", GOOD_PARAMS,
+     ["t.csv", "'time [s]'", "not strictly increasing"]),
+    ("time [s],hip pressure [bar gauge]\n0,0\n0.1,nan\n0.2,1\n0.5,1\n", GOOD_PARAMS,
+     ["t.csv", "'hip pressure [bar gauge]'", "NaN"]),
+    ("time [s],hip pressure\n0,0\n0.1,1\n0.2,1\n0.5,1\n", GOOD_PARAMS, ["t.csv", "'hip pressure'", "no unit"]),
+    ("time [s],hip pressure [bar gauge]\n0,0\n0.1,1\n0.2,1\n0.4,1\n", GOOD_PARAMS,
+     ["t.csv", "ends at 0.4 s", "0.5 s"]),
+    (None, '[parameters]\n"valves.charge.sonic_conductance" = { min = "0.1 bar", max = "1 L/(s*bar)" }\n',
+     ["FIT.toml: parameters.valves.charge.sonic_conductance.min", "0.1 bar", "sonic conductance"]),
+    (None, '[parameters]\n"valves.charge.sonic_conductanse" = { min = "0.1 L/(s*bar)", max = "1 L/(s*bar)" }\n',
+     ["FIT.toml: parameters.valves.charge.sonic_conductanse", "no such setting",
+      "did you mean 'valves.charge.sonic_conductance'"]),
+])
+def test_bad_input_exits_2_in_one_line_and_writes_nothing(tmp_path, capsys, trace_text, params, expect):
+    write_rig(tmp_path)
+    (tmp_path / "t.csv").write_text(trace_text or "time [s],hip pressure [bar gauge]\n0,0\n0.1,1\n0.2,1\n0.5,1\n")
+    p = _write_spec(tmp_path, 'scenario = "rig.toml"\n[[experiments]]\ntrace = "t.csv"\n' + params)
+    out = tmp_path / "out"
+    assert main(["fit", str(p), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("frogsim: error: ") and "\n" not in err, err
+    for part in expect:
+        assert part in err, err
+    assert not out.exists()
+
+
+# --- outputs ---------------------------------------------------------------------------------------
+
+def test_cli_outputs_report_and_a_usable_parameter_file(rig_dir, tmp_path, capsys):
+    write_trace(rig_dir / "src.csv", simulate_truth(rig_dir / "rig.toml", TRUE), 0.02, seed=5, source=True)
+    p = rig_dir / "FIT.toml"
+    p.write_text('scenario = "rig.toml"\nnoise = "0.02 bar"\nstarts = 2\n[[experiments]]\ntrace = "src.csv"\n'
+                 '[parameters]\n"valves.charge.sonic_conductance" = { min = "0.1 L/(s*bar)", max = "1 L/(s*bar)" }\n'
+                 '"muscle_types.hip.dead_volume" = { min = "1 cm^3", max = "30 cm^3", start = "5 cm^3" }\n')
+    out = tmp_path / "out"
+    assert main(["fit", str(p), "--out", str(out), "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    c = summary["parameters"][C_PATH]
+    assert c["ci_low_si"] <= TRUE[C_PATH] <= c["ci_high_si"]
+    assert summary["model_runs"] > 0 and summary["confidence"] == 0.95
+    # the report's images are embedded and decode to PNG
+    page = (out / "report.html").read_text()
+    imgs = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
+    assert imgs and all(base64.b64decode(b).startswith(b"\x89PNG\r\n\x1a\n") for b in imgs)
+    assert "http://" not in page and "https://" not in page
+    # the fitted parameter set loads as a scenario's parameters and holds the fitted values
+    text = (out / "fitted-parameters.toml").read_text()
+    assert re.search(r'sonic_conductance = \{ value = "[0-9.]+ L/\(s\*bar\)", source = "fitted to src.csv on '
+                     r'\d{4}-\d\d-\d\d, 95 % CI [0-9.]+ \.\. [0-9.]+ L/\(s\*bar\)" \}', text)
+    sc = frogsim.load_scenario({"name": "x", "parameters": str(out / "fitted-parameters.toml"), "duration": "0.5 s",
+                                "muscles": {"hip": {"type": "hip", "program": {"pressurise": "0.25 s", "release": "0.25 s"},
+                                                        "motion": {"kind": "constant"}}}})
+    assert sc.valves.charge.sonic_conductance == pytest.approx(c["value_si"], rel=1e-5)
+    assert sc.muscle_types["hip"].dead_volume == pytest.approx(summary["parameters"][V_PATH]["value_si"], rel=1e-5)
+    assert sc.valves.discharge.sonic_conductance == pytest.approx(0.4 * L_PER_S_BAR)   # untouched: base set's
+
+
+def test_spec_options_are_checked(rig_dir):
+    write_trace(rig_dir / "exact.csv", simulate_truth(rig_dir / "rig.toml", TRUE))
+    with pytest.raises(frogsim.ScenarioError, match="fit spec: starts = 0: expected a whole number"):
+        load_fit_spec(spec(rig_dir, ["exact.csv"], BOUNDS, starts=0))
+    with pytest.raises(frogsim.ScenarioError, match="fit spec: stars: unknown setting; did you mean 'starts'"):
+        load_fit_spec(spec(rig_dir, ["exact.csv"], BOUNDS, stars=2))
+    with pytest.raises(frogsim.ScenarioError, match="parameters.valves.charge.sonic_conductance.start.*must lie within"):
+        load_fit_spec(spec(rig_dir, ["exact.csv"], {C_PATH: {**BOUNDS[C_PATH], "start": "2 L/(s*bar)"}}))

@@ -1,0 +1,106 @@
+"""Measured traces: units in the header into SI, resampling, and every class of bad data refused in
+one line naming the file and the column."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import frogsim
+from frogsim.errors import ScenarioError
+from frogsim.fit.traces import information_factor, model_grid, read_trace
+
+from fit_helpers import P_ATM, write_rig
+
+
+@pytest.fixture(scope="module")
+def rig(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("rig")
+    return frogsim.load_scenario(write_rig(folder))
+
+
+def _csv(path, cols: dict):
+    pd.DataFrame(cols).to_csv(path, index=False)
+    return path
+
+
+def _times(n=501, dt=1e-3):
+    return np.arange(n) * dt
+
+
+def test_units_in_the_header_become_si(tmp_path, rig):
+    t = _times()
+    path = _csv(tmp_path / "a.csv", {"time [ms]": t * 1e3, "hip pressure [bar gauge]": np.full(t.size, 2.0),
+                                      "source pressure [kPa abs]": np.full(t.size, 700.0),
+                                      "exhaust pressure [psi abs]": np.full(t.size, 14.5)})
+    tr = read_trace(path, rig)
+    np.testing.assert_allclose(tr.time, t, rtol=1e-12)
+    np.testing.assert_allclose(tr.signals["hip pressure"], 2e5 + P_ATM)       # gauge + atmosphere
+    np.testing.assert_allclose(tr.signals["source pressure"], 7e5)
+    np.testing.assert_allclose(tr.signals["exhaust pressure"], 14.5 * 6894.757293168, rtol=1e-9)
+
+
+def test_linear_resampling_onto_the_model_grid(tmp_path, rig):
+    t = np.linspace(0.0, 0.5, 51)                 # 10 ms steps, coarser than the 1 ms grid
+    path = _csv(tmp_path / "b.csv", {"time [s]": t, "hip pressure [bar abs]": 1.0 + 4.0 * t})
+    tr = read_trace(path, rig)
+    grid = model_grid(rig)
+    out = tr.resample(grid)["hip pressure"]
+    np.testing.assert_allclose(out, (1.0 + 4.0 * grid) * 1e5, rtol=1e-12)   # a line stays a line
+    assert information_factor(tr, rig) == pytest.approx(0.1)                # 1 ms / 10 ms
+
+
+def test_ignored_columns_are_left_out(tmp_path, rig):
+    t = _times()
+    path = _csv(tmp_path / "c.csv", {"time [s]": t, "hip pressure [bar gauge]": t, "hip angle [deg]": t})
+    tr = read_trace(path, rig, ignore_columns=["hip angle [deg]"])
+    assert list(tr.signals) == ["hip pressure"] and tr.ignored == ("hip angle [deg]",)
+
+
+@pytest.mark.parametrize("cols, expect", [
+    ({"time [s]": [0.0, 0.2, 0.1, 0.5], "hip pressure [bar gauge]": [1, 2, 3, 4]},
+     ["bad.csv", "'time [s]'", "not strictly increasing", "row 3"]),
+    ({"time [s]": [0.0, 0.1, 0.2, 0.5], "hip pressure [bar gauge]": [1, 2, float("nan"), 4]},
+     ["bad.csv", "'hip pressure [bar gauge]'", "NaN", "row 3"]),
+    ({"time [s]": [0, 0.1, 0.2, 0.5], "hip pressure": [1, 2, 3, 4]},
+     ["bad.csv", "'hip pressure'", "no unit"]),
+    ({"time [s]": [0, 0.1, 0.2, 0.3], "hip pressure [bar gauge]": [1, 2, 3, 4]},
+     ["bad.csv", "'time [s]'", "ends at 0.3 s", "0.5 s"]),
+    ({"time [s]": [0, 0.1, 0.2, 0.5], "hip pressure [bar]": [1, 2, 3, 4]},
+     ["bad.csv", "'hip pressure [bar]'", "gauge or abs"]),
+    ({"time [s]": [0, 0.1, 0.2, 0.5], "hip pressure [cm gauge]": [1, 2, 3, 4]},
+     ["bad.csv", "'hip pressure [cm gauge]'", "not a pressure unit"]),
+    ({"time [s]": [0, 0.1, 0.2, 0.5], "hip pressure [bar gauge]": [1, 2, 3, 4],
+      "knee pressure [bar gauge]": [1, 2, 3, 4], "hip angle [deg]": [0, 1, 2, 3]},
+     ["bad.csv", "'knee pressure [bar gauge]'", "'hip angle [deg]'", "model does not have", "ignore_columns"]),
+])
+def test_bad_data_is_refused_in_one_line(tmp_path, rig, cols, expect):
+    path = _csv(tmp_path / "bad.csv", cols)
+    with pytest.raises(ScenarioError) as exc:
+        read_trace(path, rig)
+    msg = str(exc.value)
+    assert "\n" not in msg
+    for part in expect:
+        assert part in msg, msg
+
+
+def test_a_gap_is_refused(tmp_path, rig):
+    t = np.concatenate([np.arange(0, 0.2, 1e-3), np.arange(0.21, 0.51, 1e-3)])   # 10 ms hole
+    path = _csv(tmp_path / "gap.csv", {"time [s]": t, "hip pressure [bar gauge]": t})
+    with pytest.raises(ScenarioError, match=r"gap.csv: column 'time \[s\]'.*a gap of 0.011 s after 0.199 s"):
+        read_trace(path, rig)
+
+
+def test_parquet_needs_pyarrow(tmp_path, rig):
+    t = _times()
+    df = pd.DataFrame({"time [s]": t, "hip pressure [bar gauge]": t})
+    try:
+        import pyarrow  # noqa: F401
+    except ImportError:
+        path = tmp_path / "a.parquet"
+        path.write_bytes(b"PAR1")
+        with pytest.raises(ScenarioError, match="a.parquet.*needs pyarrow"):
+            read_trace(path, rig)
+        return
+    df.to_parquet(tmp_path / "a.parquet")
+    assert "hip pressure" in read_trace(tmp_path / "a.parquet", rig).signals
