@@ -10,10 +10,12 @@
     frogsim params [NAME]                   show a parameter set with the source of every value
     frogsim sweep SPEC.toml --out RESULTS.nc run a parameter sweep (resumable; see docs/sweeps.md)
     frogsim plot RESULTS.nc --x P --metric M a sweep's metric against one or two swept parameters
+    frogsim compare RUN_OR_SCENARIO ... --signal NAME --out DIR
+                                            overlay one signal of several runs or scenarios
 
 Output folders: a folder belongs to the command that first wrote it (its manifest.json says which:
 command line, frogsim version, time, SHA-256 of the scenario's files, the files written). Another
-command, or the same single-run command (simulate, swim) again, refuses to write there
+command, or the same single-run command (simulate, swim, compare) again, refuses to write there
 unless --overwrite, which first deletes the files of the run it replaces. reproduce and design may
 add studies to their own folder; a study already there is replaced only with --overwrite. Files
 are created with the user's umask.
@@ -235,6 +237,22 @@ def _swim_into(args, folder, out: Path, rs) -> int:
     return 0
 
 
+def cmd_compare(args) -> int:
+    from frogsim.io import compare
+    out = _out_dir(args.out)
+    runs = compare.prepare(args.inputs, args.signal)         # every input and the signal, before any run
+    folder = _folder(args, "compare", files=compare.file_names(runs, args.signal),
+                     scenario=compare.inputs_record(runs))
+    compare.run_inputs(runs, progress=_progress)              # may fail (exit 1) before anything is written
+
+    def work():
+        files = compare.write(runs, args.signal, out)
+        folder.finish()
+        _progress(f"wrote {files['csv']}, {files['figure']}, {out / 'manifest.json'}")
+        return 0
+    return _finishing(folder, work)
+
+
 def cmd_params(args) -> int:
     from frogsim.scenario.load import PARAMS_DIR, parameter_set_names, read_toml
     if args.name not in parameter_set_names():
@@ -336,6 +354,23 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--overwrite", action="store_true",
                    help="replace the files of an earlier run in DIR (deleted first)")
     s.set_defaults(func=cmd_swim)
+    s = sub.add_parser("compare", help="overlay one signal of several runs (folders of frogsim simulate) or "
+                                       "scenarios (run here): SIGNAL.csv and SIGNAL.png in DIR",
+                       description="Overlay one time series of several runs in one figure (PNG) and one CSV "
+                                   "(time + one column per run, units in the header), labelled by run name "
+                                   "(a folder's name, a scenario file's stem, a shipped scenario's name).",
+                       epilog="signals: 'source pressure', 'exhaust pressure', 'hip_left pressure', "
+                              "'hip_left volume', 'hip_left charge flow', 'hip_left charged air', "
+                              "'hip_left charge valve', 'pump on', ... or a column name of timeseries.csv; "
+                              "a wrong name lists those available. Example: frogsim compare runs/slow "
+                              "runs/fast paper-cycle --signal 'hip_left pressure' --out cmp")
+    s.add_argument("inputs", nargs="+", metavar="RUN_OR_SCENARIO",
+                   help="a folder written by frogsim simulate (its timeseries.csv is read), or a scenario "
+                        "TOML file or shipped name (it is run)")
+    s.add_argument("--signal", required=True, metavar="NAME", help="e.g. 'hip_left pressure', 'source pressure'")
+    s.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    s.add_argument("--overwrite", action="store_true", help="replace the files of an earlier run in DIR")
+    s.set_defaults(func=cmd_compare)
     s = sub.add_parser("params", help="show a parameter set with the source of every value")
     s.add_argument("name", nargs="?", default="fan2017", help="parameter set (default: fan2017)")
     s.set_defaults(func=cmd_params)
