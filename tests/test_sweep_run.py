@@ -37,14 +37,16 @@ def one_by_one(spec, k):
 
 
 def expected_metrics(r, m="hip"):
+    """The metrics as the results file stores them: SI (Pa, m^3 at standard state). The registry
+    computes bar and litres; the file multiplies by the factor, so the same product is taken here."""
     patm, rho = r.atmospheric_pressure, r.reference_density
     ps = r.source_pressure
     return {"rise_time": r.rise_time(m),
-            "final_pressure": (r.pressure_at_close(m) - patm) / 1e5,
-            "aeration_volume": r.aeration_volume(m) * 1e3,
-            "source_drop": (ps[0] - ps.min()) / 1e5,
-            "source_final": (ps[-1] - patm) / 1e5,
-            "air_used": r.charged_mass(m)[-1] / rho * 1e3}
+            "final_pressure": (r.pressure_at_close(m) - patm) / 1e5 * 1e5,
+            "aeration_volume": r.aeration_volume(m) * 1e3 * 1e-3,
+            "source_drop": (ps[0] - ps.min()) / 1e5 * 1e5,
+            "source_final": (ps[-1] - patm) / 1e5 * 1e5,
+            "air_used": r.charged_mass(m)[-1] / rho * 1e3 * 1e-3}
 
 
 @pytest.fixture(scope="module")
@@ -101,10 +103,12 @@ def test_results_file_layout(grid_case):
     assert p.attrs["units"] == "Pa" and p.attrs["display_units"] == "bar"
     assert np.allclose(p.values, [3e5, 4e5, 5e5, 6e5], rtol=1e-15)
     assert list(f["supply.branch_limit_as_written"].values) == ["15 L/min", "45 L/min", "180 L/min"]
-    assert f["supply.branch_limit"].attrs["units"] == "m^3/s"
+    assert f["supply.branch_limit"].attrs["units"] == "m3 s-1"          # CF notation
     assert np.allclose(f["supply.branch_limit"].values * 6e4, [15, 45, 180])
     assert f["rise_time"].attrs["units"] == "s" and "90 %" in f["rise_time"].attrs["description"]
-    assert f["aeration_volume"].attrs["units"] == "L (standard)"
+    assert f["aeration_volume"].attrs["units"] == "m3"                   # SI, at standard state
+    assert "standard reference state" in f["aeration_volume"].attrs["long_name"]
+    assert (f["aeration_volume"].attrs["display_units"], f["aeration_volume"].attrs["display_factor"]) == ("L", 1e-3)
     assert f["completed"].dtype == bool and bool(f["completed"].all())
     assert f["muscle_pressure"].dims[-1] == "time" and f["muscle_pressure"].attrs["units"] == "Pa"
     assert np.allclose(f["time"].values, np.arange(51) * 0.01)

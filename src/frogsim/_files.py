@@ -6,6 +6,7 @@ import json
 import math
 import os
 import tempfile
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -25,12 +26,31 @@ def _clean(obj):
     return obj
 
 
+_UMASK_LOCK = threading.Lock()
+
+
+def umask() -> int:
+    """The process's file-creation mask, read without changing it where the system allows."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    with _UMASK_LOCK:                   # elsewhere: set and restore (briefly process-wide)
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return mask
+
+
 def atomic_write(path: str | os.PathLike, write, durable: bool = False) -> None:
     """Call write(tmp_path) then move the file into place, so readers never see half a file.
 
     The temporary file lies beside ``path`` (same filesystem, name starting with "."). With
     ``durable`` its content is flushed to disk before the move, so a crash leaves either the
-    old file or the whole new one (the sweep journal relies on it).
+    old file or the whole new one (the sweep journal relies on it). The file gets the mode an
+    ordinary ``open`` would give it (0o666 less the umask), not mkstemp's private 0o600.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -38,6 +58,7 @@ def atomic_write(path: str | os.PathLike, write, durable: bool = False) -> None:
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, 0o666 & ~umask())
         if durable:
             fd = os.open(tmp, os.O_RDONLY)
             try:

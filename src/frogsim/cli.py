@@ -11,6 +11,15 @@
     frogsim sweep SPEC.toml --out RESULTS.nc run a parameter sweep (resumable; see docs/sweeps.md)
     frogsim plot RESULTS.nc --x P --metric M a sweep's metric against one or two swept parameters
     frogsim fit FIT.toml --out DIR          calibrate parameters to measured traces (docs/fitting.md)
+    frogsim compare RUN_OR_SCENARIO ... --signal NAME --out DIR
+                                            overlay one signal of several runs or scenarios
+
+Output folders: a folder belongs to the command that first wrote it (its manifest.json says which:
+command line, frogsim version, time, SHA-256 of the scenario's files, the files written). Another
+command, or the same single-run command (simulate, swim, compare) again, refuses to write there
+unless --overwrite, which first deletes the files of the run it replaces. reproduce and design may
+add studies to their own folder; a study already there is replaced only with --overwrite. Files
+are created with the user's umask.
 
 Exit codes: 0 success, 1 simulation failure, 2 bad input (one-line message, nothing written).
 """
@@ -39,6 +48,25 @@ def _out_dir(path: str) -> Path:
 
 def _progress(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
+
+
+def _folder(args, command: str, **kw):
+    """The run's claim on its output folder, checked (ScenarioError: exit 2, nothing written)."""
+    from frogsim.io.outputs import OutputFolder
+    folder = OutputFolder(args.out, command, getattr(args, "argv", []), overwrite=args.overwrite, **kw)
+    folder.check()
+    return folder
+
+
+def _finishing(folder, work):
+    """Run work() in a claimed folder: manifest "running" first, then "complete" or "failed"."""
+    folder.begin()
+    try:
+        result = work()
+    except BaseException:
+        folder.finish("failed")
+        raise
+    return result
 
 
 def cmd_studies(args) -> int:
@@ -77,37 +105,47 @@ def _study_task(name: str, out: str) -> tuple:
     return name, data.summary, time.perf_counter() - t0
 
 
-def _existing_summary(path: Path) -> dict:
-    """The summary.json already in an output folder (studies run there before), or {}."""
-    import json
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return {}
-    return data if isinstance(data, dict) else {}
-
-
 def _run_studies(args, group: str) -> int:
-    import multiprocessing
-    import os
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-
-    from frogsim._jit import cache_is_warm
     from frogsim._files import write_json
+    from frogsim.io.outputs import scenario_record, shipped_inputs
     from frogsim.studies import STUDIES, studies_in
-    names = args.studies or studies_in(group)
+    names = list(dict.fromkeys(args.studies or studies_in(group)))
     unknown = [n for n in names if n not in STUDIES]
     if unknown:
         return _err(f"study = {unknown[0]!r}: must be one of {', '.join(STUDIES)}", 2)
     out = _out_dir(args.out)
     if args.workers is not None and args.workers < 1:
         return _err(f"--workers = {args.workers}: must be a whole number >= 1", 2)
+    folder = _folder(args, args.command, studies={n: [f"{n}.csv", f"{n}.png"] for n in names},
+                     scenario=scenario_record("shipped scenarios and parameter sets", shipped_inputs()))
+    summaries = {}
+    folder.begin()
+    try:
+        return _studies_into(args, folder, out, names, summaries)
+    except BaseException:
+        done = [n for n in names if n in summaries]     # the studies that did finish stay recorded
+        if done:
+            summary = folder.previous_summary()
+            for name in done:
+                summary.update(summaries[name])
+            write_json(out / "summary.json", summary)
+        folder.finish("failed", {n: list(summaries[n]) for n in done})
+        raise
+
+
+def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) -> int:
+    import multiprocessing
+    import os
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    from frogsim._jit import cache_is_warm
+    from frogsim._files import write_json
+    from frogsim.studies import STUDIES
     workers = min(args.workers or os.cpu_count() or 1, len(names))
     if not cache_is_warm():
         _progress("first run: compiling the engines (cached afterwards)")
     _progress(f"{len(names)} studies on {workers} process{'es' if workers > 1 else ''} -> {out}/")
     order = sorted(names, key=lambda n: -STUDIES[n].cost)     # costly first, so they overlap the rest
-    summaries = {}
     t_all = time.perf_counter()
 
     def report(k, name, summary, seconds):
@@ -130,38 +168,57 @@ def _run_studies(args, group: str) -> int:
             futures = [pool.submit(_study_task, name, str(out)) for name in order]
             for k, fut in enumerate(as_completed(futures), 1):
                 report(k, *fut.result())
-    summary = _existing_summary(out / "summary.json")    # studies run earlier into this folder
+    summary = folder.previous_summary()     # studies an earlier run of this command put here
     for name in names:                      # in registration order, whatever finished first
         summary.update(summaries[name])
     write_json(out / "summary.json", summary)
-    _progress(f"{len(names)} studies in {time.perf_counter() - t_all:.1f} s; summary: {out / 'summary.json'}")
+    folder.finish("complete", {n: list(summaries[n]) for n in names})
+    _progress(f"{len(names)} studies in {time.perf_counter() - t_all:.1f} s; summary: {out / 'summary.json'}, "
+              f"manifest: {out / 'manifest.json'}")
     return 0
 
 def cmd_simulate(args) -> int:
     from frogsim.engine.pneumatic import simulate
     from frogsim._files import write_csv, write_figure, write_json
+    from frogsim.io.outputs import scenario_inputs, scenario_record
     from frogsim.io.results import plot_run, run_summary
     from frogsim.scenario.load import load_scenario
     out = _out_dir(args.out)
     scenario = load_scenario(args.scenario)          # all validation happens here, before any write
-    _progress(f"simulating {scenario.name!r}: {len(scenario.muscles)} muscles, {scenario.duration:g} s ...")
-    t0 = time.perf_counter()
-    result = simulate(scenario)
-    _progress(f"      {result.stats['steps']} steps in {time.perf_counter() - t0:.2f} s")
-    write_csv(out / "timeseries.csv", result.to_dataframe(units="display"))
-    write_figure(out / "pressures.png", lambda p: plot_run(result, p))
-    write_json(out / "summary.json", run_summary(result))
-    _progress(f"wrote {out / 'timeseries.csv'}, {out / 'pressures.png'}, {out / 'summary.json'}")
-    return 0
+    folder = _folder(args, "simulate", files=["timeseries.csv", "pressures.png", "summary.json"],
+                     scenario=scenario_record(scenario.name, scenario_inputs(scenario, args.scenario)))
+
+    def work():
+        _progress(f"simulating {scenario.name!r}: {len(scenario.muscles)} muscles, {scenario.duration:g} s ...")
+        t0 = time.perf_counter()
+        result = simulate(scenario)
+        _progress(f"      {result.stats['steps']} steps in {time.perf_counter() - t0:.2f} s")
+        write_csv(out / "timeseries.csv", result.to_dataframe(units="display"))
+        write_figure(out / "pressures.png", lambda p: plot_run(result, p))
+        write_json(out / "summary.json", run_summary(result))
+        folder.finish()
+        _progress(f"wrote {out / 'timeseries.csv'}, {out / 'pressures.png'}, {out / 'summary.json'}, "
+                  f"{out / 'manifest.json'}")
+        return 0
+    return _finishing(folder, work)
 
 
 def cmd_swim(args) -> int:
-    from frogsim._jit import cache_is_warm
-    from frogsim.engine.swim import swim
+    from frogsim.io.outputs import scenario_inputs, scenario_record
     from frogsim.robot.scenario import load_robot_scenario
-    from frogsim.studies.robot import write_outputs
     out = _out_dir(args.out)
     rs = load_robot_scenario(args.scenario, cycles=args.cycles)   # all validation before any write
+    planned = ["timeseries.csv", "swim.png", "frog.xml", "summary.json"] + ([] if args.no_animation else
+                                                                           ["animation.gif"])
+    folder = _folder(args, "swim", files=planned,
+                     scenario=scenario_record(rs.name, scenario_inputs(rs.pneumatic, args.scenario)))
+    return _finishing(folder, lambda: _swim_into(args, folder, out, rs))
+
+
+def _swim_into(args, folder, out: Path, rs) -> int:
+    from frogsim._jit import cache_is_warm
+    from frogsim.engine.swim import swim
+    from frogsim.studies.robot import write_outputs
     if not cache_is_warm():
         _progress("first run: compiling the engine (cached afterwards)")
     _progress(f"running {rs.name!r}: {len(rs.muscles)} muscles in {rs.options.environment}, "
@@ -170,6 +227,7 @@ def cmd_swim(args) -> int:
     _progress(f"      {result.stats['mujoco_steps']} MuJoCo steps in {result.wall_s:.2f} s "
               f"({result.t[-1] / result.wall_s:.0f} x real time)")
     files, s = write_outputs(result, out, animation=not args.no_animation, progress=_progress)
+    files["manifest"] = folder.finish(extra_files=[Path(p).name for p in files.values()])
     _progress(f"mean speed {s['mean_speed_m_per_s']:.3f} m/s ({s['mean_speed_body_lengths_per_s']:.2f} "
               f"body lengths/s), {s['distance_per_cycle_m']:.3f} m and {s['air_used_per_cycle_L_std']:.3f} L "
               f"(standard) of air per cycle, source {s['source_pressure_after_cycles_bar_gauge']:.2f} bar gauge "
@@ -178,6 +236,22 @@ def cmd_swim(args) -> int:
         _progress(f"warning: animation skipped: {s['animation_skipped']}")
     _progress("wrote " + ", ".join(str(p) for p in files.values()))
     return 0
+
+
+def cmd_compare(args) -> int:
+    from frogsim.io import compare
+    out = _out_dir(args.out)
+    runs = compare.prepare(args.inputs, args.signal)         # every input and the signal, before any run
+    folder = _folder(args, "compare", files=compare.file_names(runs, args.signal),
+                     scenario=compare.inputs_record(runs))
+    compare.run_inputs(runs, progress=_progress)              # may fail (exit 1) before anything is written
+
+    def work():
+        files = compare.write(runs, args.signal, out)
+        folder.finish()
+        _progress(f"wrote {files['csv']}, {files['figure']}, {out / 'manifest.json'}")
+        return 0
+    return _finishing(folder, work)
 
 
 def cmd_params(args) -> int:
@@ -263,27 +337,34 @@ def cmd_fit(args) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="frogsim", description=__doc__.split("\n\n")[0],
+                                epilog="\n\n".join(__doc__.split("\n\n")[2:]).strip(),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     s = sub.add_parser("studies", help="list the registered studies")
     s.set_defaults(func=cmd_studies)
     s = sub.add_parser("reproduce", help="reproduce the paper's studies: a PNG and a CSV per study, "
-                                         "and DIR/summary.json (merged with one already there)")
+                                         "DIR/summary.json (the studies in DIR) and DIR/manifest.json")
     s.add_argument("studies", nargs="*", metavar="STUDY",
                    help="studies to run (default: the paper's pneumatic studies; name leg-in-air "
                         "for the robot's in-air study)")
     s.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
     s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
+    s.add_argument("--overwrite", action="store_true",
+                   help="replace studies this folder already holds (or another command's files)")
     s.set_defaults(func=cmd_reproduce)
     s = sub.add_parser("design", help="run the design studies (main tubes, endurance, valves): a PNG and "
                                       "a CSV per study, DIR/summary.json with written conclusions")
     s.add_argument("studies", nargs="*", metavar="STUDY", help="studies to run (default: all design studies)")
     s.add_argument("--out", default="design", metavar="DIR", help="output folder (default: design)")
     s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
+    s.add_argument("--overwrite", action="store_true",
+                   help="replace studies this folder already holds (or another command's files)")
     s.set_defaults(func=cmd_design)
     s = sub.add_parser("simulate", help="run one scenario: timeseries.csv, pressures.png, summary.json")
     s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file, or a shipped name (paper-cycle)")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    s.add_argument("--overwrite", action="store_true",
+                   help="replace the files of an earlier run in DIR (deleted first)")
     s.set_defaults(func=cmd_simulate)
     s = sub.add_parser("swim", help="run the robot in MuJoCo (swim, leg-in-air): timeseries.csv, swim.png, "
                                     "summary.json, frog.xml, animation.gif")
@@ -292,7 +373,26 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--cycles", type=int, default=None, metavar="N", help="gait cycles (default: the scenario's)")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder")
     s.add_argument("--no-animation", action="store_true", help="skip the offscreen animation")
+    s.add_argument("--overwrite", action="store_true",
+                   help="replace the files of an earlier run in DIR (deleted first)")
     s.set_defaults(func=cmd_swim)
+    s = sub.add_parser("compare", help="overlay one signal of several runs (folders of frogsim simulate) or "
+                                       "scenarios (run here): SIGNAL.csv and SIGNAL.png in DIR",
+                       description="Overlay one time series of several runs in one figure (PNG) and one CSV "
+                                   "(time + one column per run, units in the header), labelled by run name "
+                                   "(a folder's name, a scenario file's stem, a shipped scenario's name).",
+                       epilog="signals: 'source pressure', 'exhaust pressure', 'hip_left pressure', "
+                              "'hip_left volume', 'hip_left charge flow', 'hip_left charged air', "
+                              "'hip_left charge valve', 'pump on', ... or a column name of timeseries.csv; "
+                              "a wrong name lists those available. Example: frogsim compare runs/slow "
+                              "runs/fast paper-cycle --signal 'hip_left pressure' --out cmp")
+    s.add_argument("inputs", nargs="+", metavar="RUN_OR_SCENARIO",
+                   help="a folder written by frogsim simulate (its timeseries.csv is read), or a scenario "
+                        "TOML file or shipped name (it is run)")
+    s.add_argument("--signal", required=True, metavar="NAME", help="e.g. 'hip_left pressure', 'source pressure'")
+    s.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    s.add_argument("--overwrite", action="store_true", help="replace the files of an earlier run in DIR")
+    s.set_defaults(func=cmd_compare)
     s = sub.add_parser("params", help="show a parameter set with the source of every value")
     s.add_argument("name", nargs="?", default="fan2017", help="parameter set (default: fan2017)")
     s.set_defaults(func=cmd_params)
@@ -335,7 +435,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     from frogsim.errors import ScenarioError, SimulationError
+    argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
+    args.argv = argv
     try:
         return args.func(args)
     except ScenarioError as exc:

@@ -27,7 +27,64 @@ def _axis(ds, path):
         return np.asarray(c.values), path
     factor = float(c.attrs.get("display_factor", 1.0))
     unit = c.attrs.get("display_units", c.attrs.get("units", ""))
+    unit = "" if unit == "1" else unit
     return np.asarray(c.values, float) / factor, f"{path} [{unit}]" if unit else path
+
+
+def is_log(ds, path) -> bool:
+    """Draw this swept parameter on a log axis: the spec asked for scale = "log", or its values are
+    positive, geometrically spaced (three or more) and span more than a decade."""
+    c = ds[path]
+    if c.dtype.kind in "USb":
+        return False
+    if "log" in (c.attrs.get("scale"), c.attrs.get("range_scale")):
+        v = np.asarray(c.values, float)
+        return bool(v.size and np.all(v[np.isfinite(v)] > 0))
+    v = np.unique(np.asarray(c.values, float))
+    v = v[np.isfinite(v)]
+    if v.size < 3 or np.any(v <= 0) or v[-1] / v[0] <= 10.0:
+        return False
+    steps = np.diff(np.log(v))
+    return bool(np.ptp(steps) <= 0.01 * steps.mean())
+
+
+def _edges(v: np.ndarray, log: bool) -> np.ndarray:
+    """Cell edges around sorted centres v (geometric midpoints on a log axis)."""
+    x = np.log(v) if log else np.asarray(v, float)
+    if x.size == 1:
+        e = np.array([x[0] - 0.5, x[0] + 0.5]) if not log else np.array([x[0] - 0.1, x[0] + 0.1])
+    else:
+        mid = (x[1:] + x[:-1]) / 2
+        e = np.concatenate([[x[0] - (mid[0] - x[0])], mid, [x[-1] + (x[-1] - mid[-1])]])
+    return np.exp(e) if log else e
+
+
+def _plain_log_ticks(axis) -> None:
+    """Log axis ticks as plain numbers (15, 20, 50, 100), labelling minor ticks at 2 and 5."""
+    from matplotlib.ticker import FuncFormatter
+
+    def label(v, _pos, minor=False):
+        if v <= 0:
+            return ""
+        mant = v / 10 ** np.floor(np.log10(v) + 1e-9)
+        if minor and round(mant) not in (2, 5):
+            return ""
+        return f"{v:g}"
+    axis.set_major_formatter(FuncFormatter(label))
+    axis.set_minor_formatter(FuncFormatter(lambda v, p: label(v, p, True)))
+
+
+def _metric(ds, metric):
+    """(factor to divide by, axis label) of a metric: its display unit (bar, L) if it has one."""
+    a = ds[metric].attrs
+    factor = float(a.get("display_factor", 1.0))
+    unit = a.get("display_units", a.get("units", ""))
+    unit = "" if unit == "1" else unit
+    if unit and "standard" in a.get("long_name", "") and unit in ("L", "m3"):
+        unit += " (standard)"
+    if unit and "gauge" in a.get("long_name", "") and "gauge" not in unit:
+        unit += " gauge"
+    return factor, f"{metric} [{unit}]" if unit else metric
 
 
 def _match(ds, path: str, text: str):
@@ -75,7 +132,8 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
             raise ScenarioError("--select", p, f"must be a swept parameter ({', '.join(params)})")
         if p in (x, y):
             raise ScenarioError("--select", p, "is on an axis already")
-    da = ds[metric].where(ds["completed"].astype(bool))
+    mfactor, mlabel = _metric(ds, metric)
+    da = ds[metric].where(ds["completed"].astype(bool)) / mfactor
     grid = ds.attrs.get("sweep_method") == "grid"
     note = []
     if grid:
@@ -97,9 +155,8 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
             keep &= _match(ds, p, text)
             note.append(f"{p} = {text}")
         da = da.isel(point=np.flatnonzero(keep))
-    unit = ds[metric].attrs.get("units", "")
-    mlabel = f"{metric} [{unit}]" if unit else metric
     xv, xlabel = _axis(ds, x)
+    xlog, ylog = is_log(ds, x), (y is not None and is_log(ds, y))
     fig, ax = figure(1, 1, width=7.0, height=4.8)
     a = ax[0, 0]
     if grid and y is None:
@@ -114,8 +171,11 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
             mesh = a.imshow(vals, origin="lower", aspect="auto")
             a.set_xticks(range(len(xv)), xv)
             a.set_yticks(range(len(yv)), yv)
+            xlog = ylog = False             # index axes
         else:
-            mesh = a.pcolormesh(xv, yv, vals, shading="nearest")
+            ix, iy = np.argsort(xv), np.argsort(yv)          # cells need sorted centres
+            xv, yv, vals = xv[ix], yv[iy], vals[np.ix_(iy, ix)]
+            mesh = a.pcolormesh(_edges(xv, xlog), _edges(yv, ylog), vals, shading="flat")
             if vals.shape[0] > 2 and vals.shape[1] > 2 and np.isfinite(vals).sum() > 3:
                 cs = a.contour(xv, yv, vals, colors="k", linewidths=0.6)
                 a.clabel(cs, fontsize=7)
@@ -137,6 +197,10 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
         others = [p for p in params if p not in (x, y) and p not in select]
         if others:
             note.append("varying: " + ", ".join(others))
+    for on, axis, set_scale in ((xlog, a.xaxis, a.set_xscale), (ylog, a.yaxis, a.set_yscale)):
+        if on:
+            set_scale("log")
+            _plain_log_ticks(axis)
     done = int(ds["completed"].sum())
     title = f"{ds.attrs.get('sweep_name', 'sweep')}: {metric} ({ds.attrs.get('muscle', '')})"
     if done < ds["completed"].size:

@@ -13,13 +13,23 @@ Files (``out = results.nc``)
     ``results.nc``        the whole dataset, with a boolean ``completed`` per point; replaced
                           atomically (written beside it, then ``os.replace``), so it is never half
                           written; rewritten at the start, every few seconds and at the end.
-    ``results.nc.parts/`` while the sweep runs: ``manifest.json`` (the spec hash) and one
-                          ``chunk-NNNNNN.npz`` per finished chunk, each written atomically the
-                          moment the chunk ends (a kill loses at most the chunks in flight); a lock.
+    ``results.nc.parts/`` while the sweep runs: ``manifest.json`` (the spec hash and the input
+                          files' SHA-256) and one ``chunk-NNNNNN.npz`` per finished chunk, each
+                          written atomically the moment the chunk ends (a kill loses at most the
+                          chunks in flight) and carrying a SHA-256 of its arrays; a lock.
                           Removed once ``results.nc`` holds everything.
-    Rerunning the same command reads both and runs only the chunks not yet finished. A results
-    file or journal from a different spec (hash of base scenario + points + what is recorded)
-    is refused unless ``overwrite``.
+    Rerunning the same command reads both and runs only the chunks not yet finished; a chunk file
+    that is truncated or altered (its checksum does not match) is dropped and run again. A
+    results file or journal from a different spec (hash of base scenario + the content of every
+    file it reads + points + what is recorded) is refused unless ``overwrite``, naming the input
+    file that changed.
+
+Units (docs/sweeps.md)
+    Every variable and coordinate of the file is in SI with a CF-style ``units`` string ("Pa",
+    "m3 s-1", "m3 s-1 Pa-1", "s", "1"), a ``long_name``, and ``display_units`` /
+    ``display_factor`` (value / display_factor is in display_units) for plots. Metrics
+    registered in another unit (bar, litres at standard state) are converted as they enter the
+    store: :data:`METRIC_UNITS`.
 """
 from __future__ import annotations
 
@@ -32,6 +42,8 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from frogsim._files import atomic_write
@@ -39,9 +51,9 @@ from frogsim._parallel import map_pieces
 from frogsim.errors import ScenarioError, SimulationError
 from frogsim.scenario.core import Scenario
 from frogsim.sweep.metrics import STATES
-from frogsim.sweep.spec import SweepSpec, _toml_value, dumps_toml, load_spec
+from frogsim.sweep.spec import SweepSpec, _flatten_parameters, _toml_value, changed_inputs, dumps_toml, load_spec
 
-FORMAT = 1                      # version of the results layout, stored in the file
+FORMAT = 2                      # version of the results layout, stored in the file (2: SI metrics, CF units)
 NC_ENGINE = "netcdf4"
 _FLUSH_SECONDS = 5.0            # rewrite results.nc at most this often while running
 _SUB_BATCH = 64                 # points per thread held in memory at once within a chunk
@@ -143,13 +155,64 @@ def run_chunk(base: Scenario, points: list[dict], metrics, muscle: str,
     return run_built(build_models(base, points), metrics, muscle, timeseries, threads, on_progress)
 
 
+# --- units ------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Unit:
+    """How a unit as registered (metrics, states, scenario kinds) is stored: CF units string, the
+    factor that takes a value to it, the display unit and its size in the stored unit, and what
+    to say about it in the long_name."""
+    cf: str
+    factor: float = 1.0
+    display: str = ""
+    display_factor: float = 1.0
+    note: str = ""
+
+
+_STD = "air volume at the standard reference state (ISO 8778: 100 kPa, 293.15 K)"
+#: unit as written in the registries (frogsim.sweep.metrics, frogsim.scenario.units) -> how it is stored
+METRIC_UNITS = {
+    "s": Unit("s", 1.0, "s", 1.0),
+    "bar": Unit("Pa", 1e5, "bar", 1e5),
+    "bar (gauge)": Unit("Pa", 1e5, "bar", 1e5, "gauge pressure: relative to the atmosphere"),
+    "L (standard)": Unit("m3", 1e-3, "L", 1e-3, _STD),
+    "m3 (standard)": Unit("m3", 1.0, "L", 1e-3, _STD),
+    "Pa": Unit("Pa", 1.0, "bar", 1e5),
+    "Pa (gauge)": Unit("Pa", 1.0, "bar", 1e5, "gauge pressure: relative to the atmosphere"),
+    "kg": Unit("kg", 1.0, "g", 1e-3),
+    "K": Unit("K", 1.0, "K", 1.0),
+    "1": Unit("1", 1.0, "", 1.0),
+    "": Unit("1", 1.0, "", 1.0),
+}
+
+#: SI units of frogsim.scenario.units.SI_UNITS (pint notation) -> CF / UDUNITS notation
+_CF = {"": "1", "m**3": "m3", "m/s": "m s-1", "m**3/s": "m3 s-1", "m**3/(s*Pa)": "m3 s-1 Pa-1",
+       "J/(kg*K)": "J kg-1 K-1", "m**2": "m2", "kg/m**3": "kg m-3", "m/s**2": "m s-2", "N/m": "N m-1",
+       "N*m": "N m", "N*m*s": "N m s", "m^3": "m3", "m^3/s": "m3 s-1", "m^3/(s*Pa)": "m3 s-1 Pa-1",
+       "m^2": "m2", "kg/m^3": "kg m-3", "m/s^2": "m s-2", "L (standard)": "m3"}
+
+
+def cf_units(unit: str) -> str:
+    """A unit in CF / UDUNITS notation ("m**3/(s*Pa)" -> "m3 s-1 Pa-1"; "" -> "1")."""
+    return _CF.get(unit, unit)
+
+
+def metric_unit(name: str) -> Unit:
+    """How metric ``name`` is stored (its registered unit converted to SI)."""
+    from frogsim.sweep.metrics import METRICS
+    unit = METRICS[name].unit
+    return METRIC_UNITS.get(unit, Unit(cf_units(unit), 1.0, unit, 1.0))
+
+
 # --- the sweep's data in memory ---------------------------------------------------------------------
 class _Store:
-    """Flat per-point arrays of a sweep (C order for a grid), filled chunk by chunk."""
+    """Flat per-point arrays of a sweep (C order for a grid), filled chunk by chunk. Metrics are
+    held in SI (:func:`metric_unit`): a chunk's values, in their registered units, are converted
+    once as they come in, so a resumed sweep holds the same numbers as an uninterrupted one."""
 
     def __init__(self, spec: SweepSpec):
         n = spec.n_points
         self.spec = spec
+        self.factors = {m: metric_unit(m).factor for m in spec.metrics}
         self.metrics = {m: np.full(n, np.nan) for m in spec.metrics}
         ts = spec.timeseries
         self.ts = {s: np.full((n, len(ts.times)), np.nan) for s in ts.states} if ts else {}
@@ -159,7 +222,9 @@ class _Store:
 
     def put(self, idx: np.ndarray, res: dict) -> None:
         for m in self.metrics:
-            self.metrics[m][idx] = res["metrics"][m]
+            f = self.factors[m]
+            vals = np.asarray(res["metrics"][m], float)
+            self.metrics[m][idx] = vals * f if f != 1.0 else vals
         for s in self.ts:
             self.ts[s][idx] = res["timeseries"][s]
         self.failed[idx] = res["failed"]
@@ -189,26 +254,45 @@ def _written_text(value) -> str:
     return value if isinstance(value, str) else _toml_value(value)
 
 
+def _scales(spec: SweepSpec) -> dict[str, str]:
+    """The spacing each swept parameter was given ("log" or "linear") in the spec."""
+    try:
+        flat = _flatten_parameters(spec.raw.get("sweep", {}).get("parameters", {}))
+    except Exception:  # a dict spec of unusual shape: no scale known
+        flat = {}
+    out = {}
+    for p in spec.parameters:
+        raw = flat.get(p.path)
+        out[p.path] = raw.get("scale", "linear") if isinstance(raw, dict) else "linear"
+    return out
+
+
 def to_dataset(spec: SweepSpec, store: _Store):
-    """The xarray Dataset of a sweep (see docs/sweeps.md for the layout)."""
+    """The xarray Dataset of a sweep (see docs/sweeps.md for the layout and the units)."""
     import xarray as xr
     from frogsim.sweep.metrics import METRICS
     shape, dims = spec.shape, spec.dims
     coords = {}
+    scales = _scales(spec)
 
     def param_attrs(p):
-        a = {"long_name": p.path, "kind": p.info.kind}
+        a = {"long_name": f"swept scenario setting {p.path}", "kind": p.info.kind}
         if p.info.numeric:
-            a["units"] = p.info.si_unit
-            if p.display_unit:
-                a["display_units"] = p.display_unit
-                a["display_factor"] = float(p.display_factor)
+            a["units"] = cf_units(p.info.si_unit)
+            a["display_units"] = p.display_unit if p.display_unit else a["units"]
+            a["display_factor"] = float(p.display_factor) if p.display_unit else 1.0
             if p.path.endswith("_gauge"):
                 a["note"] = "gauge pressure: relative to the atmosphere"
+                a["long_name"] += " (gauge pressure: relative to the atmosphere)"
+        else:
+            a["units"] = "1"
+            a["note"] = "text values (a choice or a flag): no physical unit"
+        a["scale"] = scales.get(p.path, "linear")
         if p.range:
             a.update({"range_min": f"{_fmt_range(p.range['min'])} {p.range['unit']}".strip(),
                       "range_max": f"{_fmt_range(p.range['max'])} {p.range['unit']}".strip(),
                       "range_scale": p.range["scale"]})
+            a["scale"] = p.range["scale"]
         return a
 
     def values(p, col):
@@ -216,37 +300,58 @@ def to_dataset(spec: SweepSpec, store: _Store):
             return np.asarray(col, float)
         return np.array([_written_text(v) for v in col], dtype=str)
 
+    def written_attrs(p):
+        return {"long_name": f"{p.path} as written in the scenario", "units": "1",
+                "note": "text: the value with the unit it was written in"}
+
     if spec.method == "grid":
         for p in spec.parameters:
             coords[p.path] = (p.path, values(p, p.si if p.info.numeric else p.written), param_attrs(p))
             coords[f"{p.path}_as_written"] = (p.path, np.array([_written_text(v) for v in p.written], dtype=str),
-                                              {"long_name": f"{p.path} as written in the scenario"})
+                                              written_attrs(p))
     else:
         coords["point"] = ("point", np.arange(spec.n_points),
-                           {"long_name": "sweep point (index into the sampled points)"})
+                           {"long_name": "sweep point (index into the sampled points)", "units": "1"})
         for j, p in enumerate(spec.parameters):
             col = spec.si[:, j] if p.info.numeric else [w[j] for w in spec.written]
             coords[p.path] = ("point", values(p, col), param_attrs(p))
             coords[f"{p.path}_as_written"] = ("point", np.array([_written_text(w[j]) for w in spec.written], dtype=str),
-                                              {"long_name": f"{p.path} as written in the scenario"})
+                                              written_attrs(p))
     data = {}
     for m in spec.metrics:
+        u = metric_unit(m)
+        desc = METRICS[m].description
+        long_name = desc + (f" ({spec.muscle})" if "muscle" in desc else "") + (f"; {u.note}" if u.note else "")
         data[m] = (dims, store.metrics[m].reshape(shape),
-                   {"units": METRICS[m].unit, "description": METRICS[m].description, "muscle": spec.muscle})
+                   {"units": u.cf, "long_name": long_name, "description": desc, "muscle": spec.muscle,
+                    "display_units": u.display or u.cf, "display_factor": float(u.display_factor),
+                    "registered_units": METRICS[m].unit})
     data["completed"] = (dims, store.completed.reshape(shape),
-                         {"description": "the point has run (its values are final; NaN where failed)"})
+                         {"long_name": "the point has run (its values are final; NaN where failed)", "units": "1",
+                          "description": "the point has run (its values are final; NaN where failed)"})
     data["failed"] = (dims, store.failed.reshape(shape),
-                      {"description": "the point's integration failed (see the global attribute failures)"})
+                      {"long_name": "the point's integration failed (see the global attribute failures)",
+                       "units": "1",
+                       "description": "the point's integration failed (see the global attribute failures)"})
     if spec.timeseries:
-        coords["time"] = ("time", np.asarray(spec.timeseries.times), {"units": "s", "long_name": "time"})
+        coords["time"] = ("time", np.asarray(spec.timeseries.times),
+                          {"units": "s", "long_name": "time since the start of the run"})
         for s in spec.timeseries.states:
             st = STATES[s]
             desc = st.description + (f" ({spec.muscle})" if s.split("_")[0] in ("muscle", "charged", "vented",
                                                                                 "charge", "discharge") else "")
-            data[s] = (dims + ("time",), store.ts[s].reshape(shape + (-1,)), {"units": st.unit, "description": desc})
+            u = METRIC_UNITS.get(st.unit, Unit(cf_units(st.unit), 1.0, st.unit, 1.0))
+            attrs = {"units": u.cf, "long_name": desc, "description": desc,
+                     "display_units": u.display or u.cf, "display_factor": float(u.display_factor)}
+            if u.cf == "Pa":
+                attrs["display_units"], attrs["display_factor"] = "Pa", 1.0     # absolute: shown as stored
+            data[s] = (dims + ("time",), store.ts[s].reshape(shape + (-1,)), attrs)
     from frogsim import __version__
     attrs = {
         "title": f"frogsim sweep {spec.name}",
+        "Conventions": "CF-1.8",
+        "units_convention": "SI throughout, CF/UDUNITS unit strings in each variable's units attribute; "
+                            "display_units/display_factor give the unit plots use (value / display_factor)",
         "frogsim_sweep_format": FORMAT,
         "frogsim_version": __version__,
         "sweep_name": spec.name,
@@ -257,6 +362,7 @@ def to_dataset(spec: SweepSpec, store: _Store):
         "spec_toml": spec.text or dumps_toml(spec.raw),
         "base_scenario": spec.base,
         "base_scenario_toml": spec.base_toml(),
+        "input_files": json.dumps(list(spec.inputs)),
         "muscle": spec.muscle,
         "metrics": ", ".join(spec.metrics),
         "n_points": spec.n_points,
@@ -284,31 +390,77 @@ def write_dataset(ds, path: Path) -> None:
     atomic_write(path, lambda tmp: ds.to_netcdf(tmp, engine=NC_ENGINE, encoding=encoding), durable=True)
 
 
-def read_results(path) :
-    """Open a sweep results file fully into memory (the file is closed afterwards)."""
+def read_results(path):
+    """Open a sweep results file fully into memory (the file is closed afterwards). A file of an
+    earlier layout (format 1: metrics in bar and standard litres, pint-style unit strings) is
+    brought to the current convention (SI, CF unit strings) in memory."""
     import xarray as xr
     with xr.open_dataset(path, engine=NC_ENGINE) as ds:
-        return ds.load()
+        return upgrade(ds.load())
+
+
+def upgrade(ds):
+    """A format-1 dataset in the current units convention (see :data:`METRIC_UNITS`)."""
+    if int(ds.attrs.get("frogsim_sweep_format", FORMAT)) >= 2:
+        return ds
+    metrics = [m.strip() for m in ds.attrs.get("metrics", "").split(",") if m.strip()]
+    for name in list(ds.variables):
+        var = ds[name]
+        unit = var.attrs.get("units")
+        if name in metrics and unit in METRIC_UNITS:
+            u = METRIC_UNITS[unit]
+            converted = var * u.factor if u.factor != 1.0 else var
+            converted.attrs = {**var.attrs, "units": u.cf, "registered_units": unit,
+                               "display_units": u.display or u.cf, "display_factor": float(u.display_factor)}
+            ds[name] = converted
+        elif unit is not None:
+            ds[name].attrs["units"] = cf_units(unit)
+        else:
+            ds[name].attrs["units"] = "1"
+    ds.attrs["frogsim_sweep_format"] = FORMAT
+    ds.attrs["upgraded_from_format"] = 1
+    return ds
+
+
+def _digest(arrays: dict) -> str:
+    """SHA-256 of named arrays: names, dtypes, shapes and bytes, in name order."""
+    import hashlib
+    h = hashlib.sha256()
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}|{a.dtype.str}|{a.shape}|".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 class _Journal:
-    """The sidecar folder of a running sweep: manifest, one file per finished chunk, a lock."""
+    """The sidecar folder of a running sweep: manifest, one file per finished chunk, a lock.
+
+    Each chunk file holds its arrays and ``sha256``, the :func:`_digest` of those arrays; a file
+    that cannot be read or whose arrays do not match it is dropped (and its chunk runs again).
+    """
 
     def __init__(self, out: Path):
         self.out = out
         self.dir = out.parent / f"{out.name}.parts"
         self._lock_fd = None
+        self.damaged: list[str] = []
+
+    def manifest(self) -> dict | None:
+        try:
+            data = json.loads((self.dir / "manifest.json").read_text())
+        except (OSError, ValueError):
+            return None
+        return data if isinstance(data, dict) and "hash" in data else None
 
     def manifest_hash(self) -> str | None:
-        try:
-            return json.loads((self.dir / "manifest.json").read_text())["hash"]
-        except (OSError, ValueError, KeyError):
-            return None
+        m = self.manifest()
+        return m["hash"] if m else None
 
     def open(self, spec: SweepSpec, fresh: bool) -> None:
         import fcntl
         self.dir.mkdir(parents=True, exist_ok=True)
-        self._lock_fd = os.open(self.dir / "lock", os.O_RDWR | os.O_CREAT, 0o644)
+        self._lock_fd = os.open(self.dir / "lock", os.O_RDWR | os.O_CREAT, 0o666)
         try:
             fcntl.flock(self._lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
@@ -323,29 +475,54 @@ class _Journal:
         for f in self.out.parent.glob(f".{self.out.name}.*"):    # a results file a kill left half written
             f.unlink()
         if stale:
-            text = json.dumps({"hash": spec.hash, "n_points": spec.n_points,
-                               "chunk_size": spec.chunk_size, "name": spec.name})
+            text = json.dumps({"hash": spec.hash, "n_points": spec.n_points, "chunk_size": spec.chunk_size,
+                               "name": spec.name, "inputs": list(spec.inputs),
+                               "chunk_checksum": "sha256 of the arrays, stored in each chunk file as 'sha256'"},
+                              indent=1)
             atomic_write(self.dir / "manifest.json", lambda tmp: Path(tmp).write_text(text), durable=True)
 
+    @staticmethod
+    def _read(f: Path):
+        """(idx, result dict) of a chunk file whose checksum holds; ValueError otherwise."""
+        try:
+            with np.load(f, allow_pickle=False) as z:
+                arrays = {k: z[k] for k in z.files}         # reads (and CRC-checks) every member
+        except Exception as exc:  # truncated or scrambled zip: BadZipFile, EOFError, ValueError, OSError...
+            raise ValueError(f"unreadable ({type(exc).__name__})") from None
+        stored = arrays.pop("sha256", None)
+        if stored is None or str(stored) != _digest(arrays):
+            raise ValueError("checksum mismatch")
+        try:
+            res = {"metrics": {k[2:]: v for k, v in arrays.items() if k.startswith("m_")},
+                   "timeseries": {k[3:]: v for k, v in arrays.items() if k.startswith("ts_")},
+                   "failed": arrays["failed"], "errors": json.loads(str(arrays["errors"]))}
+            return arrays["idx"], res
+        except (KeyError, ValueError) as exc:
+            raise ValueError(f"incomplete ({exc})") from None
+
     def chunks(self):
-        """(chunk number, flat indices, result dict) of every chunk file."""
+        """(chunk number, flat indices, result dict) of every sound chunk file; a damaged one is
+        deleted and named in :attr:`damaged` (its chunk is then run again)."""
         for f in sorted(self.dir.glob("chunk-*.npz")):
             try:
-                with np.load(f, allow_pickle=False) as z:
-                    res = {"metrics": {k[2:]: z[k] for k in z.files if k.startswith("m_")},
-                           "timeseries": {k[3:]: z[k] for k in z.files if k.startswith("ts_")},
-                           "failed": z["failed"], "errors": json.loads(str(z["errors"]))}
-                    yield int(f.stem.split("-")[1]), z["idx"], res
-            except (OSError, ValueError, KeyError):
-                f.unlink()          # cannot happen with atomic writes; rerun that chunk
+                k = int(f.stem.split("-")[1])
+                idx, res = self._read(f)
+            except ValueError as exc:
+                self.damaged.append(f"{f.name}: {exc}")
+                f.unlink(missing_ok=True)
+                continue
+            yield k, idx, res
 
     def write_chunk(self, k: int, idx: np.ndarray, res: dict) -> None:
-        arrays = {f"m_{m}": v for m, v in res["metrics"].items()}
-        arrays.update({f"ts_{s}": v for s, v in res["timeseries"].items()})
+        arrays = {f"m_{m}": np.asarray(v) for m, v in res["metrics"].items()}
+        arrays.update({f"ts_{s}": np.asarray(v) for s, v in res["timeseries"].items()})
+        arrays.update(idx=np.asarray(idx), failed=np.asarray(res["failed"]),
+                      errors=np.array(json.dumps({str(j): t for j, t in res["errors"].items()})))
+        arrays["sha256"] = np.array(_digest(arrays))
 
         def write(tmp):
             with open(tmp, "wb") as fh:
-                np.savez(fh, idx=idx, failed=res["failed"], errors=np.array(json.dumps(res["errors"])), **arrays)
+                np.savez(fh, **arrays)
         atomic_write(self.dir / f"chunk-{k:06d}.npz", write, durable=True)
 
     def remove(self) -> None:
@@ -434,14 +611,23 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
                                                            "to replace it") from None
             if existing is not None and existing.attrs.get("sweep_hash") != spec.hash:
                 if not overwrite:
+                    changed = _changed_inputs(existing.attrs.get("input_files"), spec)
+                    if changed:
+                        raise ScenarioError("--out", str(out), f"cannot resume: the {changed} changed since this "
+                                                               "sweep started; use --overwrite to start afresh, "
+                                                               "or another --out")
                     what = "another spec" if "sweep_hash" in existing.attrs else "something that is not a frogsim sweep"
                     raise ScenarioError("--out", str(out), f"holds the results of {what} (or of another base "
                                                            "scenario); use --overwrite to replace it, or "
                                                            "another --out")
                 existing = None
         journal = _Journal(out)
-        jh = journal.manifest_hash() if journal.dir.exists() else None
-        if jh is not None and jh != spec.hash and not overwrite:
+        jm = journal.manifest() if journal.dir.exists() else None
+        if jm is not None and jm["hash"] != spec.hash and not overwrite:
+            changed = _changed_inputs(jm.get("inputs"), spec)
+            if changed:
+                raise ScenarioError("--out", str(out), f"cannot resume: the {changed} changed since this sweep "
+                                                       "started; use --overwrite to start afresh, or another --out")
             raise ScenarioError("--out", str(out), f"an interrupted sweep of another spec left {journal.dir.name}; "
                                                    "use --overwrite to discard it, or another --out")
         if overwrite:
@@ -461,6 +647,9 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
             for k, idx, res in journal.chunks():
                 if k < len(plan) and np.array_equal(idx, plan[k]):
                     store.put(idx, res)
+            if journal.damaged and progress:
+                print(f"warning: {len(journal.damaged)} damaged chunk file(s) in {journal.dir.name} dropped and "
+                      f"run again ({'; '.join(journal.damaged[:3])})", file=sys.stderr, flush=True)
         plan = spec.chunks()
         pending = [k for k, idx in enumerate(plan) if not store.completed[idx].all()]
         done = int(store.completed.sum())
@@ -515,6 +704,19 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
             journal.close()
         if own_client:
             client.close()
+
+
+def _changed_inputs(stored, spec: SweepSpec) -> str:
+    """"parameters file /x/p.toml" (and others) whose content differs from when the results or
+    journal were written; "" if none (or nothing was stored)."""
+    if isinstance(stored, str):
+        try:
+            stored = json.loads(stored)
+        except ValueError:
+            return ""
+    if not isinstance(stored, list) or not stored:
+        return ""
+    return ", ".join(changed_inputs(stored, spec.inputs))
 
 
 def _run_local(spec: SweepSpec, plan, pending, ts, threads: int, bar, finished) -> None:

@@ -367,6 +367,65 @@ def _get(raw: dict, path: str):
     return node
 
 
+# --- the files a scenario reads (part of a sweep's identity, and of a run's manifest) ----------------
+def input_files(scenario: Scenario, source=None) -> list[tuple[str, Path]]:
+    """(role, path) of every file a loaded scenario was read from or reads when it runs: the
+    scenario file (``source``: a path or a shipped name; none for a dict), its parameter set,
+    and each muscle's joint-angle table."""
+    from frogsim.scenario.load import PARAMS_DIR, SCENARIOS_DIR, parameter_set_names
+    out = []
+    if isinstance(source, (str, os.PathLike)):
+        path = Path(source)
+        if not path.exists() and (SCENARIOS_DIR / f"{source}.toml").exists():
+            path = SCENARIOS_DIR / f"{source}.toml"
+        out.append(("scenario", path))
+    params = scenario.raw.get("parameters", "fan2017") if isinstance(scenario.raw, dict) else "fan2017"
+    if isinstance(params, str):
+        path = PARAMS_DIR / f"{params}.toml" if params in parameter_set_names() else Path(scenario.base_dir) / params
+        out.append(("parameters", path))
+    for name, m in getattr(scenario, "muscles", {}).items():
+        if getattr(m.motion, "kind", None) == "joint_angles" and m.motion.file:
+            out.append((f"muscles.{name}.motion.file", Path(scenario.base_dir) / m.motion.file))
+    return out
+
+
+def file_sha256(path) -> str | None:
+    """SHA-256 (hex) of a file's bytes; None if it cannot be read."""
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+    except OSError:
+        return None
+    return h.hexdigest()
+
+
+def describe_inputs(files) -> list[dict]:
+    """[{"role", "path", "sha256"}] of (role, path) pairs (paths made absolute)."""
+    return [{"role": role, "path": str(Path(path).resolve()), "sha256": file_sha256(path)} for role, path in files]
+
+
+def inputs_sha256(inputs) -> str:
+    """One SHA-256 over the roles and contents of described inputs (not where they lie)."""
+    blob = json.dumps([[f["role"], f["sha256"]] for f in inputs]).encode()
+    return hashlib.sha256(blob).hexdigest()
+
+
+def changed_inputs(before, now) -> list[str]:
+    """Descriptions ("parameters file /x/fan2017.toml") of inputs whose content differs (or that
+    appeared or went away) between two lists of described inputs."""
+    old = {f["role"]: f for f in before or ()}
+    new = {f["role"]: f for f in now or ()}
+    out = []
+    for role in list(old) + [r for r in new if r not in old]:
+        a, b = old.get(role), new.get(role)
+        if a is None or b is None or a.get("sha256") != b.get("sha256"):
+            path = (b or a).get("path", "?")
+            out.append(f"{role} file {path}")
+    return out
+
+
 # --- the spec ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class TimeSeries:
@@ -400,6 +459,7 @@ class SweepSpec:
     seed: int | None = None
     text: str = ""                   # the spec file as written ("" for a dict)
     raw: dict = dataclasses.field(default_factory=dict, repr=False)
+    inputs: tuple = ()               # every file the base scenario reads: {role, path, sha256}
 
     @property
     def paths(self) -> list[str]:
@@ -442,9 +502,12 @@ class SweepSpec:
 
     @functools.cached_property
     def hash(self) -> str:
-        """SHA-256 of what determines the results: base scenario, points, metrics, muscle, time
-        series, chunk plan (not the name, description or comments)."""
+        """SHA-256 of what determines the results: base scenario, the content of every file it
+        reads (:attr:`inputs`: scenario file, parameter set, joint-angle tables; content only, not
+        where they lie), points, metrics, muscle, time series, chunk plan (not the name,
+        description or comments of the spec)."""
         key = {"base": self.base_raw, "method": self.method,
+               "inputs": [[f["role"], f["sha256"]] for f in self.inputs],
                "paths": self.paths, "points": [list(w) for w in self.written],
                "si": [[repr(float(x)) for x in row] for row in self.si],
                "metrics": list(self.metrics), "muscle": self.muscle,
@@ -567,6 +630,7 @@ def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
     except ScenarioError as exc:
         raise ScenarioError(exc.field, exc.value, f"{exc.allowed} (in the base scenario)") from None
     base_raw = json.loads(json.dumps(base_raw))
+    inputs = tuple(describe_inputs(input_files(scenario, where)))
 
     # parameters and points
     sweep = raw.get("sweep", MISSING)
@@ -654,7 +718,7 @@ def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
     return SweepSpec(name=name, description=description, method=method, base=base_name, base_raw=base_raw,
                      base_dir=scen_dir, scenario=scenario, parameters=tuple(params), written=tuple(written), si=si,
                      metrics=tuple(metrics), muscle=muscle, timeseries=timeseries,
-                     chunk_size=chunk_size, samples=samples, seed=seed, text=text, raw=raw)
+                     chunk_size=chunk_size, samples=samples, seed=seed, text=text, raw=raw, inputs=inputs)
 
 
 def _timeseries(ts, scenario, params, metrics) -> TimeSeries | None:
