@@ -3,6 +3,9 @@
 One implementation serves a single Result (B = 1) and a sweep's stacked chunk (B = thousands).
 All take the shared time grid ``t`` (T,), the charge-valve state ``u_charge`` (B, T) and the times
 the charge valve actually opens ``t_open`` (B,) [s].
+
+A run that ends before its charge valve opens (``t_open`` after the last sample, or NaN) has no
+pressurise phase: every measure is NaN for it (never an index past the end of the run).
 """
 from __future__ import annotations
 
@@ -17,7 +20,7 @@ def pressurise_window(t, u_charge, t_open):
     valve still open (k_closed - 1, or the end of the run).
     """
     T = t.size
-    k0 = np.searchsorted(t, t_open)
+    k0 = np.minimum(np.searchsorted(t, t_open), T - 1)    # no opening within the run: see opened()
     closed = (t[None, :] > t_open[:, None]) & (u_charge < 0.5)
     has = closed.any(axis=1)
     first = np.argmax(closed, axis=1)
@@ -26,10 +29,15 @@ def pressurise_window(t, u_charge, t_open):
     return k0, k_closed, k_last
 
 
+def opened(t, t_open):
+    """True where the charge valve opens within the run (a pressurise phase exists)."""
+    return np.asarray(t_open, float) <= t[-1]
+
+
 def rise_time(t, p, u_charge, t_open, fraction=0.9):
     """Time [s] from the valve opening until p first reaches ``fraction`` of its rise over the
     phase (rise = p at the last open sample - p at the opening); linear interpolation between
-    samples; NaN where the pressure does not rise."""
+    samples; NaN where the pressure does not rise or the valve does not open within the run."""
     B = p.shape[0]
     k0, _, k1 = pressurise_window(t, u_charge, t_open)
     rows = np.arange(B)
@@ -45,17 +53,18 @@ def rise_time(t, p, u_charge, t_open, fraction=0.9):
     with np.errstate(invalid="ignore", divide="ignore"):
         frac = np.where(pb > pa, (target - pa) / (pb - pa), 1.0)
     t_hit = np.where(j == k0, t[j], t[jm] + frac * (t[j] - t[jm]))
-    return np.where(valid, t_hit - t_open, np.nan)
+    return np.where(valid & opened(t, t_open), t_hit - t_open, np.nan)
 
 
 def charged_in_phase(t, q, u_charge, t_open):
-    """Cumulative quantity q (e.g. charged mass) gained between the opening and the closing."""
+    """Cumulative quantity q (e.g. charged mass) gained between the opening and the closing
+    (NaN where the valve does not open within the run)."""
     k0, kc, _ = pressurise_window(t, u_charge, t_open)
     rows = np.arange(q.shape[0])
-    return q[rows, kc] - q[rows, k0]
+    return np.where(opened(t, t_open), q[rows, kc] - q[rows, k0], np.nan)
 
 
 def value_at_close(t, x, u_charge, t_open):
-    """x at the last sample with the valve still open."""
+    """x at the last sample with the valve still open (NaN where it does not open within the run)."""
     _, _, k1 = pressurise_window(t, u_charge, t_open)
-    return x[np.arange(x.shape[0]), k1]
+    return np.where(opened(t, t_open), x[np.arange(x.shape[0]), k1], np.nan)
