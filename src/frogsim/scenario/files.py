@@ -3,8 +3,9 @@
 A path given by a user may be a directory, a device (/dev/zero never ends, /dev/null is empty),
 a FIFO (reading it waits forever), a huge or binary file. :func:`read_text` opens it without
 blocking, accepts only a regular file of bounded size holding UTF-8 text, and otherwise raises a
-one-line ScenarioError. :func:`check_depth` refuses data nested deeper than any scenario needs
-(deep nesting makes copying and printing recurse without end).
+one-line ScenarioError. :func:`check_raw` refuses data nested deeper than any scenario needs (deep
+nesting makes copying and printing recurse without end), keys that are not text and whole numbers
+beyond TOML's 64 bits.
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import stat
 from frogsim.errors import ScenarioError
 
 MAX_FILE_BYTES = 64 * 1024 * 1024     # no scenario, parameter set or joint-angle table is this big
+INT_MIN, INT_MAX = -2**63, 2**63 - 1  # TOML's integers
 MAX_DEPTH = 32                        # tables and arrays inside each other; scenarios use < 8
 
 
@@ -60,19 +62,31 @@ def read_text(path, what: str, max_bytes: int = MAX_FILE_BYTES) -> str:
         raise ScenarioError(what, shown, f"is not UTF-8 text (byte {exc.start})") from None
 
 
-def check_depth(value, what: str, shown, limit: int = MAX_DEPTH) -> None:
-    """ScenarioError(what, shown, ...) if tables/arrays in value nest deeper than ``limit``
-    (checked without recursion)."""
-    stack = [(value, 1)]
+def check_raw(value, what: str, shown, limit: int = MAX_DEPTH) -> None:
+    """What every raw scenario (file or dict) must be before any field reads it, checked without
+    recursion: tables and arrays nested at most ``limit`` levels deep (else ScenarioError(what,
+    shown, ...)), table keys that are text, whole numbers within TOML's 64-bit range."""
+    stack = [(value, 1, "")]
     while stack:
-        node, depth = stack.pop()
+        node, depth, path = stack.pop()
         if isinstance(node, dict):
-            children = node.values()
+            items = node.items()
         elif isinstance(node, (list, tuple)):
-            children = node
+            items = ((f"[{j}]", v) for j, v in enumerate(node))
         else:
             continue
         if depth > limit:
             raise ScenarioError(what, shown, f"tables or arrays nested more than {limit} levels deep "
                                              "(a scenario needs fewer than 8)")
-        stack.extend((c, depth + 1) for c in children if isinstance(c, (dict, list, tuple)))
+        for key, child in items:
+            if isinstance(node, dict):
+                if not isinstance(key, str):
+                    raise ScenarioError(f"{path}.{key!r}" if path else repr(key), child,
+                                        "a table's keys must be text")
+                where = f"{path}.{key}" if path else key
+            else:
+                where = f"{path}{key}"
+            if isinstance(child, int) and not isinstance(child, bool) and not INT_MIN <= child <= INT_MAX:
+                raise ScenarioError(where, child, "a whole number must lie within +-9.2e18 (64 bits)")
+            if isinstance(child, (dict, list, tuple)):
+                stack.append((child, depth + 1, where))

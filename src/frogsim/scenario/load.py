@@ -13,7 +13,7 @@ import tomllib
 from pathlib import Path
 
 from frogsim.scenario.fields import build, check_bounds, parse_field, unknown_key_error, unwrap
-from frogsim.scenario.files import check_depth, read_text
+from frogsim.scenario.files import check_raw, read_text
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.rules import check
 from frogsim.scenario.schema import (
@@ -48,7 +48,7 @@ def read_toml(path: str | os.PathLike, what: str) -> dict:
         raise ScenarioError(what, str(path), "not readable: tables or arrays nested too deeply") from None
     except ValueError as exc:      # e.g. an integer of more than 4300 digits
         raise ScenarioError(what, str(path), f"not valid TOML ({exc})") from None
-    check_depth(data, what, str(path))
+    check_raw(data, what, str(path))
     return data
 
 
@@ -154,7 +154,7 @@ def merged_raw(source) -> tuple[dict, str]:
         raw = read_toml(path, "scenario")
         base_dir = str(path.resolve().parent)
     elif isinstance(source, dict):
-        check_depth(source, "scenario", Shown("(a dict)"))
+        check_raw(source, "scenario", Shown("(a dict)"))
         raw = copy.deepcopy(source)
         base_dir = raw.pop("base_dir", ".")
         if not isinstance(base_dir, (str, os.PathLike)):
