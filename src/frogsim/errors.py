@@ -1,9 +1,45 @@
 """Errors frogsim raises on purpose, each with a message a user can act on."""
 from __future__ import annotations
 
+import reprlib
+
 
 UNKNOWN = "(unknown key)"     # value placeholder for a key that is not a setting
 MISSING = "(missing)"         # value placeholder for a required setting that is absent
+
+
+SHOWN_MAX = 80          # characters of a value shown in a message (longer values end in "…")
+FIELD_MAX = 120         # characters of a field path shown in a message
+
+_REPR = reprlib.Repr()
+_REPR.maxlevel = 3      # nested lists/tables shown a few levels deep (never recursing without end)
+_REPR.maxlist = _REPR.maxtuple = _REPR.maxset = 8
+_REPR.maxdict = 4
+_REPR.maxstring = _REPR.maxother = SHOWN_MAX + 2
+
+
+def clip(text: str, limit: int = SHOWN_MAX) -> str:
+    """text on one line (control characters escaped), at most ``limit`` characters ("…" at the end)."""
+    if not text.isprintable():
+        text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+    return text if len(text) <= limit else text[:limit - 1] + "…"
+
+
+def shown_value(value) -> str:
+    """A value as a message shows it: numbers and Shown text plain, the rest as repr, clipped."""
+    try:
+        if isinstance(value, Shown):
+            text = str(value)
+        elif isinstance(value, (int, float)) and not isinstance(value, bool):
+            text = str(value) if not isinstance(value, int) or value.bit_length() < 256 else \
+                f"<a whole number of {value.bit_length()} bits>"
+        elif isinstance(value, (str, bytes)):
+            text = repr(value[:4 * SHOWN_MAX])
+        else:
+            text = _REPR.repr(value)
+    except Exception:   # a value whose repr fails (or recurses without end) is shown by its type
+        text = f"<{type(value).__name__}>"
+    return clip(text)
 
 
 class Shown(str):
@@ -21,12 +57,12 @@ class ScenarioError(FrogsimError, ValueError):
         self.field = field
         self.value = value
         self.allowed = allowed
+        where = clip(str(field), FIELD_MAX)
+        what = clip(str(allowed), 1000)
         if isinstance(value, str) and value in (UNKNOWN, MISSING):
-            super().__init__(f"{field}: {allowed}")
+            super().__init__(f"{where}: {what}")
             return
-        plain = isinstance(value, Shown) or (isinstance(value, (int, float)) and not isinstance(value, bool))
-        shown = value if plain else repr(value)
-        super().__init__(f"{field} = {shown}: {allowed}")
+        super().__init__(f"{where} = {shown_value(value)}: {what}")
 
 
     def __reduce__(self):
@@ -35,4 +71,5 @@ class ScenarioError(FrogsimError, ValueError):
 
 
 class SimulationError(FrogsimError, RuntimeError):
-    """The integration could not continue (non-finite state, step-size underflow)."""
+    """The integration could not continue (non-finite or non-physical state, step-size underflow,
+    the wall-time limit): names the quantity, its value and the time."""

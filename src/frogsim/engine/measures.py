@@ -138,17 +138,23 @@ def rise_time(t, p, p_source, u_charge, t_open, fraction=0.9):
     return rise_times(t, p, p_source, u_charge, t_open, fraction).seconds
 
 
+def opened(t, t_open):
+    """True where the charge valve opens within the run (a pressurise phase exists)."""
+    return np.asarray(t_open, float) <= t[-1]
+
+
 def charged_in_phase(t, q, u_charge, t_open):
-    """Cumulative quantity q (e.g. charged mass) gained between the opening and the closing."""
+    """Cumulative quantity q (e.g. charged mass) gained between the opening and the closing
+    (NaN where the valve does not open within the run)."""
     k0, kc, _ = pressurise_window(t, u_charge, t_open)
     rows = np.arange(q.shape[0])
-    return q[rows, kc] - q[rows, k0]
+    return np.where(opened(t, t_open), q[rows, kc] - q[rows, k0], np.nan)
 
 
 def value_at_close(t, x, u_charge, t_open):
-    """x at the last sample with the valve still open."""
+    """x at the last sample with the valve still open (NaN where it does not open within the run)."""
     _, _, k1 = pressurise_window(t, u_charge, t_open)
-    return x[np.arange(x.shape[0]), k1]
+    return np.where(opened(t, t_open), x[np.arange(x.shape[0]), k1], np.nan)
 
 
 def fraction_of_window(t, flag, t_start, t_end):

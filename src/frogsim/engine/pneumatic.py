@@ -1,10 +1,24 @@
-"""The pneumatics-only engine: muscle lengths prescribed (the paper's Figure 8 model)."""
+"""The pneumatics-only engine: muscle lengths prescribed (the paper's Figure 8 model).
+
+:func:`simulate` runs one scenario and checks what it returns: every air mass and pressure in the
+output finite and positive, every muscle volume positive (else SimulationError naming the
+quantity, its value and the time). A run is first probed over its first 1/1024 ... 1/32: if the whole run
+promises to take longer than a few seconds (a stiff circuit: a tiny chamber behind a large valve
+forces microsecond steps), it goes on in slices of simulated time with a progress bar on stderr
+and stops at ``solver.max_wall_time`` with a hint at the cause. Every other run is integrated in
+one piece, bit for bit the same as the batched engine (:mod:`frogsim.engine.batch`).
+"""
 from __future__ import annotations
+
+import math
+import sys
+import time
 
 import numpy as np
 
 from frogsim.circuit import layout as L
 from frogsim.circuit.model import PneumaticModel, build_model
+from frogsim.physics.muscle import muscle_volume
 from frogsim.scenario.core import Scenario
 from frogsim.engine.integrator import STATUS_OK, run_schedule
 from frogsim.engine.result import Result
@@ -12,6 +26,12 @@ from frogsim.errors import SimulationError
 
 _STATUS_TEXT = {1: "step size fell below 1e-14 s", 2: "the state became non-finite (NaN or inf)",
                 3: "more than 50 million steps"}
+
+PROBE_FRACTIONS = (1 / 1024, 1 / 256, 1 / 64, 1 / 32)   # shares of the run probed for its wall time
+SLICE_WHEN_S = 3.0            # a run projected to take longer goes in slices (progress bar, limit)...
+PROBE_MIN_S = 0.25            # ...once its probe has taken this long (a projection from a few
+                              # milliseconds would follow every hiccup of a busy machine)
+SLICE_TARGET_S = 0.5          # wall seconds aimed at per slice
 
 
 def _as_model(what) -> PneumaticModel:
@@ -23,34 +43,186 @@ def _as_model(what) -> PneumaticModel:
     return build_model(load_scenario(what))
 
 
-def _describe_state(model: PneumaticModel, y: np.ndarray) -> str:
-    bad = []
-    labels = ["source mass", "source pressure", "exhaust mass", "exhaust pressure"]
+def _state_labels(model: PneumaticModel) -> list[tuple[int, str, str]]:
+    """(state index, label, unit) of every air mass and pressure (quantities that must stay > 0)."""
+    out = [(L.Y_MS, "source mass", "kg"), (L.Y_PS, "source pressure", "Pa abs"),
+           (L.Y_ME, "exhaust mass", "kg"), (L.Y_PE, "exhaust pressure", "Pa abs")]
     for i, name in enumerate(model.names):
-        labels += [f"{name} mass", f"{name} pressure"]
-    for j, lab in enumerate(labels):
-        if not np.isfinite(y[j]) or y[j] <= 0:
-            bad.append(f"{lab} = {y[j]:.4g}")
+        out += [(L.Y_MUSCLE0 + 2 * i, f"{name} mass", "kg"), (L.Y_MUSCLE0 + 2 * i + 1, f"{name} pressure", "Pa abs")]
+    return out
+
+
+def _describe_state(model: PneumaticModel, y: np.ndarray) -> str:
+    bad = [f"{lab} = {y[j]:.4g}" for j, lab, _ in _state_labels(model) if not np.isfinite(y[j]) or y[j] <= 0]
     return "; ".join(bad) if bad else "all states finite and positive"
 
 
-def simulate(scenario, h0: float = 1e-4) -> Result:
+def check_volumes(model: PneumaticModel) -> None:
+    """SimulationError if a muscle's prescribed volume is not positive at some time.
+
+    A muscle's length moves monotonically between its motion knots and Eq. (5)'s volume is concave
+    in the length, so the knots bound the volume over the whole run.
+    """
+    for i, name in enumerate(model.names):
+        fixed = model.mp[i, L.M_FIXEDV]
+        if fixed > 0.0:
+            continue
+        b0, n, dead = model.mp[i, L.M_B0], model.mp[i, L.M_N], model.mp[i, L.M_DEAD]
+        for k in range(int(model.mot_n[i])):
+            v = muscle_volume(float(model.mot_L[i, k]), float(b0), float(n)) + dead
+            if not (math.isfinite(v) and v > 0.0):
+                raise SimulationError(f"scenario {model.scenario.name!r}: non-physical state at "
+                                      f"t = {model.mot_t[i, k]:.6g} s: {name} volume = {v:.4g} m^3 "
+                                      "(must be positive; check the muscle type's geometry)")
+
+
+def check_state(model: PneumaticModel, t: np.ndarray, y: np.ndarray) -> None:
+    """SimulationError naming the first output time at which an air mass or pressure is not
+    finite and positive (a temperature T = p V/(m R) then is not either)."""
+    labels = _state_labels(model)
+    cols = y[:, [j for j, _, _ in labels]]
+    good = np.isfinite(cols) & (cols > 0.0)
+    if good.all():
+        return
+    row = int(np.argmin(good.all(axis=1)))
+    col = int(np.argmin(good[row]))
+    _, label, unit = labels[col]
+    raise SimulationError(f"scenario {model.scenario.name!r}: non-physical state at t = {t[row]:.6g} s: "
+                          f"{label} = {cols[row, col]:.4g} {unit} (must be finite and positive; "
+                          f"{_describe_state(model, y[row])})")
+
+
+def _run(model: PneumaticModel, y0, t0: float, t1: float, out_t: np.ndarray, h0: float):
+    sc = model.scenario
+    return run_schedule(y0, t0, t1, model.g, model.mp, model.mot_t, model.mot_L, model.mot_d,
+                        model.mot_n, model.sched_t, model.sched_u, model.u0, 1.0 / sc.controller.rate,
+                        out_t, sc.solver.rtol, model.atol, sc.solver.max_step, h0)
+
+
+def _check_status(model: PneumaticModel, status: int, t_reached: float, y_end) -> None:
+    if status != STATUS_OK:
+        raise SimulationError(f"scenario {model.scenario.name!r}: integration stopped at t = {t_reached:.6g} s: "
+                              f"{_STATUS_TEXT.get(status, status)} ({_describe_state(model, y_end)})")
+
+
+def stiffness_hint(model: PneumaticModel) -> str:
+    """The chamber whose fill/empty time constant tau = V / (k p_ref C) is smallest, in words.
+
+    With choked flow through a valve of sonic conductance C (ISO 6358: q = C p rho_ref), a chamber
+    of volume V changes its pressure at a relative rate k p_ref C / V; an explicit solver needs
+    steps no longer than about that time constant.
+    """
+    sc = model.scenario
+    k = sc.air.heat_capacity_ratio
+    p_ref = sc.air.reference_pressure_abs
+    n = len(model.names)
+    c_in, c_out = sc.valves.charge.sonic_conductance, sc.valves.discharge.sonic_conductance
+    cands = [(sc.source.volume, n * c_in, "the source volume", "source.volume and valves.charge.sonic_conductance"),
+             (sc.exhaust.volume, n * c_out, "the exhaust volume",
+              "exhaust.volume and valves.discharge.sonic_conductance")]
+    for i, name in enumerate(model.names):
+        mt = sc.muscle_types[sc.muscles[name].type]
+        fixed = model.mp[i, L.M_FIXEDV]
+        v = fixed if fixed > 0 else math.pi * mt.inner_diameter ** 2 * mt.nominal_length / 4 + mt.dead_volume
+        cands.append((v, max(c_in, c_out), f"muscle {name}'s volume",
+                      f"muscle_types.{sc.muscles[name].type} and the valves' sonic_conductance"))
+    v, c, what, paths = min(cands, key=lambda e: e[0] / (k * p_ref * e[1]))
+    tau = v / (k * p_ref * c)
+    return (f"{what} {v:.3g} m^3 behind a sonic conductance of {c:.3g} m^3/(s Pa) fills or empties with "
+            f"a time constant of about {tau:.2g} s, which makes the circuit stiff (the solver's steps "
+            f"stay about that short); raise solver.max_wall_time, shorten the duration or check {paths}")
+
+
+class _Slices:
+    """A run advanced in slices of simulated time (each a restart of the integrator from the
+    state reached), with its outputs gathered on the model's output grid."""
+
+    def __init__(self, model: PneumaticModel, h0: float):
+        self.model = model
+        self.out_y = np.empty((model.out_t.size, model.y0.size))
+        self.out_u = np.empty((model.out_t.size, model.u0.size + 1))
+        self.stats = np.zeros(3, dtype=np.int64)
+        self.y, self.t, self.h = model.y0, 0.0, h0
+
+    def advance(self, t1: float) -> float:
+        """Integrate to t1; returns the wall seconds it took."""
+        out_t = self.model.out_t
+        sel = (out_t <= t1) if self.t == 0.0 else (out_t > self.t) & (out_t <= t1)
+        w0 = time.perf_counter()
+        oy, ou, y_end, st, status, t_reached = _run(self.model, self.y, self.t, t1,
+                                                    np.ascontiguousarray(out_t[sel]), self.h)
+        _check_status(self.model, status, t_reached, y_end)
+        self.out_y[sel], self.out_u[sel] = oy, ou
+        self.stats += st
+        self.h = (t1 - self.t) / max(int(st[0]), 1)     # the next slice starts at the mean step
+        self.t, self.y = t1, y_end
+        return time.perf_counter() - w0
+
+
+def _finish_sliced(run: _Slices, wall0: float, limit: float, progress) -> None:
+    """Go on in slices of about SLICE_TARGET_S wall seconds, checking the clock between them."""
+    sc = run.model.scenario
+    T = sc.duration
+    rate = run.t / max(time.perf_counter() - wall0, 1e-6)      # simulated s per wall s so far
+    dt = rate * SLICE_TARGET_S
+    bar = None
+    if progress is not False:
+        from tqdm import tqdm
+        bar = tqdm(total=T, initial=run.t, file=sys.stderr, leave=False, desc=f"{sc.name[:30]} (simulated s)",
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} [{elapsed}<{remaining}]")
+    try:
+        while run.t < T:
+            elapsed = time.perf_counter() - wall0
+            if elapsed > limit:
+                raise SimulationError(f"scenario {sc.name!r}: stopped at t = {run.t:.6g} s of {T:g} s after "
+                                      f"{elapsed:.0f} s of wall time (solver.max_wall_time = {limit:g} s) and "
+                                      f"{int(run.stats[0])} steps: {stiffness_hint(run.model)}")
+            t0 = run.t
+            t1 = min(T, t0 + dt)
+            if T - t1 < 1e-9 * T:
+                t1 = T
+            w = max(run.advance(t1), 1e-6)
+            dt = min(4.0 * (t1 - t0), (t1 - t0) / w * SLICE_TARGET_S)
+            if bar is not None:
+                bar.update(t1 - t0)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
+             progress: bool | None = None) -> Result:
     """Run one scenario (a Scenario, a built model, a TOML path or a dict) and return its Result.
 
-    Raises SimulationError naming the time and the offending quantity if integration fails.
+    ``max_wall_s`` [s] overrides the scenario's ``solver.max_wall_time``; ``progress`` False hides
+    the progress bar a long run shows on stderr. Raises SimulationError naming the time and the
+    offending quantity if integration fails, the state turns non-physical (a mass, pressure or
+    volume not positive) or the run exceeds its wall-time limit (with a hint at the stiff part).
     """
     model = _as_model(scenario)
     sc = model.scenario
-    out_y, out_u, y_end, stats, status, t_reached = run_schedule(
-        model.y0, 0.0, sc.duration, model.g, model.mp, model.mot_t, model.mot_L, model.mot_d,
-        model.mot_n, model.sched_t, model.sched_u, model.u0, 1.0 / sc.controller.rate,
-        model.out_t, sc.solver.rtol, model.atol, sc.solver.max_step, h0)
-    if status != STATUS_OK:
-        raise SimulationError(f"scenario {sc.name!r}: integration stopped at t = {t_reached:.6g} s: "
-                              f"{_STATUS_TEXT.get(status, status)} ({_describe_state(model, y_end)})")
-    # every output point interpolates accepted steps, whose error norm was finite: checking the
-    # end state is enough to catch a run that went non-physical without going non-finite
-    if not (np.all(np.isfinite(y_end)) and y_end[L.Y_PS] > 0 and y_end[L.Y_PE] > 0):
+    limit = sc.solver.max_wall_time if max_wall_s is None else float(max_wall_s)
+    check_volumes(model)
+    T = sc.duration
+    if not run_schedule.signatures:       # compile (or load the cached code) outside the clock
+        _run(model, model.y0, 0.0, 0.0, model.out_t[:0], h0)
+    # probe: the first 1/1024, 1/256, 1/64 and 1/32 of the run, continuing, with the clock read
+    # after each; a run that promises to be long goes on in slices from where the probe got to
+    wall0 = time.perf_counter()
+    run = _Slices(model, h0)
+    for frac in PROBE_FRACTIONS:
+        run.advance(T * frac)
+        elapsed = time.perf_counter() - wall0
+        if elapsed / frac > min(SLICE_WHEN_S, limit) and elapsed > min(PROBE_MIN_S, limit):
+            _finish_sliced(run, wall0, limit, progress)
+            out_y, out_u, y_end, stats = run.out_y, run.out_u, run.y, run.stats
+            break
+    else:
+        # the usual case: one piece from the start, the same steps as every other engine entry
+        out_y, out_u, y_end, stats, status, t_reached = _run(model, model.y0, 0.0, T, model.out_t, h0)
+        _check_status(model, status, t_reached, y_end)
+    check_state(model, model.out_t, out_y)
+    if not (np.all(np.isfinite(y_end)) and all(y_end[j] > 0 for j, _, _ in _state_labels(model))):
         raise SimulationError(f"scenario {sc.name!r}: non-physical end state "
                               f"({_describe_state(model, y_end)})")
     return Result(t=model.out_t, y=out_y, u=out_u, model=model,

@@ -12,13 +12,14 @@ import os
 import tomllib
 from pathlib import Path
 
-from frogsim.scenario.fields import build, parse_field, unknown_key_error
+from frogsim.scenario.fields import build, check_bounds, parse_field, unknown_key_error, unwrap
+from frogsim.scenario.files import check_raw, read_text
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.rules import check
 from frogsim.scenario.schema import (
     Air, Chamber, Controller, Muscle, MuscleType, Program, Pump, Solver, Supply, Valves,
 )
-from frogsim.errors import MISSING, ScenarioError
+from frogsim.errors import MISSING, ScenarioError, Shown
 
 PARAMS_DIR = Path(__file__).resolve().parent.parent / "params"
 SCENARIOS_DIR = Path(__file__).resolve().parent.parent / "scenarios"
@@ -32,14 +33,23 @@ RUN_KEYS = ("name", "description", "parameters", "duration", "output_interval", 
 
 
 def read_toml(path: str | os.PathLike, what: str) -> dict:
-    """Read a TOML file, turning file and syntax errors into ScenarioError."""
+    """Read a TOML file, turning file and syntax errors into ScenarioError.
+
+    Only a regular file of UTF-8 text is read (not a directory, device or FIFO, see
+    :func:`frogsim.scenario.files.read_text`); tables and arrays may nest at most
+    :data:`frogsim.scenario.files.MAX_DEPTH` levels deep.
+    """
+    text = read_text(path, what)
     try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise ScenarioError(what, str(path), "file not found") from None
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(what, str(path), f"not valid TOML ({exc})") from None
+    except RecursionError:
+        raise ScenarioError(what, str(path), "not readable: tables or arrays nested too deeply") from None
+    except ValueError as exc:      # e.g. an integer of more than 4300 digits
+        raise ScenarioError(what, str(path), f"not valid TOML ({exc})") from None
+    check_raw(data, what, str(path))
+    return data
 
 
 def parameter_set_names() -> list[str]:
@@ -53,7 +63,7 @@ def load_parameter_set(name_or_path: str, base_dir: str = ".") -> dict:
         path = PARAMS_DIR / f"{name_or_path}.toml"
     else:
         path = Path(base_dir) / name_or_path
-        if not path.exists():
+        if not os.path.lexists(path):
             raise ScenarioError("parameters", name_or_path,
                                 f"must be a shipped parameter set ({', '.join(parameter_set_names())}) "
                                 "or a path to a parameter file")
@@ -65,15 +75,74 @@ def load_parameter_set(name_or_path: str, base_dir: str = ".") -> dict:
     return raw
 
 
+def pressure_twin(key) -> str | None:
+    """The other spelling of a pressure setting: "x_gauge" <-> "x_abs" (None for other keys)."""
+    if isinstance(key, str):
+        if key.endswith("_gauge"):
+            return key[:-len("_gauge")] + "_abs"
+        if key.endswith("_abs"):
+            return key[:-len("_abs")] + "_gauge"
+    return None
+
+
 def deep_merge(base: dict, over: dict) -> dict:
-    """A copy of base with over laid on top, table by table."""
+    """A copy of base with over laid on top, table by table.
+
+    A pressure given in over as ``x_abs`` replaces base's ``x_gauge`` and the other way round
+    (a scenario may write either spelling over its parameter set's).
+    """
     out = copy.deepcopy(base)
     for key, val in over.items():
+        twin = pressure_twin(key)
+        if twin is not None and twin in out and twin not in over:
+            del out[twin]
         if isinstance(val, dict) and isinstance(out.get(key), dict) and "value" not in val:
             out[key] = deep_merge(out[key], val)
         else:
             out[key] = copy.deepcopy(val)
     return out
+
+
+#: the dataclasses whose ``*_gauge`` settings may be written ``*_abs`` in a file, by section
+_GAUGE_SECTIONS = {"source": Chamber, "exhaust": Chamber, "pump": Pump}
+
+
+def gauge_from_abs(table, cls, path: str, p_atm: float):
+    """The table with every ``x_abs`` of a ``x_gauge`` field of cls turned into ``x_gauge``.
+
+    The absolute pressure is converted with the scenario's atmospheric pressure p_atm [Pa] and
+    checked against the gauge field's bounds; writing both spellings is refused. Anything that is
+    not a table is returned as it is (the builder then refuses it).
+    """
+    if not isinstance(table, dict):
+        return table
+    gauge_fields = {f.name: f.metadata for f in dataclasses.fields(cls) if f.name.endswith("_gauge")}
+    out = None
+    for key in list(table):
+        if not isinstance(key, str) or not key.endswith("_abs"):
+            continue
+        twin = pressure_twin(key)
+        if twin not in gauge_fields:
+            continue
+        where = f"{path}.{key}"
+        if twin in table:
+            raise ScenarioError(where, table[key], f"give either {twin} or {key}, not both")
+        meta = gauge_fields[twin]
+        raw = table[key]
+        x_abs = parse_field(raw, dict(kind="pressure", gt=0.0, display="bar"), where)
+        gauge = x_abs - p_atm
+        lo, hi = meta.get("ge"), meta.get("le")
+        if (lo is not None and gauge < lo) or (hi is not None and gauge > hi):
+            raise ScenarioError(where, unwrap(raw), f"must lie between {(lo + p_atm) / 1e5:g} and "
+                                                    f"{(hi + p_atm) / 1e5:g} bar abs ({lo / 1e5:g} to "
+                                                    f"{hi / 1e5:g} bar gauge at an atmosphere of "
+                                                    f"{p_atm / 1e3:g} kPa)")
+        check_bounds(gauge, meta, where, Shown(f"{x_abs / 1e5:g} bar abs"))
+        if out is None:
+            out = dict(table)
+        del out[key]
+        out[twin] = f"{gauge!r} Pa"
+    return table if out is None else out
 
 
 def merged_raw(source) -> tuple[dict, str]:
@@ -85,15 +154,21 @@ def merged_raw(source) -> tuple[dict, str]:
         raw = read_toml(path, "scenario")
         base_dir = str(path.resolve().parent)
     elif isinstance(source, dict):
+        check_raw(source, "scenario", Shown("(a dict)"))
         raw = copy.deepcopy(source)
         base_dir = raw.pop("base_dir", ".")
+        if not isinstance(base_dir, (str, os.PathLike)):
+            raise ScenarioError("base_dir", base_dir, "expected a folder path")
     else:
         raise ScenarioError("scenario", source, "expected a path to a TOML file or a dict")
     for key in raw:
         if key not in RUN_KEYS + PARAM_SECTIONS:
             raise unknown_key_error("", key, RUN_KEYS + PARAM_SECTIONS)
+    for key in PARAM_SECTIONS:
+        if key in raw and not isinstance(raw[key], dict):
+            raise ScenarioError(key, raw[key], "expected a table of settings")
     params_name = raw.get("parameters", "fan2017")
-    if not isinstance(params_name, str):
+    if not isinstance(params_name, str) or not params_name:
         raise ScenarioError("parameters", params_name, "expected a parameter set name or path")
     merged = deep_merge(load_parameter_set(params_name, base_dir), raw)
     merged["parameters"] = params_name
@@ -135,7 +210,10 @@ def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None 
                      ("valves", Valves), ("supply", Supply)):
         if key not in raw:
             raise ScenarioError(key, MISSING, "required section is missing (parameter set incomplete?)")
-        sections[key] = build(cls, raw[key], key)
+        table = raw[key]
+        if key in _GAUGE_SECTIONS:      # air is built first: its atmosphere converts *_abs values
+            table = gauge_from_abs(table, cls, key, sections["air"].atmospheric_pressure_abs)
+        sections[key] = build(cls, table, key)
     controller = build(Controller, raw.get("controller", {}), "controller")
     solver = build(Solver, raw.get("solver", {}), "solver")
     types_raw = raw.get("muscle_types", {})
@@ -150,7 +228,9 @@ def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None 
         muscles_raw = raw.get("muscles", {})
         if not isinstance(muscles_raw, dict) or not muscles_raw:
             raise ScenarioError("muscles", muscles_raw, "expected at least one muscle, e.g. [muscles.hip]")
-        muscles = {mname: Muscle.from_raw(mraw, f"muscles.{mname}", programs)
+        p_atm = sections["air"].atmospheric_pressure_abs
+        muscles = {mname: Muscle.from_raw(gauge_from_abs(mraw, Muscle, f"muscles.{mname}", p_atm),
+                                          f"muscles.{mname}", programs)
                    for mname, mraw in muscles_raw.items()}
     scenario = Scenario(name=name, parameters=raw["parameters"], duration=duration,
                         output_interval=interval, controller=controller, solver=solver,
@@ -181,5 +261,8 @@ def with_overrides(raw: dict, overrides: dict, share: bool = False) -> dict:
                 nxt = dict(nxt)
                 node[key] = nxt
             node = nxt
+        twin = pressure_twin(keys[-1])
+        if twin is not None and twin in node:     # node is a copy here (shared mode too)
+            del node[twin]                         # "x_gauge" set: the file's "x_abs" gives way
         node[keys[-1]] = copy.deepcopy(value)
     return out

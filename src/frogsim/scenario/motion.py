@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from frogsim.errors import ScenarioError
+from frogsim.scenario.files import read_text
 from frogsim.physics.muscle import braid_parameters, crank_muscle_length, muscle_volume
 
 if TYPE_CHECKING:   # annotations only
@@ -74,21 +75,27 @@ def _pchip_knots(t, Lv):
 
 
 def _joint_knots(mname, m, mt, L0, base_dir):
+    import io
     import pandas as pd
     path = Path(base_dir) / m.motion.file
     where = f"muscles.{mname}.motion.file"
-    if not path.exists():
-        raise ScenarioError(where, m.motion.file, "file not found")
+    text = read_text(path, where)         # a regular UTF-8 file, not a directory, device or FIFO
     try:
-        df = pd.read_csv(path)
+        df = pd.read_csv(io.StringIO(text))
     except Exception as exc:  # pandas raises many parser errors
         raise ScenarioError(where, m.motion.file, f"not a readable CSV ({exc})") from None
     for key in (m.motion.time_column, m.motion.column):
         if key not in df.columns:
             raise ScenarioError(f"muscles.{mname}.motion.column", key,
-                                f"must be a column of {path.name} ({', '.join(df.columns)})")
-    t = df[m.motion.time_column].to_numpy(float)
-    ang = np.radians(df[m.motion.column].to_numpy(float))
+                                f"must be a column of {path.name} ({', '.join(map(str, df.columns))})")
+    try:
+        t = df[m.motion.time_column].to_numpy(float)
+        ang = np.radians(df[m.motion.column].to_numpy(float))
+    except (TypeError, ValueError):
+        raise ScenarioError(where, m.motion.file, f"columns {m.motion.time_column!r} and "
+                                                  f"{m.motion.column!r} must hold numbers") from None
+    if t.size == 0 or t.ndim != 1 or ang.ndim != 1:
+        raise ScenarioError(where, m.motion.file, "expected at least one row of numbers")
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(ang))) or np.any(np.diff(t) <= 0):
         raise ScenarioError(where, m.motion.file, "times must be finite and increasing, angles finite")
     Lv = np.array([crank_muscle_length(a, mt.anchor_distance, mt.crank_radius, mt.rest_angle, L0,

@@ -35,6 +35,15 @@ def check(sc: Scenario) -> None:
     if sc.duration / sc.output_interval > MAX_OUTPUT_ROWS:
         raise _err("output_interval", sc, "output_interval",
                    "too fine for the duration (more than 5 million output rows)")
+    p_atm = sc.air.atmospheric_pressure_abs
+    starts = [("source.initial_pressure_gauge", sc.source, "initial_pressure_gauge"),
+              ("exhaust.initial_pressure_gauge", sc.exhaust, "initial_pressure_gauge")]
+    starts += [(f"muscles.{n}.initial_pressure_gauge", m, "initial_pressure_gauge")
+               for n, m in sc.muscles.items() if m.initial_pressure_gauge is not None]
+    for path, obj, name in starts:
+        if p_atm + getattr(obj, name) <= 0.0:     # air in a chamber has a positive absolute pressure
+            raise _err(path, obj, name, f"must be above -{p_atm / 1e5:g} bar: the atmosphere is "
+                                        f"{p_atm / 1e3:g} kPa (air.atmospheric_pressure_abs)")
     if sc.pump.on_below_gauge >= sc.pump.off_above_gauge:
         off = shown(sc.pump.off_above_gauge, _meta(sc.pump, "off_above_gauge"))
         raise _err("pump.on_below_gauge", sc.pump, "on_below_gauge", f"must be below pump.off_above_gauge ({off})")

@@ -11,12 +11,17 @@ from dataclasses import dataclass, field
 
 from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, quantity, unknown_key_error,
                                      unwrap)
-from frogsim.errors import MISSING, ScenarioError
+from frogsim.errors import MISSING, ScenarioError, Shown
+from frogsim.physics.muscle import braid_parameters, muscle_volume
 
 BAR = 1e5
 MAX_BRAID_ANGLE = math.acos(1.0 / math.sqrt(3.0))  # 54.7 deg: the ideal muscle's force vanishes
 GAUGE_MIN = -1.0 * BAR  # below -1 bar gauge there is (almost) no air left: refused
 GAUGE_MAX = 16.0 * BAR
+# Eq. (5) computes the braid volume from b0^2 - L^2, where b0^2 - L0^2 = L0^2 tan^2(theta0): with
+# tan^2(theta0) >= 1e-8 that difference stands clear of the rounding of b0^2 (2.2e-16 b0^2), so
+# the volume keeps 7 good digits; below it the volume becomes noise (even negative)
+MIN_BRAID_ANGLE = math.atan(1e-4)    # 0.0057 deg
 
 
 def gauge_pressure(doc: str = "", default=None):
@@ -114,6 +119,28 @@ class MuscleType:
         if self.anchor_distance <= self.crank_radius:
             raise ScenarioError(f"{path}.anchor_distance", f"{self.anchor_distance * 1e3:g} mm",
                                 f"must exceed crank_radius ({self.crank_radius * 1e3:g} mm)")
+        self._check_braid(path)
+
+    def _check_braid(self, path: str) -> None:
+        """The braid (Eq. (5)) must give the rest cylinder's volume at rest and a positive volume
+        over the whole contraction range (V is concave in L: its ends bound it)."""
+        shown = Shown(f"{math.degrees(self.braid_angle):.4g} deg")
+        where = f"{path}.braid_angle"
+        if self.braid_angle < MIN_BRAID_ANGLE:
+            raise ScenarioError(where, shown, f"must be >= {math.degrees(MIN_BRAID_ANGLE):.2g} deg: Eq. (5) "
+                                              "V = (b0^2 - L^2) L/(4 pi n^2) cannot be computed for a "
+                                              "thinner braid (b0^2 - L0^2 = L0^2 tan^2 of the angle "
+                                              "vanishes against b0^2)")
+        L0, D0 = self.nominal_length, self.inner_diameter
+        b0, n = braid_parameters(L0, D0, self.braid_angle)
+        v_rest = muscle_volume(L0, b0, n)
+        v_cyl = math.pi * D0 * D0 * L0 / 4.0
+        v_short = muscle_volume(L0 * (1.0 - self.max_contraction), b0, n)
+        if not (v_rest > 0 and v_short > 0 and abs(v_rest / v_cyl - 1.0) <= 1e-6):
+            raise ScenarioError(where, shown, f"the braid gives a volume of {v_rest * 1e6:.4g} cm^3 at "
+                                              f"rest (the cylinder holds {v_cyl * 1e6:.4g} cm^3) and "
+                                              f"{v_short * 1e6:.4g} cm^3 at max_contraction: must be "
+                                              "positive and match")
 
 
 VALVE_STATES = {"charge": (1, 0), "vent": (0, 1), "hold": (0, 0)}
@@ -326,6 +353,10 @@ class Controller:
 
 @dataclass(frozen=True)
 class Solver:
-    """Integration tolerances."""
+    """Integration tolerances and the wall-time limit of one run (a stiff circuit, e.g. a tiny
+    chamber behind a large valve, forces steps of microseconds: the run stops with a hint
+    instead of going on for hours)."""
     rtol: float = quantity("dimensionless", gt=1e-13, le=1e-2, default=1e-7)
     max_step: float = quantity("time", gt=0.0, display="ms", default=0.05)
+    max_wall_time: float = quantity("time", gt=0.0, le=1e7, display="s", default=300.0,
+                                    doc="wall-clock seconds one run may take (frogsim.simulate)")

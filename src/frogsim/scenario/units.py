@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import functools
+import re
 
 import pint
 
@@ -49,6 +50,33 @@ def parse_quantity(text: str, kind: str) -> float:
     return float(q.to(unit).magnitude)
 
 
+MAX_TEXT = 100     # characters of a quantity's text ("0.4 L/(s*bar)" has 13)
+# a power must raise a unit name (a letter before it) to a small whole exponent: "m^3", "s**-2";
+# pint would otherwise evaluate "10**10**10" exactly, which never ends
+_POWER = re.compile(r"(\*\*|\^)")
+_SMALL_EXPONENT = re.compile(r"\s*[-+]?\s*\d{1,2}(?![\d.eE])\s*(?!\*\*|\^)")
+
+
+def text_problem(text: str) -> str:
+    """Why a quantity's text is refused before pint sees it ("" if it may be parsed)."""
+    if len(text) > MAX_TEXT:
+        return f"longer than {MAX_TEXT} characters"
+    lowered = text.lower()
+    if lowered.count("%") + lowered.count("percent") > 1:
+        return "a percentage is written once, e.g. \"38 %\""
+    for m in _POWER.finditer(text):
+        before = text[:m.start()].rstrip()
+        if before.endswith(")"):            # "(m/s)^2": a group of unit names, no numbers in it
+            opened = before.rfind("(")
+            if opened >= 0 and not any(c.isdigit() for c in before[opened:]):
+                before = before[:opened] + "u"
+        if not before or not (before[-1].isalpha() or before[-1] == "_"):
+            return "a power applies to a unit name only, e.g. \"m^3\" (write numbers as 1e5)"
+        if not _SMALL_EXPONENT.match(text, m.end()):
+            return "a unit's power must be a whole number of one or two digits, e.g. \"m^3\""
+    return ""
+
+
 def to_si(value, kind: str, field: str) -> float:
     """Turn a scenario value into SI, or raise ScenarioError naming the field."""
     unit, what = SI_UNITS[kind]
@@ -60,6 +88,9 @@ def to_si(value, kind: str, field: str) -> float:
         raise ScenarioError(field, value, f"expected {what}: write the unit out")
     if not isinstance(value, str):
         raise ScenarioError(field, value, f"expected {what}")
+    problem = text_problem(value)
+    if problem:
+        raise ScenarioError(field, value, f"expected {what}: {problem}")
     try:
         return parse_quantity(value.strip(), kind)
     except Exception:  # pint raises several error types for bad text or dimensions
