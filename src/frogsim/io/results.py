@@ -5,6 +5,8 @@ import logging
 
 import numpy as np
 
+from frogsim.engine.measures import NO_PHASE
+
 
 log = logging.getLogger("frogsim")
 
@@ -56,7 +58,8 @@ def run_summary(result, notes: bool = True) -> dict:
             rise = result.rise(name)
             entry["rise_time_90_s"] = float(rise.seconds[0]) if rise.reason(0) is None else None
             entry["rise_time_90_reason"] = rise.reason(0)
-            entry["rise_target_pressure_bar_gauge"] = float((rise.p_target[0] - patm) / 1e5)
+            has_phase = rise.status[0] != NO_PHASE
+            entry["rise_target_pressure_bar_gauge"] = float((rise.p_target[0] - patm) / 1e5) if has_phase else None
             entry["pressure_at_close_bar_gauge"] = float((result.pressure_at_close(name) - patm) / 1e5)
             entry["aeration_volume_L"] = result.aeration_volume(name) * 1e3
             entry["branch_limited_fraction_of_rise"] = result.branch_limited_fraction(name, until="rise")
