@@ -5,7 +5,11 @@ The residual of experiment e, signal s at output time t_k is
     r = weight_s * sqrt(f_e) * (simulated_s(t_k) - measured_s(t_k)) / noise_s
 
 (``f_e`` <= 1 discounts a trace sampled more coarsely than the model's output grid, see
-:func:`frogsim.fit.traces.information_factor`). The parameters are fitted in the unit box: each
+:func:`frogsim.fit.traces.information_factor`); that of row i of a force table is
+
+    r = (F_model(p_i, eps_i) - F_i) / sigma_i,   sigma_i = max(noise, relative_noise * |F_i|)
+
+(:mod:`frogsim.fit.force`), both kinds in one vector when a spec has both. The parameters are fitted in the unit box: each
 runs from 0 at its ``min`` to 1 at its ``max`` (:func:`scipy.optimize.least_squares`, trust
 region reflective, bounds [0, 1]). Every Jacobian is one batch of variants run by the batched
 engine (:func:`frogsim.engine.batch.run_models`): forward differences of ``diff_step`` (a fraction
@@ -32,6 +36,7 @@ import numpy as np
 
 from frogsim._parallel import default_threads
 from frogsim.engine.batch import build_models, run_models
+from frogsim.fit.force import PREFIX, worst_errors
 from frogsim.fit.spec import FitSpec
 from frogsim.fit.traces import information_factor, model_grid, simulated
 
@@ -80,6 +85,7 @@ class FitResult:
     wall_s: float
     on_bound: dict                      # path -> "lower" / "upper"
     curves: list = field(default_factory=list, repr=False)  # per experiment: t, measured, before, after
+    force_curves: list = field(default_factory=list, repr=False)  # per force table: rows, before, after
 
     @property
     def paths(self) -> list[str]:
@@ -106,6 +112,9 @@ class Evaluator:
                 rows.append((s, meas[s], scale))
                 self.n_points += f * t.size
             self.blocks.append((t, rows, f))
+        self.scenario_paths = [p for p in self.paths if not p.startswith(PREFIX)]
+        for ft in spec.force_tables:
+            self.n_points += ft.table.force.size
         self.model_runs = 0
         self.threads = spec.threads
         self._lock = threading.Lock()
@@ -117,23 +126,34 @@ class Evaluator:
     def theta(self, x) -> np.ndarray:
         return (np.asarray(x, dtype=float) - self.lower) / self.span
 
+    def point(self, theta) -> dict:
+        """Dotted path -> SI value of a point of the unit box."""
+        return dict(zip(self.paths, map(float, self.x(theta))))
+
     def results(self, thetas) -> list[list]:
-        """Results [point][experiment], all points and experiments run as one batch."""
-        points = [dict(zip(self.paths, map(float, self.x(th)))) for th in thetas]
-        models = []
-        for e in self.spec.experiments:
-            models.extend(build_models(e.scenario, points))
-        runs = run_models(models, threads=self.threads)
-        with self._lock:
-            self.model_runs += len(models)
-        n = len(points)
-        return [[runs[k * n + j] for k in range(len(self.spec.experiments))] for j in range(n)]
+        """Results [point][experiment, then force table]: a Result per experiment, all points and
+        experiments run as one batch; the model forces [N] at its rows per force table."""
+        points = [self.point(th) for th in thetas]
+        n, m = len(points), len(self.spec.experiments)
+        runs = []
+        if m:
+            scen_points = [{p: pt[p] for p in self.scenario_paths} for pt in points]
+            models = []
+            for e in self.spec.experiments:
+                models.extend(build_models(e.scenario, scen_points))
+            runs = run_models(models, threads=self.threads)
+            with self._lock:
+                self.model_runs += len(models)
+        return [[runs[k * n + j] for k in range(m)] + [ft.model.forces(points[j]) for ft in self.spec.force_tables]
+                for j in range(n)]
 
     def residual(self, runs) -> np.ndarray:
         parts = []
         for (t, rows, _), r in zip(self.blocks, runs):
             for s, meas, scale in rows:
                 parts.append(scale * (simulated(r, s) - meas))
+        for ft, forces in zip(self.spec.force_tables, runs[len(self.blocks):]):
+            parts.append((forces - ft.table.force) / ft.sigma)
         return np.concatenate(parts)
 
     def residuals(self, thetas) -> np.ndarray:
@@ -234,8 +254,18 @@ def fit_spec(spec: FitSpec, progress: bool = False) -> FitResult:
             rms_after[(e.name, s)] = float(np.sqrt(np.mean((sa - meas) ** 2)))
             rms_before[(e.name, s)] = float(np.sqrt(np.mean((sb - meas) ** 2)))
         curves.append(c)
+    force_curves = []
+    m = len(spec.experiments)
+    for ft, fb, fa in zip(spec.force_tables, before_runs[m:], after_runs[m:]):
+        force_curves.append({"name": ft.name, "before": fb, "after": fa, "point_before": ev.point(thetas0[0]),
+                             "point_after": ev.point(theta), "worst": worst_errors(ft.table, fa),
+                             "worst_before": worst_errors(ft.table, fb)})
+        if ft.table.dropped:
+            res["warnings"].append(f"{ft.name}: {ft.table.dropped} row(s) with a negative force (a push) were "
+                                   "left out: the muscle law is tension-only")
     return FitResult(spec=spec, values=ev.x(theta), start_values=ev.x(thetas0[0]), starts=starts,
                      model_runs=ev.model_runs, wall_s=time.perf_counter() - t0, curves=curves,
+                     force_curves=force_curves,
                      rms_residual=rms_after, rms_residual_before=rms_before, **res)
 
 
@@ -249,7 +279,7 @@ def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
     norms = np.linalg.norm(J, axis=0)
     dead = [spec.parameters[j].path for j in range(p) if not norms[j] > 0]
     for path in dead:
-        warnings.append(f"{path} has no effect on the measured signals: it cannot be fitted from them")
+        warnings.append(f"{path} has no effect on the measured signals or forces: it cannot be fitted from them")
     safe = np.where(norms > 0, norms, 1.0)
     sv = np.linalg.svd(J / safe, compute_uv=False)
     cond = float((sv[0] / sv[-1]) ** 2) if sv[-1] > 0 else float("inf")
