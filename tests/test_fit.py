@@ -217,5 +217,7 @@ def test_spec_options_are_checked(rig_dir):
         load_fit_spec(spec(rig_dir, ["exact.csv"], BOUNDS, starts=0))
     with pytest.raises(frogsim.ScenarioError, match="fit spec: stars: unknown setting; did you mean 'starts'"):
         load_fit_spec(spec(rig_dir, ["exact.csv"], BOUNDS, stars=2))
+    with pytest.raises(frogsim.ScenarioError, match="fit spec: profile = 'valves.charge.dead_time': is not a fitted"):
+        load_fit_spec(spec(rig_dir, ["exact.csv"], BOUNDS, profile=["valves.charge.dead_time"]))
     with pytest.raises(frogsim.ScenarioError, match="parameters.valves.charge.sonic_conductance.start.*must lie within"):
         load_fit_spec(spec(rig_dir, ["exact.csv"], {C_PATH: {**BOUNDS[C_PATH], "start": "2 L/(s*bar)"}}))

@@ -175,3 +175,23 @@ def test_cli_outputs_worst_error_per_pressure_and_the_fitted_law(rig_dir, tmp_pa
                                                                                "release": "0.25 s"},
                                                         "motion": {"kind": "constant"}}}})
     assert base_law(sc).stiffness == pytest.approx(s["parameters"]["muscle_force.stiffness"]["value_si"], rel=1e-5)
+
+
+def test_profile_interval_matches_the_jacobian_interval_on_a_linear_case(rig_dir):
+    # force_scale and stiffness enter the law linearly (where it pulls): the profile interval of
+    # each must then equal the linearised one; strain_scale does not, and its profile interval
+    # must still contain the truth
+    write_table(rig_dir / "lin.csv", truth_rows(), noise_n=20.0, seed=3)
+    fixed = {k: v for k, v in BOUNDS.items() if k in ("muscle_force.force_scale", "muscle_force.stiffness")}
+    s = spec(rig_dir, "lin.csv", starts=1, profile=list(fixed))
+    s["parameters"] = fixed
+    res = fit(s)
+    for j, path in enumerate(res.paths):
+        lo, hi = res.profile[path]
+        width = res.ci_high[j] - res.ci_low[j]
+        assert lo == pytest.approx(res.ci_low[j], abs=1e-3 * width), path
+        assert hi == pytest.approx(res.ci_high[j], abs=1e-3 * width), path
+    res = fit(spec(rig_dir, "lin.csv", starts=1, profile=["muscle_force.strain_scale"]))
+    lo, hi = res.profile["muscle_force.strain_scale"]
+    assert lo <= TRUE["strain_scale"] <= hi
+    print("strain_scale: Jacobian", res.ci_low[1], res.ci_high[1], "profile", lo, hi)

@@ -254,7 +254,9 @@ def cmd_fit(args) -> int:
     for j, path in enumerate(res.paths):
         prm = spec.parameters[j]
         _progress(f"  {path} = {prm.shown(res.values[j])}  [{prm.shown(res.ci_low[j])} .. "
-                  f"{prm.shown(res.ci_high[j])}]")
+                  f"{prm.shown(res.ci_high[j])}]"
+                  + (f"  profile [{prm.shown(res.profile[path][0])} .. {prm.shown(res.profile[path][1])}]"
+                     if path in res.profile else ""))
     for c in res.force_curves:
         _progress(f"  {c['name']}: worst |fitted - measured| per pressure: " + ", ".join(
             f"{w['pressure_Pa_gauge'] / 1e5:g} bar {w['worst_abs_error_N']:.1f} N at {w['worst_at_contraction'] * 100:.3g} %"

@@ -23,6 +23,12 @@ q the two-sided Student-t (default) or normal quantile. These are linearised int
 assume independent errors and a model that fits; the warnings say when the data cannot separate
 the parameters, when a value sits on its bound, when the residuals are far from the stated noise
 or correlated in time.
+
+Profile intervals (``profile = ["path", ...]`` in the spec), a check on the linearised ones for
+the parameters named: parameter j is fixed at values around its estimate and the others are
+fitted again; the interval is where the profile's sum of squares S_j(x) stays within
+S_min + q^2 s^2 (the same q and s^2 as above). For a model linear in its parameters the two
+intervals coincide; where they differ, the profile one follows the model's curvature.
 """
 from __future__ import annotations
 
@@ -86,6 +92,7 @@ class FitResult:
     on_bound: dict                      # path -> "lower" / "upper"
     curves: list = field(default_factory=list, repr=False)  # per experiment: t, measured, before, after
     force_curves: list = field(default_factory=list, repr=False)  # per force table: rows, before, after
+    profile: dict = field(default_factory=dict)  # path -> (low, high) profile interval [SI], NaN if open
 
     @property
     def paths(self) -> list[str]:
@@ -164,6 +171,17 @@ class Evaluator:
         p = len(theta)
         h = np.where(theta + step <= 1.0, step, -step)
         pts = [theta + h[j] * np.eye(p)[j] for j in range(p)]
+        fs = self.residuals(pts)
+        return ((fs - f0) / h[:, None]).T
+
+    def partial_jacobian(self, theta, f0, step: float, free) -> np.ndarray:
+        """Forward differences in the ``free`` coordinates only, one batch."""
+        h = np.where(theta[free] + step <= 1.0, step, -step)
+        pts = []
+        for k, j in enumerate(free):
+            th = theta.copy()
+            th[j] += h[k]
+            pts.append(th)
         fs = self.residuals(pts)
         return ((fs - f0) / h[:, None]).T
 
@@ -263,6 +281,10 @@ def fit_spec(spec: FitSpec, progress: bool = False) -> FitResult:
         if ft.table.dropped:
             res["warnings"].append(f"{ft.name}: {ft.table.dropped} row(s) with a negative force (a push) were "
                                    "left out: the muscle law is tension-only")
+    res["profile"] = {}
+    for path in spec.profile:
+        j = [q_.path for q_ in spec.parameters].index(path)
+        res["profile"][path] = profile_interval(ev, spec, theta, j, float(f @ f), res)
     return FitResult(spec=spec, values=ev.x(theta), start_values=ev.x(thetas0[0]), starts=starts,
                      model_runs=ev.model_runs, wall_s=time.perf_counter() - t0, curves=curves,
                      force_curves=force_curves,
@@ -354,3 +376,61 @@ def _residual_warnings(spec, ev, runs, s2) -> list:
                    "intervals assume independent errors and are then too narrow; look at the residual plots "
                    "for what the model misses")
     return out
+
+
+def profile_interval(ev: Evaluator, spec: FitSpec, theta, j: int, s_min: float, res: dict) -> tuple:
+    """The profile interval of parameter j (module docstring): (low, high) in SI, each NaN if the
+    profile stays below the threshold all the way to that bound, or if no threshold can be set."""
+    from scipy.optimize import brentq, least_squares
+    s2, q = res["residual_variance"], res["quantile"]
+    if not (np.isfinite(s2) and s2 > 0):
+        return (float("nan"), float("nan"))
+    limit = q * q * s2
+    free = [k for k in range(len(theta)) if k != j]
+    warm = {"theta": np.asarray(theta, dtype=float).copy()}
+
+    def excess(tj: float) -> float:
+        th = warm["theta"].copy()
+        th[j] = tj
+        if free:
+            def fun(sub):
+                full = th.copy()
+                full[free] = sub
+                return ev.residuals([full])[0]
+
+            def jac(sub):
+                full = th.copy()
+                full[free] = sub
+                return ev.partial_jacobian(full, fun(sub), spec.diff_step, free)
+            sol = least_squares(fun, th[free], jac=jac, bounds=(0.0, 1.0), method="trf",
+                                max_nfev=spec.max_evaluations)
+            th[free] = sol.x
+            r = sol.fun
+        else:
+            r = ev.residuals([th])[0]
+        warm["theta"] = th
+        return float(r @ r) - s_min - limit
+
+    std_theta = res["std"][j] / ev.span[j]
+    step = std_theta * q if np.isfinite(std_theta) and std_theta > 0 else 0.05
+    ends = []
+    for sign in (-1.0, 1.0):
+        warm["theta"] = np.asarray(theta, dtype=float).copy()
+        inner, outer = float(theta[j]), float(theta[j])
+        found = False
+        for _ in range(12):                   # widen until the profile crosses the threshold
+            outer = min(1.0, max(0.0, inner + sign * step))
+            if excess(outer) > 0:
+                found = True
+                break
+            if outer in (0.0, 1.0):
+                break
+            inner, step = outer, 2.0 * step
+        if not found:
+            ends.append(float("nan"))
+            continue
+        a, b = sorted((inner, outer))
+        warm["theta"] = np.asarray(theta, dtype=float).copy()
+        tj = brentq(excess, a, b, xtol=1e-6 * max(b - a, 1e-12))
+        ends.append(float(ev.lower[j] + tj * ev.span[j]))
+    return tuple(ends)

@@ -58,6 +58,15 @@ def _ci_text(res: FitResult, j: int) -> str:
     return f"{conf} {lo / f:.4g} .. {hi / f:.4g}" + (f" {disp}" if disp else "")
 
 
+def _profile_text(res: FitResult, j: int) -> str:
+    prm = res.spec.parameters[j]
+    if prm.path not in res.profile:
+        return ""
+    lo, hi = res.profile[prm.path]
+    f = lambda x: _display(x, prm.meta, 4) if np.isfinite(x) else "open (beyond the bound)"  # noqa: E731
+    return f"; profile {f(lo)} .. {f(hi)}"
+
+
 def parameter_file_text(res: FitResult, date: str) -> tuple[str, list[str]]:
     """(TOML text of the fitted parameter set, fitted paths that are run settings and not in it)."""
     base = res.spec.base
@@ -164,6 +173,9 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
             "start_si": res.start_values[j], "min_si": prm.lower, "max_si": prm.upper,
             "on_bound": res.on_bound.get(prm.path), "in_parameter_file": prm.path not in left_out,
         }
+        if prm.path in res.profile:
+            lo, hi = res.profile[prm.path]
+            params[prm.path].update(profile_ci_low_si=lo, profile_ci_high_si=hi)
     exps = []
     for e, c in zip(spec.experiments, res.curves):
         exps.append({"name": e.name, "trace": e.trace.path, "overrides_si": e.overrides,
@@ -213,7 +225,7 @@ def _html(res: FitResult, s: dict, figures: list) -> str:
     for j, prm in enumerate(spec.parameters):
         d = s["parameters"][prm.path]
         rows.append(f"<tr><td><code>{esc(prm.path)}</code></td><td>{esc(d['value'])}</td>"
-                    f"<td>{esc(_ci_text(res, j))}</td><td>{esc(_display(res.start_values[j], prm.meta, 4))}</td>"
+                    f"<td>{esc(_ci_text(res, j))}{esc(_profile_text(res, j))}</td><td>{esc(_display(res.start_values[j], prm.meta, 4))}</td>"
                     f"<td>{esc(_display(prm.lower, prm.meta, 4))} .. {esc(_display(prm.upper, prm.meta, 4))}</td>"
                     f"<td>{esc(d['on_bound'] or '')}</td></tr>")
     corr_head = "".join(f"<th>{j + 1}</th>" for j in range(len(res.paths)))

@@ -52,7 +52,7 @@ from frogsim.scenario.load import load_scenario, read_toml
 from frogsim.scenario.units import to_si
 
 TOP_KEYS = ("scenario", "experiments", "force_tables", "parameters", "signals", "noise", "starts", "seed", "confidence",
-            "interval", "max_evaluations", "diff_step", "threads")
+            "interval", "profile", "max_evaluations", "diff_step", "threads")
 EXPERIMENT_KEYS = ("name", "trace", "overrides", "ignore_columns")
 FORCE_TABLE_KEYS = ("name", "table", "muscle", "noise", "relative_noise")
 PARAMETER_KEYS = ("min", "max", "start")
@@ -115,6 +115,7 @@ class FitSpec:
     diff_step: float = 1e-3
     threads: int | None = None
     force_tables: tuple = ()
+    profile: tuple = ()        # parameter paths whose profile interval is computed as well
 
 
 def _where(fname: str, key: str) -> str:
@@ -313,6 +314,13 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
     interval = raw.get("interval", "t")
     if interval not in ("t", "normal"):
         raise ScenarioError(_where(fname, "interval"), interval, "must be 't' (Student t quantile) or 'normal'")
+    prof = raw.get("profile", [])
+    fitted = [q.path for q in parameters]
+    if not isinstance(prof, list) or not all(isinstance(x, str) for x in prof):
+        raise ScenarioError(_where(fname, "profile"), prof, "expected a list of fitted parameter paths")
+    for x in prof:
+        if x not in fitted:
+            raise ScenarioError(_where(fname, "profile"), x, f"is not a fitted parameter (fitted: {', '.join(fitted)})")
     max_eval = _int(raw.get("max_evaluations", 200), "max_evaluations", fname, 1, 100000)
     step = raw.get("diff_step", 1e-3)
     if isinstance(step, bool) or not isinstance(step, (int, float)) or not 1e-8 <= step <= 0.1:
@@ -325,7 +333,7 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
     return FitSpec(path=str(path), base=base, experiments=tuple(experiments), parameters=tuple(parameters),
                    noise=noise, weights=weights, noise_given=given, starts=starts_n, seed=seed,
                    confidence=float(conf), interval=interval, max_evaluations=max_eval,
-                   diff_step=float(step), threads=thr, force_tables=tuple(force_tables))
+                   diff_step=float(step), threads=thr, force_tables=tuple(force_tables), profile=tuple(prof))
 
 
 def _current(scenario: Scenario, path: str) -> float:
