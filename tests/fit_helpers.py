@@ -47,12 +47,22 @@ def simulate_truth(rig: Path, truth: dict, overrides: dict | None = None):
     return frogsim.simulate(sc.replace({**(overrides or {}), **truth}))
 
 
-def write_trace(path: Path, result, noise_bar: float = 0.0, seed: int = 0, source: bool = False) -> Path:
-    """The hip pressure (and optionally the source pressure) in bar gauge, with Gaussian noise."""
+def adc(p_bar: np.ndarray, bits: int = 10, full_scale_bar: float = 10.0) -> np.ndarray:
+    """A converter of ``bits`` over 0..full scale (bar gauge): the nearest level, clipped to the range."""
+    levels = 2 ** bits - 1
+    return np.clip(np.round(p_bar / full_scale_bar * levels), 0, levels) * full_scale_bar / levels
+
+
+def write_trace(path: Path, result, noise_bar: float = 0.0, seed: int = 0, source: bool = False,
+                adc_bits: int | None = None) -> Path:
+    """The hip pressure (and optionally the source pressure) in bar gauge, with Gaussian noise, and
+    with ``adc_bits`` then quantised by a converter over 0..10 bar gauge (as examples/fit does)."""
     rng = np.random.default_rng(seed)
     cols = {"time [s]": result.t}
     cols["hip pressure [bar gauge]"] = (result.muscle_pressure("hip") - P_ATM) / BAR + \
         rng.normal(0.0, noise_bar, result.t.size) * (noise_bar > 0)
+    if adc_bits:
+        cols["hip pressure [bar gauge]"] = adc(cols["hip pressure [bar gauge]"], adc_bits)
     if source:
         cols["source pressure [kPa abs]"] = result.source_pressure / 1e3 + \
             rng.normal(0.0, noise_bar * 100, result.t.size) * (noise_bar > 0)

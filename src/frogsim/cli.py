@@ -320,14 +320,21 @@ def cmd_fit(args) -> int:
     from frogsim.fit.report import check_out, write_outputs
     check_out(args.out)
     spec = load_fit_spec(args.spec, starts=args.starts, threads=args.threads)   # traces too: before any write
-    _progress(f"fitting {len(spec.parameters)} parameters to {len(spec.experiments)} trace(s), "
+    tables = f" and {len(spec.force_tables)} force table(s)" if spec.force_tables else ""
+    _progress(f"fitting {len(spec.parameters)} parameters to {len(spec.experiments)} trace(s){tables}, "
               f"{spec.starts} start(s) ...")
     res = fit(spec, progress=not args.quiet)
     files = write_outputs(res, args.out)
     for j, path in enumerate(res.paths):
         prm = spec.parameters[j]
         _progress(f"  {path} = {prm.shown(res.values[j])}  [{prm.shown(res.ci_low[j])} .. "
-                  f"{prm.shown(res.ci_high[j])}]")
+                  f"{prm.shown(res.ci_high[j])}]"
+                  + (f"  profile [{prm.shown(res.profile[path][0])} .. {prm.shown(res.profile[path][1])}]"
+                     if path in res.profile else ""))
+    for c in res.force_curves:
+        _progress(f"  {c['name']}: worst |fitted - measured| per pressure: " + ", ".join(
+            f"{w['pressure_Pa_gauge'] / 1e5:g} bar {w['worst_abs_error_N']:.1f} N at {w['worst_at_contraction'] * 100:.3g} %"
+            for w in c["worst"]))
     for w in res.warnings:
         _progress(f"warning: {w}")
     _progress(f"{res.model_runs} model runs in {res.wall_s:.1f} s; wrote "
@@ -422,7 +429,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default=None, metavar="FIG.png",
                    help="figure file (default: beside the results, named after the metric and axes)")
     s.set_defaults(func=cmd_plot)
-    s = sub.add_parser("fit", help="fit parameters to measured traces: fitted-parameters.toml, figures, "
+    s = sub.add_parser("fit", help="fit parameters to measured traces and force tables: fitted-parameters.toml, figures, "
                                    "report.html, summary.json (see docs/fitting.md)")
     s.add_argument("spec", metavar="FIT.toml", help="fit spec: base scenario, experiments, parameters")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder")

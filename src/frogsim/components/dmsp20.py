@@ -45,6 +45,26 @@ REFERENCE = {
 FIT_PRESSURES = (1.0e5, 3.0e5, 5.0e5)      # rows used by the fit; 2, 4, 6 bar are held out
 
 
+def law_forces(pressure, contraction, constants, inner_diameter: float = 0.020,
+               braid_angle: float = math.radians(25.3), model="dmsp20") -> np.ndarray:
+    """The force law's tension [N] at gauge pressures [Pa] and contractions [-] (arrays of one shape).
+
+    ``constants``: (force_scale, strain_scale, stiffness, stretch_stiffness, stretch_quadratic) in
+    SI; ``model``: "dmsp20" (the corrected law) or "ideal" (Chou-Hannaford alone). Used by
+    :func:`fit_bladder` and by ``frogsim fit`` for force tables (:mod:`frogsim.fit.force`).
+    """
+    from frogsim.physics.muscle import braid_parameters
+    from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL, muscle_force
+    code = {"dmsp20": MODEL_DMSP20, "ideal": MODEL_IDEAL}.get(model, model)
+    L0 = 0.18          # any length: the law depends on the contraction only
+    b0, n = braid_parameters(L0, inner_diameter, braid_angle)
+    c = [float(x) for x in constants]
+    p = np.asarray(pressure, dtype=float)
+    e = np.asarray(contraction, dtype=float)
+    return np.array([muscle_force(code, float(pi), L0 * (1.0 - float(ei)), L0, b0, n, *c)
+                     for pi, ei in zip(p.ravel(), e.ravel())]).reshape(p.shape)
+
+
 def fit_bladder(inner_diameter: float = 0.020, braid_angle: float = math.radians(25.3),
                 pressures=FIT_PRESSURES) -> dict:
     """Least-squares fit of the bladder constants to the reference rows at ``pressures``.
@@ -55,20 +75,16 @@ def fit_bladder(inner_diameter: float = 0.020, braid_angle: float = math.radians
     """
     from scipy.optimize import least_squares
 
-    from frogsim.physics.muscle import braid_parameters
-    from frogsim.physics.muscle_force import MODEL_DMSP20, muscle_force
-
-    L0 = 0.18          # any length: the law depends on the contraction only
-    b0, n = braid_parameters(L0, inner_diameter, braid_angle)
     rows = []
     for p in pressures:
         eps, force = (np.asarray(v, float) for v in REFERENCE[p])
         keep = force >= 0.0
         rows += [(p, e, f) for e, f in zip(eps[keep], force[keep])]
+    p_rows, e_rows, f_rows = (np.array(v) for v in zip(*rows))
+    sigma = np.maximum(0.1 * f_rows, 50.0)
 
     def residuals(c):
-        return np.array([(muscle_force(MODEL_DMSP20, p, L0 * (1.0 - e), L0, b0, n, *c) - f)
-                         / max(0.1 * f, 50.0) for p, e, f in rows])
+        return (law_forces(p_rows, e_rows, c, inner_diameter, braid_angle) - f_rows) / sigma
 
     sol = least_squares(residuals, [120.0, 0.02, 600.0, 7000.0, 2.5e5],
                         bounds=([0.0, 1e-3, 0.0, 0.0, 0.0], [1e4, 0.5, 1e5, 1e6, 1e8]))

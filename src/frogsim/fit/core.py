@@ -5,7 +5,11 @@ The residual of experiment e, signal s at output time t_k is
     r = weight_s * sqrt(f_e) * (simulated_s(t_k) - measured_s(t_k)) / noise_s
 
 (``f_e`` <= 1 discounts a trace sampled more coarsely than the model's output grid, see
-:func:`frogsim.fit.traces.information_factor`). The parameters are fitted in the unit box: each
+:func:`frogsim.fit.traces.information_factor`); that of row i of a force table is
+
+    r = (F_model(p_i, eps_i) - F_i) / sigma_i,   sigma_i = max(noise, relative_noise * |F_i|)
+
+(:mod:`frogsim.fit.force`), both kinds in one vector when a spec has both. The parameters are fitted in the unit box: each
 runs from 0 at its ``min`` to 1 at its ``max`` (:func:`scipy.optimize.least_squares`, trust
 region reflective, bounds [0, 1]). Every Jacobian is one batch of variants run by the batched
 engine (:func:`frogsim.engine.batch.run_models`): forward differences of ``diff_step`` (a fraction
@@ -19,6 +23,12 @@ q the two-sided Student-t (default) or normal quantile. These are linearised int
 assume independent errors and a model that fits; the warnings say when the data cannot separate
 the parameters, when a value sits on its bound, when the residuals are far from the stated noise
 or correlated in time.
+
+Profile intervals (``profile = ["path", ...]`` in the spec), a check on the linearised ones for
+the parameters named: parameter j is fixed at values around its estimate and the others are
+fitted again; the interval is where the profile's sum of squares S_j(x) stays within
+S_min + q^2 s^2 (the same q and s^2 as above). For a model linear in its parameters the two
+intervals coincide; where they differ, the profile one follows the model's curvature.
 """
 from __future__ import annotations
 
@@ -32,6 +42,7 @@ import numpy as np
 
 from frogsim._parallel import default_threads
 from frogsim.engine.batch import build_models, run_models
+from frogsim.fit.force import PREFIX, worst_errors
 from frogsim.fit.spec import FitSpec
 from frogsim.fit.traces import information_factor, model_grid, simulated
 
@@ -80,6 +91,8 @@ class FitResult:
     wall_s: float
     on_bound: dict                      # path -> "lower" / "upper"
     curves: list = field(default_factory=list, repr=False)  # per experiment: t, measured, before, after
+    force_curves: list = field(default_factory=list, repr=False)  # per force table: rows, before, after
+    profile: dict = field(default_factory=dict)  # path -> (low, high) profile interval [SI], NaN if open
 
     @property
     def paths(self) -> list[str]:
@@ -106,6 +119,9 @@ class Evaluator:
                 rows.append((s, meas[s], scale))
                 self.n_points += f * t.size
             self.blocks.append((t, rows, f))
+        self.scenario_paths = [p for p in self.paths if not p.startswith(PREFIX)]
+        for ft in spec.force_tables:
+            self.n_points += ft.table.force.size
         self.model_runs = 0
         self.threads = spec.threads
         self._lock = threading.Lock()
@@ -117,23 +133,34 @@ class Evaluator:
     def theta(self, x) -> np.ndarray:
         return (np.asarray(x, dtype=float) - self.lower) / self.span
 
+    def point(self, theta) -> dict:
+        """Dotted path -> SI value of a point of the unit box."""
+        return dict(zip(self.paths, map(float, self.x(theta))))
+
     def results(self, thetas) -> list[list]:
-        """Results [point][experiment], all points and experiments run as one batch."""
-        points = [dict(zip(self.paths, map(float, self.x(th)))) for th in thetas]
-        models = []
-        for e in self.spec.experiments:
-            models.extend(build_models(e.scenario, points))
-        runs = run_models(models, threads=self.threads)
-        with self._lock:
-            self.model_runs += len(models)
-        n = len(points)
-        return [[runs[k * n + j] for k in range(len(self.spec.experiments))] for j in range(n)]
+        """Results [point][experiment, then force table]: a Result per experiment, all points and
+        experiments run as one batch; the model forces [N] at its rows per force table."""
+        points = [self.point(th) for th in thetas]
+        n, m = len(points), len(self.spec.experiments)
+        runs = []
+        if m:
+            scen_points = [{p: pt[p] for p in self.scenario_paths} for pt in points]
+            models = []
+            for e in self.spec.experiments:
+                models.extend(build_models(e.scenario, scen_points))
+            runs = run_models(models, threads=self.threads)
+            with self._lock:
+                self.model_runs += len(models)
+        return [[runs[k * n + j] for k in range(m)] + [ft.model.forces(points[j]) for ft in self.spec.force_tables]
+                for j in range(n)]
 
     def residual(self, runs) -> np.ndarray:
         parts = []
         for (t, rows, _), r in zip(self.blocks, runs):
             for s, meas, scale in rows:
                 parts.append(scale * (simulated(r, s) - meas))
+        for ft, forces in zip(self.spec.force_tables, runs[len(self.blocks):]):
+            parts.append((forces - ft.table.force) / ft.sigma)
         return np.concatenate(parts)
 
     def residuals(self, thetas) -> np.ndarray:
@@ -144,6 +171,17 @@ class Evaluator:
         p = len(theta)
         h = np.where(theta + step <= 1.0, step, -step)
         pts = [theta + h[j] * np.eye(p)[j] for j in range(p)]
+        fs = self.residuals(pts)
+        return ((fs - f0) / h[:, None]).T
+
+    def partial_jacobian(self, theta, f0, step: float, free) -> np.ndarray:
+        """Forward differences in the ``free`` coordinates only, one batch."""
+        h = np.where(theta[free] + step <= 1.0, step, -step)
+        pts = []
+        for k, j in enumerate(free):
+            th = theta.copy()
+            th[j] += h[k]
+            pts.append(th)
         fs = self.residuals(pts)
         return ((fs - f0) / h[:, None]).T
 
@@ -234,8 +272,22 @@ def fit_spec(spec: FitSpec, progress: bool = False) -> FitResult:
             rms_after[(e.name, s)] = float(np.sqrt(np.mean((sa - meas) ** 2)))
             rms_before[(e.name, s)] = float(np.sqrt(np.mean((sb - meas) ** 2)))
         curves.append(c)
+    force_curves = []
+    m = len(spec.experiments)
+    for ft, fb, fa in zip(spec.force_tables, before_runs[m:], after_runs[m:]):
+        force_curves.append({"name": ft.name, "before": fb, "after": fa, "point_before": ev.point(thetas0[0]),
+                             "point_after": ev.point(theta), "worst": worst_errors(ft.table, fa),
+                             "worst_before": worst_errors(ft.table, fb)})
+        if ft.table.dropped:
+            res["warnings"].append(f"{ft.name}: {ft.table.dropped} row(s) with a negative force (a push) were "
+                                   "left out: the muscle law is tension-only")
+    res["profile"] = {}
+    for path in spec.profile:
+        j = [q_.path for q_ in spec.parameters].index(path)
+        res["profile"][path] = profile_interval(ev, spec, theta, j, float(f @ f), res)
     return FitResult(spec=spec, values=ev.x(theta), start_values=ev.x(thetas0[0]), starts=starts,
                      model_runs=ev.model_runs, wall_s=time.perf_counter() - t0, curves=curves,
+                     force_curves=force_curves,
                      rms_residual=rms_after, rms_residual_before=rms_before, **res)
 
 
@@ -249,7 +301,7 @@ def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
     norms = np.linalg.norm(J, axis=0)
     dead = [spec.parameters[j].path for j in range(p) if not norms[j] > 0]
     for path in dead:
-        warnings.append(f"{path} has no effect on the measured signals: it cannot be fitted from them")
+        warnings.append(f"{path} has no effect on the measured signals or forces: it cannot be fitted from them")
     safe = np.where(norms > 0, norms, 1.0)
     sv = np.linalg.svd(J / safe, compute_uv=False)
     cond = float((sv[0] / sv[-1]) ** 2) if sv[-1] > 0 else float("inf")
@@ -324,3 +376,61 @@ def _residual_warnings(spec, ev, runs, s2) -> list:
                    "intervals assume independent errors and are then too narrow; look at the residual plots "
                    "for what the model misses")
     return out
+
+
+def profile_interval(ev: Evaluator, spec: FitSpec, theta, j: int, s_min: float, res: dict) -> tuple:
+    """The profile interval of parameter j (module docstring): (low, high) in SI, each NaN if the
+    profile stays below the threshold all the way to that bound, or if no threshold can be set."""
+    from scipy.optimize import brentq, least_squares
+    s2, q = res["residual_variance"], res["quantile"]
+    if not (np.isfinite(s2) and s2 > 0):
+        return (float("nan"), float("nan"))
+    limit = q * q * s2
+    free = [k for k in range(len(theta)) if k != j]
+    warm = {"theta": np.asarray(theta, dtype=float).copy()}
+
+    def excess(tj: float) -> float:
+        th = warm["theta"].copy()
+        th[j] = tj
+        if free:
+            def fun(sub):
+                full = th.copy()
+                full[free] = sub
+                return ev.residuals([full])[0]
+
+            def jac(sub):
+                full = th.copy()
+                full[free] = sub
+                return ev.partial_jacobian(full, fun(sub), spec.diff_step, free)
+            sol = least_squares(fun, th[free], jac=jac, bounds=(0.0, 1.0), method="trf",
+                                max_nfev=spec.max_evaluations)
+            th[free] = sol.x
+            r = sol.fun
+        else:
+            r = ev.residuals([th])[0]
+        warm["theta"] = th
+        return float(r @ r) - s_min - limit
+
+    std_theta = res["std"][j] / ev.span[j]
+    step = std_theta * q if np.isfinite(std_theta) and std_theta > 0 else 0.05
+    ends = []
+    for sign in (-1.0, 1.0):
+        warm["theta"] = np.asarray(theta, dtype=float).copy()
+        inner, outer = float(theta[j]), float(theta[j])
+        found = False
+        for _ in range(12):                   # widen until the profile crosses the threshold
+            outer = min(1.0, max(0.0, inner + sign * step))
+            if excess(outer) > 0:
+                found = True
+                break
+            if outer in (0.0, 1.0):
+                break
+            inner, step = outer, 2.0 * step
+        if not found:
+            ends.append(float("nan"))
+            continue
+        a, b = sorted((inner, outer))
+        warm["theta"] = np.asarray(theta, dtype=float).copy()
+        tj = brentq(excess, a, b, xtol=1e-6 * max(b - a, 1e-12))
+        ends.append(float(ev.lower[j] + tj * ev.span[j]))
+    return tuple(ends)

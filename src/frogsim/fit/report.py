@@ -5,6 +5,8 @@
                             95 % CI ..."``; usable as ``parameters = "fitted-parameters.toml"``
 ``fit-<k>-<name>.png``      per experiment and signal: measured and simulated (at the start and
                             fitted values) against time, and the residuals after the fit
+``force-<k>-<name>.png``    per force table: measured force and the law (start and fitted values)
+                            against contraction, one colour per pressure, and the residuals
 ``report.html``             one page: parameters, intervals, correlations, warnings, the figures
                             embedded as base64 PNG (no network needed)
 ``summary.json``            every number, SI units named in the keys
@@ -56,11 +58,21 @@ def _ci_text(res: FitResult, j: int) -> str:
     return f"{conf} {lo / f:.4g} .. {hi / f:.4g}" + (f" {disp}" if disp else "")
 
 
+def _profile_text(res: FitResult, j: int) -> str:
+    prm = res.spec.parameters[j]
+    if prm.path not in res.profile:
+        return ""
+    lo, hi = res.profile[prm.path]
+    f = lambda x: _display(x, prm.meta, 4) if np.isfinite(x) else "open (beyond the bound)"  # noqa: E731
+    return f"; profile {f(lo)} .. {f(hi)}"
+
+
 def parameter_file_text(res: FitResult, date: str) -> tuple[str, list[str]]:
     """(TOML text of the fitted parameter set, fitted paths that are run settings and not in it)."""
     base = res.spec.base
     raw = load_parameter_set(base.parameters, base.base_dir)
-    traces = ", ".join(e.trace.name for e in res.spec.experiments)
+    traces = ", ".join([e.trace.name for e in res.spec.experiments] +
+                       [f.table.name for f in res.spec.force_tables])
     left_out = []
     for j, prm in enumerate(res.spec.parameters):
         keys = prm.path.split(".")
@@ -114,6 +126,37 @@ def draw_experiment(res: FitResult, k: int, path: str) -> None:
     save(fig, path, source_note=f"trace {e.trace.name}; scenario {e.scenario.name}")
 
 
+def draw_force_table(res: FitResult, k: int, path: str) -> None:
+    """Measured force and the law at the start and fitted values against contraction, per pressure;
+    below, the residuals (fitted - measured) with +-2 x each row's stated noise."""
+    ft = res.spec.force_tables[k]
+    c = res.force_curves[k]
+    tab = ft.table
+    fig, axes = figure(2, 1, width=8.0, height=8.0, sharex=True)
+    ax, axr = axes[0, 0], axes[1, 0]
+    lo, hi = min(tab.contraction.min(), 0.0), tab.contraction.max()
+    grid = np.linspace(lo, hi, 200)
+    for i, p in enumerate(tab.pressures()):
+        color = f"C{i % 10}"
+        idx = tab.pressure == p
+        ax.plot(tab.contraction[idx] * 100, tab.force[idx], "o", color=color, mfc="none", label=f"{p / 1e5:g} bar measured")
+        pp = np.full_like(grid, p)
+        ax.plot(grid * 100, ft.model.forces(c["point_before"], pp, grid), "--", color=color, lw=0.9)
+        ax.plot(grid * 100, ft.model.forces(c["point_after"], pp, grid), "-", color=color, lw=1.4)
+        axr.plot(tab.contraction[idx] * 100, (c["after"] - tab.force)[idx], "o", color=color, ms=4)
+    order = np.argsort(tab.contraction)
+    axr.fill_between(tab.contraction[order] * 100, -2 * ft.sigma[order], 2 * ft.sigma[order], color="tab:green",
+                     alpha=0.1, lw=0, label="+-2 x stated noise")
+    axr.axhline(0.0, color="k", lw=0.8)
+    ax.set_ylabel("force [N]")
+    ax.set_title(f"{c['name']}: measured (o), law with fitted (solid) and start (dashed) constants", fontsize=10)
+    ax.legend(fontsize=7, ncol=2, loc="best")
+    axr.set_ylabel("fitted - measured [N]")
+    axr.set_xlabel("contraction [%] (negative: stretched)")
+    axr.legend(fontsize=8, loc="best")
+    save(fig, path, source_note=f"force table {tab.name}; muscle type {ft.model.muscle_type}")
+
+
 def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "-", text).strip("-") or "experiment"
 
@@ -130,6 +173,9 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
             "start_si": res.start_values[j], "min_si": prm.lower, "max_si": prm.upper,
             "on_bound": res.on_bound.get(prm.path), "in_parameter_file": prm.path not in left_out,
         }
+        if prm.path in res.profile:
+            lo, hi = res.profile[prm.path]
+            params[prm.path].update(profile_ci_low_si=lo, profile_ci_high_si=hi)
     exps = []
     for e, c in zip(spec.experiments, res.curves):
         exps.append({"name": e.name, "trace": e.trace.path, "overrides_si": e.overrides,
@@ -139,6 +185,13 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
                                      "rms_residual_start_Pa": res.rms_residual_before[(e.name, s)],
                                      "rms_residual_fitted_Pa": res.rms_residual[(e.name, s)]}
                                  for s in c["signals"]}})
+    forces = []
+    for ft, c in zip(spec.force_tables, res.force_curves):
+        forces.append({"name": ft.name, "table": ft.table.path, "muscle_type": ft.model.muscle_type,
+                       "rows": int(ft.table.force.size), "rows_left_out_negative_force": ft.table.dropped,
+                       "columns": ft.table.columns, "noise_N": ft.noise, "relative_noise": ft.relative_noise,
+                       "per_pressure": c["worst"],
+                       "per_pressure_start": c["worst_before"]})
     return {
         "fit_spec": spec.path, "date": date, "base_scenario": spec.base.name, "parameter_set": spec.base.parameters,
         "parameters": params,
@@ -152,6 +205,7 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
         "correlation": {"paths": res.paths, "matrix": res.correlation.tolist()},
         "warnings": list(res.warnings),
         "experiments": exps,
+        "force_tables": forces,
         "starts": [{"start_si": dict(zip(res.paths, _x(res, s.theta0))), "end_si": dict(zip(res.paths, _x(res, s.theta))),
                     "cost": s.cost, "evaluations": s.evaluations, "jacobians": s.jacobians, "message": s.message}
                    for s in res.starts],
@@ -171,7 +225,7 @@ def _html(res: FitResult, s: dict, figures: list) -> str:
     for j, prm in enumerate(spec.parameters):
         d = s["parameters"][prm.path]
         rows.append(f"<tr><td><code>{esc(prm.path)}</code></td><td>{esc(d['value'])}</td>"
-                    f"<td>{esc(_ci_text(res, j))}</td><td>{esc(_display(res.start_values[j], prm.meta, 4))}</td>"
+                    f"<td>{esc(_ci_text(res, j))}{esc(_profile_text(res, j))}</td><td>{esc(_display(res.start_values[j], prm.meta, 4))}</td>"
                     f"<td>{esc(_display(prm.lower, prm.meta, 4))} .. {esc(_display(prm.upper, prm.meta, 4))}</td>"
                     f"<td>{esc(d['on_bound'] or '')}</td></tr>")
     corr_head = "".join(f"<th>{j + 1}</th>" for j in range(len(res.paths)))
@@ -186,12 +240,23 @@ def _html(res: FitResult, s: dict, figures: list) -> str:
     imgs = "".join(f"<figure><img alt=\"{esc(name)}\" src=\"data:image/png;base64,{b64}\"/>"
                    f"<figcaption>{esc(name)}</figcaption></figure>" for name, b64 in figures)
     meaning = esc(s["residual_variance_meaning"])
+    force_html = ""
+    if s["force_tables"]:
+        trs = "".join(f"<tr><td>{esc(f['name'])}</td><td>{w['pressure_Pa_gauge'] / 1e5:g}</td><td>{w['rows']}</td>"
+                      f"<td>{w['rms_error_N']:.1f}</td><td>{w['worst_abs_error_N']:.1f}</td>"
+                      f"<td>{w['worst_at_contraction'] * 100:.3g}</td><td>{w['worst_measured_N']:.1f}</td>"
+                      f"<td>{w['worst_model_N']:.1f}</td></tr>"
+                      for f in s["force_tables"] for w in f["per_pressure"])
+        force_html = f"""<h2>Force law against the force tables</h2>
+<table><tr><th>table</th><th>pressure [bar gauge]</th><th>rows</th><th>rms error [N]</th><th>worst |error| [N]</th>
+<th>at contraction [%]</th><th>measured there [N]</th><th>model there [N]</th></tr>{trs}</table>
+<p>Error = law with the fitted constants - measured. Each row's noise: max(noise, relative_noise &times; |force|).</p>"""
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>frogsim fit: {esc(Path(spec.path).name)}</title>
 <style>body{{font-family:sans-serif;max-width:60em;margin:1em auto;padding:0 1em}}
 table{{border-collapse:collapse}}td,th{{border:1px solid #bbb;padding:2px 6px;text-align:left}}
 img{{max-width:100%}}li{{margin:0.3em 0}}.w li{{color:#a40}}</style></head><body>
-<h1>Fit of {esc(spec.base.name)} to {len(spec.experiments)} measured run(s)</h1>
+<h1>Fit of {esc(spec.base.name)} to {len(spec.experiments)} measured run(s) and {len(spec.force_tables)} force table(s)</h1>
 <p>{esc(s['date'])}: <code>{esc(Path(spec.path).name)}</code>, parameter set {esc(spec.base.parameters)};
 {len(res.starts)} start(s), {res.model_runs} model runs in {res.wall_s:.1f} s.</p>
 <h2>Fitted values</h2>
@@ -205,7 +270,8 @@ the errors are independent and the model fits.</p>
 <h2>Correlation of the estimates</h2>
 <table><tr><th></th>{corr_head}</tr>{corr_rows}</table>
 <p>Condition number of the column-scaled J<sup>T</sup>J: {res.condition_number:.3g}.</p>
-<h2>Experiments</h2><ul>{exps}</ul>
+{force_html}
+<h2>Experiments</h2><ul>{exps or "<li>none</li>"}</ul>
 <h2>Measured and simulated</h2>{imgs}
 </body></html>
 """
@@ -223,6 +289,11 @@ def write_outputs(res: FitResult, out) -> dict:
         p = out / f"fit-{k + 1}-{_slug(e.name)}.png"
         write_figure(p, lambda tmp, k=k: draw_experiment(res, k, tmp))
         files[f"figure {k + 1}"] = p
+        figures.append((p.name, base64.b64encode(p.read_bytes()).decode("ascii")))
+    for k, ft in enumerate(res.spec.force_tables):
+        p = out / f"force-{k + 1}-{_slug(ft.name)}.png"
+        write_figure(p, lambda tmp, k=k: draw_force_table(res, k, tmp))
+        files[f"force figure {k + 1}"] = p
         figures.append((p.name, base64.b64encode(p.read_bytes()).decode("ascii")))
     atomic_write(out / PARAMETER_FILE, lambda tmp: Path(tmp).write_text(text))
     files["parameters"] = out / PARAMETER_FILE

@@ -21,6 +21,16 @@
     noise = "0.03 bar"
     weight = 1.0
 
+    [[force_tables]]                   # optional: fit the muscle force law (docs/fitting.md)
+    table = "dmsp20.csv"               # pressure [bar gauge], contraction [%], force [N]
+    muscle = "hip"                     # the muscle type whose braid the table was measured on
+    noise = "50 N"                     # each row's noise: max(noise, relative_noise x |force|)
+    relative_noise = 0.1
+
+``experiments`` and ``force_tables`` may each be left out, not both. Force-law constants are fitted
+as ``muscle_force.<name>`` (force_scale, strain_scale, stiffness, stretch_stiffness,
+stretch_quadratic).
+
 Everything is read and checked here, traces included, before anything runs or is written: every
 refusal is a one-line :class:`frogsim.ScenarioError` naming the file and the field.
 """
@@ -32,19 +42,25 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from frogsim.errors import MISSING, UNKNOWN, ScenarioError
+import numpy as np
+
+from frogsim.fit.force import PREFIX, ForceModel, ForceTable, base_law, law_meta, read_force_table
 from frogsim.fit.traces import Trace, model_signals, read_trace
 from frogsim.scenario.core import Scenario
-from frogsim.scenario.fields import shown, unknown_key_error
+from frogsim.scenario.fields import check_bounds, shown, unknown_key_error
 from frogsim.scenario.load import load_scenario, read_toml
 from frogsim.scenario.units import to_si
 
-TOP_KEYS = ("scenario", "experiments", "parameters", "signals", "noise", "starts", "seed", "confidence",
-            "interval", "max_evaluations", "diff_step", "threads")
+TOP_KEYS = ("scenario", "experiments", "force_tables", "parameters", "signals", "noise", "starts", "seed", "confidence",
+            "interval", "profile", "max_evaluations", "diff_step", "threads")
 EXPERIMENT_KEYS = ("name", "trace", "overrides", "ignore_columns")
+FORCE_TABLE_KEYS = ("name", "table", "muscle", "noise", "relative_noise")
 PARAMETER_KEYS = ("min", "max", "start")
 SIGNAL_KEYS = ("noise", "weight")
 #: used when no noise is given: the intervals then rest on the residual variance alone
 DEFAULT_NOISE_PA = 1.0e3
+#: the same for a force table [N]
+DEFAULT_NOISE_N = 10.0
 
 
 @dataclass(frozen=True)
@@ -71,6 +87,18 @@ class Experiment:
 
 
 @dataclass(frozen=True)
+class ForceExperiment:
+    """One force-contraction table, its model and each row's noise [N]."""
+    name: str
+    table: ForceTable
+    model: ForceModel
+    sigma: np.ndarray
+    noise: float               # N
+    relative_noise: float
+    noise_given: bool
+
+
+@dataclass(frozen=True)
 class FitSpec:
     path: str
     base: Scenario
@@ -86,6 +114,8 @@ class FitSpec:
     max_evaluations: int = 200
     diff_step: float = 1e-3
     threads: int | None = None
+    force_tables: tuple = ()
+    profile: tuple = ()        # parameter paths whose profile interval is computed as well
 
 
 def _where(fname: str, key: str) -> str:
@@ -158,7 +188,7 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
         raise ScenarioError(_where(fname, "scenario"), scen, "expected a TOML path or a shipped scenario name")
     scen_path = base_dir / scen
     base = load_scenario(str(scen_path) if scen_path.exists() else scen)
-    variables = base.variable_paths()
+    variables = {**base.variable_paths(), **law_meta()}
 
     # parameters
     params_raw = raw.get("parameters")
@@ -184,6 +214,8 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
             raise ScenarioError(f"{where}.max", spec["max"], f"must be above min ({spec['min']})")
         if "start" in spec:
             x0 = _quantity(spec["start"], meta, f"{where}.start")
+        elif p.startswith(PREFIX):
+            x0 = float(getattr(base_law(base), p[len(PREFIX):]))
         else:
             x0 = _current(base, p)
         if not lo <= x0 <= hi:
@@ -191,16 +223,19 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
                                 f"must lie within min and max ({spec['min']} .. {spec['max']})")
         for key, x in (("min", lo), ("max", hi)):          # the field's own bounds and rules
             try:
-                base.replace({p: x})
+                if p.startswith(PREFIX):
+                    check_bounds(x, meta, p, spec[key])
+                else:
+                    base.replace({p: x})
             except ScenarioError as exc:
                 raise ScenarioError(f"{where}.{key}", spec[key], f"not allowed for this setting ({exc})") from None
         parameters.append(Parameter(p, lo, hi, x0, meta))
 
     # experiments
-    exps_raw = raw.get("experiments")
-    if not isinstance(exps_raw, list) or not exps_raw:
+    exps_raw = raw.get("experiments", [] if "force_tables" in raw else None)
+    if not isinstance(exps_raw, list) or (not exps_raw and "force_tables" not in raw):
         raise ScenarioError(_where(fname, "experiments"), exps_raw if exps_raw is not None else MISSING,
-                            "expected one or more [[experiments]] with a trace")
+                            "expected one or more [[experiments]] with a trace (or [[force_tables]])")
     experiments, names = [], set()
     for k, e in enumerate(exps_raw):
         where = _where(fname, f"experiments[{k}]")
@@ -229,6 +264,8 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
             raise ScenarioError(f"{where}.name", name, "expected a name used by no other experiment")
         names.add(name)
         experiments.append(Experiment(name, scenario, trace, over))
+
+    force_tables = _force_tables(raw, base, base_dir, fname, names)
 
     # noise and weights, per signal
     signals = sorted({s for e in experiments for s in e.trace.signals})
@@ -261,7 +298,8 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
             weights[s] = float(w)
     if default_noise is not None and not default_noise > 0:
         raise ScenarioError(_where(fname, "noise"), raw["noise"], "must be > 0")
-    given = all(s in noise for s in signals) or default_noise is not None
+    given = (all(s in noise for s in signals) or default_noise is not None or not signals) and \
+        all(f.noise_given for f in force_tables)
     for s in signals:
         noise.setdefault(s, default_noise if default_noise is not None else DEFAULT_NOISE_PA)
         weights.setdefault(s, 1.0)
@@ -276,6 +314,13 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
     interval = raw.get("interval", "t")
     if interval not in ("t", "normal"):
         raise ScenarioError(_where(fname, "interval"), interval, "must be 't' (Student t quantile) or 'normal'")
+    prof = raw.get("profile", [])
+    fitted = [q.path for q in parameters]
+    if not isinstance(prof, list) or not all(isinstance(x, str) for x in prof):
+        raise ScenarioError(_where(fname, "profile"), prof, "expected a list of fitted parameter paths")
+    for x in prof:
+        if x not in fitted:
+            raise ScenarioError(_where(fname, "profile"), x, f"is not a fitted parameter (fitted: {', '.join(fitted)})")
     max_eval = _int(raw.get("max_evaluations", 200), "max_evaluations", fname, 1, 100000)
     step = raw.get("diff_step", 1e-3)
     if isinstance(step, bool) or not isinstance(step, (int, float)) or not 1e-8 <= step <= 0.1:
@@ -288,7 +333,7 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
     return FitSpec(path=str(path), base=base, experiments=tuple(experiments), parameters=tuple(parameters),
                    noise=noise, weights=weights, noise_given=given, starts=starts_n, seed=seed,
                    confidence=float(conf), interval=interval, max_evaluations=max_eval,
-                   diff_step=float(step), threads=thr)
+                   diff_step=float(step), threads=thr, force_tables=tuple(force_tables), profile=tuple(prof))
 
 
 def _current(scenario: Scenario, path: str) -> float:
@@ -296,3 +341,51 @@ def _current(scenario: Scenario, path: str) -> float:
     for key in path.split("."):
         node = node[key] if isinstance(node, dict) else getattr(node, key)
     return float(node)
+
+
+def _force_tables(raw: dict, base: Scenario, base_dir: Path, fname: str, names: set) -> list:
+    """The spec's [[force_tables]], read and checked (see :mod:`frogsim.fit.force`)."""
+    tables_raw = raw.get("force_tables", [])
+    if not isinstance(tables_raw, list) or ("force_tables" in raw and not tables_raw):
+        raise ScenarioError(_where(fname, "force_tables"), tables_raw,
+                            "expected one or more [[force_tables]] with table = ...")
+    if not tables_raw:
+        return []
+    law = base_law(base)
+    out = []
+    for k, e in enumerate(tables_raw):
+        where = _where(fname, f"force_tables[{k}]")
+        if not isinstance(e, dict):
+            raise ScenarioError(where, e, "expected a table with table = ...")
+        for key in e:
+            if key not in FORCE_TABLE_KEYS:
+                err = unknown_key_error(f"force_tables[{k}]", key, FORCE_TABLE_KEYS)
+                raise ScenarioError(_where(fname, err.field), UNKNOWN, err.allowed)
+        if not isinstance(e.get("table"), str):
+            raise ScenarioError(f"{where}.table", e.get("table", MISSING), "expected the path of a force table")
+        types = sorted(base.muscle_types)
+        used = sorted({m.type for m in base.muscles.values()})
+        muscle = e.get("muscle", used[0] if len(used) == 1 else None)
+        if muscle not in types:
+            raise ScenarioError(f"{where}.muscle", muscle if "muscle" in e else MISSING,
+                                f"expected the muscle type the table was measured on: one of {', '.join(types)}")
+        noise = to_si(e["noise"], "force", f"{where}.noise") if "noise" in e else None
+        if noise is not None and not (math.isfinite(noise) and noise > 0):
+            raise ScenarioError(f"{where}.noise", e["noise"], "must be > 0")
+        rel = e.get("relative_noise", 0.0)
+        if isinstance(rel, bool) or not isinstance(rel, (int, float)) or not (math.isfinite(rel) and 0 <= rel < 10):
+            raise ScenarioError(f"{where}.relative_noise", rel, "expected a fraction of the force, e.g. 0.1")
+        table = read_force_table(base_dir / e["table"], base)
+        name = e.get("name", table.name)
+        if not isinstance(name, str) or name in names:
+            raise ScenarioError(f"{where}.name", name, "expected a name used by no other experiment or table")
+        names.add(name)
+        given = noise is not None or rel > 0
+        floor = noise if noise is not None else (0.0 if rel > 0 else DEFAULT_NOISE_N)
+        sigma = np.maximum(floor, rel * np.abs(table.force))
+        if not np.all(sigma > 0):
+            raise ScenarioError(f"{where}.noise", MISSING, "a row with zero force has no noise: give noise = \"... N\" "
+                                                           "as well as relative_noise")
+        out.append(ForceExperiment(name, table, ForceModel(table, base, muscle, law), sigma,
+                                   float(floor), float(rel), given))
+    return out

@@ -1,0 +1,208 @@
+"""Force-contraction tables in: fitting the muscle force law (``[muscle_force]``) to a datasheet or a
+test bench.
+
+A force table is a CSV (or Parquet) file with three columns, each header naming the quantity and
+its unit in brackets, one row per measured point, several pressures in one file::
+
+    pressure [bar gauge], contraction [%], force [N]
+    1, 0, 253
+    1, 2, 123
+
+* ``pressure``: the muscle's pressure, gauge or abs (``[bar gauge]``, ``[kPa abs]``; abs values
+  are made gauge with the scenario's atmospheric pressure); it must not be negative (gauge).
+* ``contraction``: 1 - L/L0, a percentage (``[%]``) or a fraction (``[-]`` or ``[1]``), below
+  100 %; negative for a muscle stretched beyond its rest length.
+* ``force``: the muscle's tension (``[N]``, ``[kN]``, ``[lbf]``). Rows with a negative force (a push
+  needed to hold the muscle shorter than it contracts on its own) cannot be matched by a
+  tension-only law: they are left out, and the fit's warnings say how many.
+
+The model of a row is :func:`frogsim.components.dmsp20.law_forces`: the parameter set's force law
+(:mod:`frogsim.physics.muscle_force`) for the braid of one muscle type of the base scenario
+(inner diameter, braid angle), with the constants of ``[muscle_force]``, some of them fitted.
+Every refusal is a one-line :class:`frogsim.ScenarioError` naming the file and the column.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from frogsim.errors import UNKNOWN, ScenarioError
+from frogsim.fit.traces import _col_error, _parse_header, _pressure_unit, _read_table, _unit_scale
+from frogsim.scenario.units import parse_quantity
+
+#: the force law's constants, in the order of :func:`frogsim.physics.muscle_force.muscle_force`
+CONSTANTS = ("force_scale", "strain_scale", "stiffness", "stretch_stiffness", "stretch_quadratic")
+PREFIX = "muscle_force."
+COLUMNS = ("pressure", "contraction", "force")
+#: braid settings of a muscle type that also enter the force law
+GEOMETRY = ("inner_diameter", "braid_angle")
+
+
+def law_meta() -> dict:
+    """Dotted path -> field metadata of the force law's constants (``muscle_force.<name>``)."""
+    from frogsim.robot.params import MuscleForceLaw
+    return {PREFIX + f.name: dict(f.metadata) for f in dataclasses.fields(MuscleForceLaw)
+            if f.name in CONSTANTS}
+
+
+def base_law(scenario):
+    """The base scenario's parameter set's force law (:class:`frogsim.robot.params.MuscleForceLaw`)."""
+    from frogsim.robot.params import MuscleForceLaw
+    from frogsim.scenario.fields import build
+    from frogsim.scenario.load import load_parameter_set
+    raw = load_parameter_set(scenario.parameters, scenario.base_dir)
+    if "muscle_force" not in raw:
+        raise ScenarioError(f"parameters {scenario.parameters!r}", UNKNOWN,
+                            "has no [muscle_force] table: a force table cannot be fitted with it")
+    return build(MuscleForceLaw, raw["muscle_force"], "muscle_force")
+
+
+@dataclass(frozen=True)
+class ForceTable:
+    """One force-contraction table in SI: ``pressure`` [Pa gauge], ``contraction`` [-], ``force``
+    [N], the rows with a negative force already left out (``dropped`` counts them)."""
+    path: str
+    pressure: np.ndarray
+    contraction: np.ndarray
+    force: np.ndarray
+    columns: dict               # quantity -> header as written
+    dropped: int = 0
+
+    @property
+    def name(self) -> str:
+        return Path(self.path).name
+
+    def pressures(self) -> list[float]:
+        """The distinct pressures [Pa gauge], lowest first."""
+        return sorted(set(self.pressure.tolist()))
+
+
+def _dimensionless_scale(fname: str, col: str, unit: str) -> float:
+    if unit.strip() in ("-", "1", ""):
+        return 1.0
+    try:
+        return parse_quantity(f"1 {unit}", "dimensionless")
+    except Exception:  # pint raises several error types for bad text or dimensions
+        raise _col_error(fname, col, f"unit [{unit}] is not a fraction or a percentage: write [%] or [-]") from None
+
+
+def read_force_table(path, scenario) -> ForceTable:
+    """Read and check a force table (module docstring); values in SI.
+
+    Refused, each with a one-line ScenarioError naming file and column: a header without a unit, a
+    unit of the wrong kind, a pressure neither gauge nor abs, a column other than pressure,
+    contraction and force, a missing column, non-numeric or missing values (NaN), a negative
+    gauge pressure, a contraction of 100 % or more, no row with a positive force.
+    """
+    path = Path(path)
+    fname = path.name
+    df = _read_table(path)
+    if df.shape[0] < 1:
+        raise ScenarioError(f"force table {fname!r}", UNKNOWN, "holds no rows of data")
+    patm = scenario.air.atmospheric_pressure_abs
+    cols, unknown = {}, []
+    for col in df.columns:
+        col = str(col)
+        name, unit = _parse_header(fname, col)
+        key = name.lower()
+        if key not in COLUMNS:
+            unknown.append(col)
+            continue
+        if key in cols:
+            raise _col_error(fname, col, f"a second {key} column (the first is {cols[key][0]!r})")
+        if key == "pressure":
+            scale, offset = _pressure_unit(fname, col, unit, patm)
+            cols[key] = (col, scale, offset - patm)            # to Pa gauge
+        elif key == "contraction":
+            cols[key] = (col, _dimensionless_scale(fname, col, unit), 0.0)
+        else:
+            cols[key] = (col, _unit_scale(fname, col, unit, "force", "a force unit such as N or kN"), 0.0)
+    if unknown:
+        raise ScenarioError(f"force table {fname!r}", UNKNOWN,
+                            f"columns it cannot use: {', '.join(map(repr, unknown))} (a force table has "
+                            "pressure, contraction and force, each with its unit)")
+    missing = [k for k in COLUMNS if k not in cols]
+    if missing:
+        raise ScenarioError(f"force table {fname!r}", UNKNOWN,
+                            f"no {' and no '.join(missing)} column: the header must name pressure [bar gauge], "
+                            "contraction [%] and force [N]")
+
+    def numbers(key: str) -> np.ndarray:
+        col, scale, offset = cols[key]
+        try:
+            x = np.asarray(df[col].to_numpy(), dtype=float)
+        except (TypeError, ValueError):
+            raise _col_error(fname, col, "holds values that are not numbers") from None
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            raise _col_error(fname, col, f"missing or non-finite value (NaN) in data row {bad[0] + 1} "
+                                         f"({bad.size} in all)")
+        return x * scale + offset
+
+    p, eps, force = numbers("pressure"), numbers("contraction"), numbers("force")
+    neg = np.flatnonzero(p < -1e-9 * max(1.0, patm))
+    if neg.size:
+        raise _col_error(fname, cols["pressure"][0], f"negative gauge pressure ({p[neg[0]] / 1e5:g} bar) in "
+                                                     f"data row {neg[0] + 1}: the muscle law needs p >= 0 gauge")
+    full = np.flatnonzero(eps >= 1.0)
+    if full.size:
+        raise _col_error(fname, cols["contraction"][0], f"contraction {eps[full[0]] * 100:g} % in data row "
+                                                        f"{full[0] + 1}: it must be below 100 %")
+    keep = force >= 0.0
+    if not keep.any():
+        raise _col_error(fname, cols["force"][0], "no row with a positive force (tension) to fit")
+    return ForceTable(path=str(path), pressure=np.maximum(p[keep], 0.0), contraction=eps[keep],
+                      force=force[keep], columns={k: c[0] for k, c in cols.items()},
+                      dropped=int((~keep).sum()))
+
+
+class ForceModel:
+    """The model forces of one table for a point of the fit (SI values of the fitted paths)."""
+
+    def __init__(self, table: ForceTable, scenario, muscle_type: str, law):
+        self.table = table
+        self.muscle_type = muscle_type
+        self.law = law
+        mt = scenario.muscle_types[muscle_type]
+        self.geometry = {g: float(getattr(mt, g)) for g in GEOMETRY}
+        self.model = law.model
+
+    def constants(self, point: dict) -> list[float]:
+        return [float(point.get(PREFIX + k, getattr(self.law, k))) for k in CONSTANTS]
+
+    def braid(self, point: dict) -> tuple[float, float]:
+        pre = f"muscle_types.{self.muscle_type}."
+        return tuple(float(point.get(pre + g, self.geometry[g])) for g in GEOMETRY)
+
+    def forces(self, point: dict, pressure=None, contraction=None) -> np.ndarray:
+        """Model forces [N] at the table's rows (or at the given pressures and contractions)."""
+        from frogsim.components.dmsp20 import law_forces
+        pressure = self.table.pressure if pressure is None else pressure
+        contraction = self.table.contraction if contraction is None else contraction
+        d, theta = self.braid(point)
+        return law_forces(pressure, contraction, self.constants(point), d, theta, model=self.model)
+
+
+def uses_force_law(path: str, muscle_types) -> bool:
+    """True if a fitted path enters the force tables' model (a constant, or a braid setting)."""
+    if path.startswith(PREFIX):
+        return True
+    return any(path == f"muscle_types.{m}.{g}" for m in muscle_types for g in GEOMETRY)
+
+
+def worst_errors(table: ForceTable, model: np.ndarray) -> list[dict]:
+    """Per pressure: the number of rows, the rms and the worst absolute error of model - measured
+    [N], and where the worst occurs (contraction, measured and model force)."""
+    out = []
+    err = model - table.force
+    for p in table.pressures():
+        idx = np.flatnonzero(table.pressure == p)
+        k = idx[np.argmax(np.abs(err[idx]))]
+        out.append({"pressure_Pa_gauge": p, "rows": int(idx.size),
+                    "rms_error_N": float(np.sqrt(np.mean(err[idx] ** 2))),
+                    "worst_abs_error_N": float(abs(err[k])), "worst_at_contraction": float(table.contraction[k]),
+                    "worst_measured_N": float(table.force[k]), "worst_model_N": float(model[k])})
+    return out
