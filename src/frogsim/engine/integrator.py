@@ -58,122 +58,6 @@ EXPO = 0.2 - 0.75 * BETA
 
 
 @jit
-def integrate_span(y, f, t, t_end, h, err_old, u, pump_on, model, solver, out, out_i, stats,
-                   stages, aux, work):
-    """Advance y from t to exactly t_end with valve states u and the pump's switch held constant.
-
-    ``f`` must hold dy/dt at (t, y) on entry and holds it at the end on return (FSAL). ``model`` =
-    (g, mp, mot_t, mot_L, mot_d, mot_n), the right-hand side's circuit and length paths;
-    ``solver`` = (rtol, atol, max_step). Output times out_t[out_i:] (``out`` = (out_t, out_y,
-    out_u)) that fall inside (t, t_end] are filled into out_y/out_u by dense output. ``stats``
-    accumulates [accepted steps, rejected steps, rhs evaluations]. ``err_old`` is the PI
-    controller's memory (the previous accepted step's error norm). Scratch: ``stages`` (12, ny),
-    ``aux`` and ``work`` for the right-hand side.
-
-    Returns (h_next, err_old, out_i, status).
-    """
-    g, mp, mot_t, mot_L, mot_d, mot_n = model
-    rtol, atol, max_step = solver
-    out_t, out_y, out_u = out
-    ny = y.size
-    k2 = stages[0]
-    k3 = stages[1]
-    k4 = stages[2]
-    k5 = stages[3]
-    k6 = stages[4]
-    k7 = stages[5]
-    yt = stages[6]
-    yn = stages[7]
-    rc1 = stages[8]
-    rc2 = stages[9]
-    rc3 = stages[10]
-    rc4 = stages[11]
-    n_out = out_t.size
-    nu = u.size
-    while t < t_end:
-        if h > max_step:
-            h = max_step
-        last = False
-        h_try = h
-        if t + h_try >= t_end:
-            h_try = t_end - t
-            last = True
-        for j in range(ny):
-            yt[j] = y[j] + h_try * A21 * f[j]
-        rhs(t + C2 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)
-        for j in range(ny):
-            yt[j] = y[j] + h_try * (A31 * f[j] + A32 * k2[j])
-        rhs(t + C3 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux, work)
-        for j in range(ny):
-            yt[j] = y[j] + h_try * (A41 * f[j] + A42 * k2[j] + A43 * k3[j])
-        rhs(t + C4 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux, work)
-        for j in range(ny):
-            yt[j] = y[j] + h_try * (A51 * f[j] + A52 * k2[j] + A53 * k3[j] + A54 * k4[j])
-        rhs(t + C5 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux, work)
-        for j in range(ny):
-            yt[j] = y[j] + h_try * (A61 * f[j] + A62 * k2[j] + A63 * k3[j] + A64 * k4[j] + A65 * k5[j])
-        rhs(t + h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux, work)
-        for j in range(ny):
-            yn[j] = y[j] + h_try * (B1 * f[j] + B3 * k3[j] + B4 * k4[j] + B5 * k5[j] + B6 * k6[j])
-        t_new = t_end if last else t + h_try
-        rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
-        stats[2] += 6
-        err = 0.0
-        for j in range(ny):
-            e = h_try * (E1 * f[j] + E3 * k3[j] + E4 * k4[j] + E5 * k5[j] + E6 * k6[j] + E7 * k7[j])
-            sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
-            err += (e / sc) ** 2
-        err = math.sqrt(err / ny)
-        if not math.isfinite(err):
-            # a non-finite trial: shrink hard and retry; give up only at step underflow
-            stats[1] += 1
-            h = 0.1 * h_try
-            if h < 1e-14 * max(1.0, abs(t)):
-                return h, err_old, out_i, STATUS_NOT_FINITE
-            continue
-        if err <= 1.0:
-            # dense output on (t, t_new]: the 4th-order continuous extension, its coefficients
-            # computed once per step that holds output points
-            if out_i < n_out and out_t[out_i] <= t_new:
-                for j in range(ny):
-                    ydiff = yn[j] - y[j]
-                    bspl = h_try * f[j] - ydiff
-                    rc1[j] = ydiff
-                    rc2[j] = bspl
-                    rc3[j] = ydiff - h_try * k7[j] - bspl
-                    rc4[j] = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j]
-                                      + D6 * k6[j] + D7 * k7[j])
-            while out_i < n_out and out_t[out_i] <= t_new:
-                th = (out_t[out_i] - t) / h_try
-                th1 = 1.0 - th
-                row = out_y[out_i]
-                for j in range(ny):
-                    row[j] = y[j] + th * (rc1[j] + th1 * (rc2[j] + th * (rc3[j] + th1 * rc4[j])))
-                for j in range(nu):
-                    out_u[out_i, j] = u[j]
-                out_u[out_i, nu] = pump_on
-                out_i += 1
-            for j in range(ny):
-                y[j] = yn[j]
-                f[j] = k7[j]
-            t = t_new
-            stats[0] += 1
-            e = max(err, 1e-4)
-            fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
-            err_old = e
-            h_next = h_try * fac
-            h = max(h, h_next) if last else h_next
-        else:
-            stats[1] += 1
-            h = h_try * max(0.2, SAFETY * err ** -EXPO)
-            if h < 1e-14 * max(1.0, abs(t)):
-                return h, err_old, out_i, STATUS_STEP_UNDERFLOW
-        if stats[0] + stats[1] > 50_000_000:
-            return h, err_old, out_i, STATUS_MAX_STEPS
-    return h, err_old, out_i, STATUS_OK
-
-
-@jit
 def start(t0, h0, y, u, commands):
     """Driver state ``ds`` and controller state ``cs`` of a run that starts at t0.
 
@@ -197,75 +81,182 @@ def start(t0, h0, y, u, commands):
 
 @jit
 def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
-    """Advance the circuit's state y from ds[D_T] to t_end; the one stepping loop of frogsim.
+    """Advance the circuit's state y from ds[D_T] to t_end: the one stepping loop of frogsim.
 
     The span is cut at every valve-schedule time and at every time the controllers ask for
     (:func:`frogsim.control.sampled.next_control_time`: the controller samples when a sampled rule
     is active), times closer than EPS to each other or to t_end counting as one. Each piece is
-    integrated with the valve states u and the pump's switch held (:func:`integrate_span`); at its
-    end the schedule entries due are written into u, the controllers are sampled
-    (:func:`frogsim.control.sampled.sample_controllers`), and if a command changed the
-    right-hand side is evaluated again (the FSAL derivative no longer holds).
+    integrated by adaptive Dormand-Prince steps with the valve states u and the pump's switch
+    held, the last step shortened to end on the piece's end exactly; the step size carries over
+    from piece to piece. At a piece's end the schedule entries due are written into u, the
+    controllers are sampled (:func:`frogsim.control.sampled.sample_controllers`), and if a command
+    changed the right-hand side is evaluated again (the FSAL derivative no longer holds).
 
     dy/dt is evaluated at entry: the caller may have changed the model since the last call (the
-    coupled engine extends the muscles' length paths every step). Step size, PI memory, schedule
-    index, output row and the time reached are carried in ``ds`` (columns D_*), the controllers'
+    coupled engine extends the muscles' length paths every step). Time reached, step size, PI
+    memory, schedule index and output row are carried in ``ds`` (columns D_*), the controllers'
     memory and the pump's switch in ``cs``, so a run can be advanced in as many calls as wanted:
-    the coupled engine calls this once per MuJoCo step, :func:`run_schedule` once for the whole run.
+    the coupled engine calls this once per MuJoCo step, :func:`run_schedule` once for the run.
 
-    ``model`` = (g, mp, mot_t, mot_L, mot_d, mot_n); ``commands`` = (sched_t, sched_u, laws,
-    ctrl_dt); ``solver`` = (rtol, atol, max_step); ``out`` = (out_t, out_y, out_u), filled from
-    row ds[D_OUT] on by dense output; ``stats`` accumulates [accepted, rejected, rhs evaluations].
+    ``model`` = (g, mp, mot_t, mot_L, mot_d, mot_n), the right-hand side's circuit and length
+    paths; ``commands`` = (sched_t, sched_u, laws, ctrl_dt); ``solver`` = (rtol, atol, max_step);
+    ``out`` = (out_t, out_y, out_u): the rows from ds[D_OUT] on whose times fall inside the span
+    are filled by dense output (state, valve states and the pump's switch); ``stats``
+    accumulates [accepted steps, rejected steps, rhs evaluations].
 
-    Returns a STATUS_* code; on failure ds[D_T] is the start of the piece that failed.
+    Returns a STATUS_* code; on failure ds[D_T] and y are the last accepted step's.
     """
     g, mp, mot_t, mot_L, mot_d, mot_n = model
     sched_t, sched_u, laws, ctrl_dt = commands
+    rtol, atol, max_step = solver
+    out_t, out_y, out_u = out
     ny = y.size
     nu = u.size
     ns = sched_t.size
     n = mp.shape[0]
+    n_out = out_t.size
     f = np.empty(ny)
-    stages = np.empty((12, ny))
+    k2 = np.empty(ny)
+    k3 = np.empty(ny)
+    k4 = np.empty(ny)
+    k5 = np.empty(ny)
+    k6 = np.empty(ny)
+    k7 = np.empty(ny)
+    yt = np.empty(ny)
+    yn = np.empty(ny)
+    rc1 = np.empty(ny)
+    rc2 = np.empty(ny)
+    rc3 = np.empty(ny)
+    rc4 = np.empty(ny)
     aux = np.empty(2 * n + 1)
     work = np.empty(3 * n)
-    tc = ds[D_T]
-    rhs(tc, y, u, cs[CS_PUMP], g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
+    t = ds[D_T]
+    h = ds[D_H]
+    err_old = ds[D_ERR]
+    out_i = int(ds[D_OUT])
+    status = STATUS_OK
+    pump_on = cs[CS_PUMP]
+    rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
     stats[2] += 1
-    while tc < t_end - EPS:
+    while t < t_end - EPS:
+        # -- the piece's end: t_end, the next schedule entry or the controllers' next stop ------
         t_seg = t_end
         si = int(ds[D_SI])
         if si < ns and sched_t[si] < t_end - EPS:
-            t_seg = max(sched_t[si], tc)
+            t_seg = max(sched_t[si], t)
         t_control = next_control_time(laws, cs, ctrl_dt)
         at_control = t_control <= t_seg + EPS
         if at_control:
             t_seg = min(t_seg, t_control) if t_control < t_end - EPS else t_end
-        if t_seg > tc:
-            h, err, out_i, status = integrate_span(y, f, tc, t_seg, ds[D_H], ds[D_ERR], u,
-                                                   cs[CS_PUMP], model, solver, out,
-                                                   int(ds[D_OUT]), stats, stages, aux, work)
-            ds[D_H] = h
-            ds[D_ERR] = err
-            ds[D_OUT] = out_i
-            if status != STATUS_OK:
-                return status
-        tc = t_seg
-        ds[D_T] = tc
+        # -- Dormand-Prince steps from t to exactly t_seg, commands held ------------------------
+        while t < t_seg:
+            if h > max_step:
+                h = max_step
+            last = False
+            h_try = h
+            if t + h_try >= t_seg:
+                h_try = t_seg - t
+                last = True
+            for j in range(ny):
+                yt[j] = y[j] + h_try * A21 * f[j]
+            rhs(t + C2 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)
+            for j in range(ny):
+                yt[j] = y[j] + h_try * (A31 * f[j] + A32 * k2[j])
+            rhs(t + C3 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux, work)
+            for j in range(ny):
+                yt[j] = y[j] + h_try * (A41 * f[j] + A42 * k2[j] + A43 * k3[j])
+            rhs(t + C4 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux, work)
+            for j in range(ny):
+                yt[j] = y[j] + h_try * (A51 * f[j] + A52 * k2[j] + A53 * k3[j] + A54 * k4[j])
+            rhs(t + C5 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux, work)
+            for j in range(ny):
+                yt[j] = y[j] + h_try * (A61 * f[j] + A62 * k2[j] + A63 * k3[j] + A64 * k4[j]
+                                        + A65 * k5[j])
+            rhs(t + h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux, work)
+            for j in range(ny):
+                yn[j] = y[j] + h_try * (B1 * f[j] + B3 * k3[j] + B4 * k4[j] + B5 * k5[j] + B6 * k6[j])
+            t_new = t_seg if last else t + h_try
+            rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
+            stats[2] += 6
+            err = 0.0
+            for j in range(ny):
+                e = h_try * (E1 * f[j] + E3 * k3[j] + E4 * k4[j] + E5 * k5[j] + E6 * k6[j]
+                             + E7 * k7[j])
+                sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
+                err += (e / sc) ** 2
+            err = math.sqrt(err / ny)
+            if not math.isfinite(err):
+                # a non-finite trial: shrink hard and retry; give up only at step underflow
+                stats[1] += 1
+                h = 0.1 * h_try
+                if h < 1e-14 * max(1.0, abs(t)):
+                    status = STATUS_NOT_FINITE
+                    break
+                continue
+            if err <= 1.0:
+                # dense output on (t, t_new]: the 4th-order continuous extension, its
+                # coefficients computed once per step that holds output points
+                if out_i < n_out and out_t[out_i] <= t_new:
+                    for j in range(ny):
+                        ydiff = yn[j] - y[j]
+                        bspl = h_try * f[j] - ydiff
+                        rc1[j] = ydiff
+                        rc2[j] = bspl
+                        rc3[j] = ydiff - h_try * k7[j] - bspl
+                        rc4[j] = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j]
+                                          + D6 * k6[j] + D7 * k7[j])
+                while out_i < n_out and out_t[out_i] <= t_new:
+                    th = (out_t[out_i] - t) / h_try
+                    th1 = 1.0 - th
+                    row = out_y[out_i]
+                    for j in range(ny):
+                        row[j] = y[j] + th * (rc1[j] + th1 * (rc2[j] + th * (rc3[j] + th1 * rc4[j])))
+                    for j in range(nu):
+                        out_u[out_i, j] = u[j]
+                    out_u[out_i, nu] = pump_on
+                    out_i += 1
+                for j in range(ny):
+                    y[j] = yn[j]
+                    f[j] = k7[j]
+                t = t_new
+                stats[0] += 1
+                e = max(err, 1e-4)
+                fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
+                err_old = e
+                h_next = h_try * fac
+                h = max(h, h_next) if last else h_next
+            else:
+                stats[1] += 1
+                h = h_try * max(0.2, SAFETY * err ** -EXPO)
+                if h < 1e-14 * max(1.0, abs(t)):
+                    status = STATUS_STEP_UNDERFLOW
+                    break
+            if stats[0] + stats[1] > 50_000_000:
+                status = STATUS_MAX_STEPS
+                break
+        if status != STATUS_OK:
+            break
+        # -- at t_seg: the schedule's commands due, the controllers' sample ---------------------
+        t = t_seg
         changed = False
-        while si < ns and sched_t[si] <= tc + EPS:
+        while si < ns and sched_t[si] <= t + EPS:
             for j in range(nu):
                 if u[j] != sched_u[si, j]:
                     changed = True
                 u[j] = sched_u[si, j]
             si += 1
         ds[D_SI] = si
-        if at_control and sample_controllers(laws, tc, y, u, cs):
+        if at_control and sample_controllers(laws, t, y, u, cs):
             changed = True
+        pump_on = cs[CS_PUMP]
         if changed:
-            rhs(tc, y, u, cs[CS_PUMP], g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
+            rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
             stats[2] += 1
-    return STATUS_OK
+    ds[D_T] = t
+    ds[D_H] = h
+    ds[D_ERR] = err_old
+    ds[D_OUT] = out_i
+    return status
 
 
 @jit
