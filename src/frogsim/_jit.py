@@ -24,7 +24,7 @@ from numba import njit
 
 _PACKAGE = Path(__file__).resolve().parent
 # robot/water.py: its table layout (E_*, P_*) is compiled into the coupled engine as constants
-_COMPILED_SOURCES = ("_jit.py", "physics", "circuit", "engine", "robot/water.py")
+_COMPILED_SOURCES = ("_jit.py", "physics", "circuit", "control", "engine", "robot/water.py")
 
 
 def _source_hash() -> str:

@@ -2,9 +2,11 @@
 
 Valve states are piecewise constant: they change only at known times (open-loop commands sampled
 on the controller grid plus the valve dead time) or at controller samples when a state-dependent
-rule (the pump's pressure band) is active. The integrator stops exactly at those times, so no step
-straddles a discontinuity; between them the step size adapts to the error estimate and carries
-over from one segment to the next.
+rule (the pump's pressure band, :mod:`frogsim.control.sampled`) is active. The integrator stops
+exactly at those times, so no step straddles a discontinuity; between them the step size adapts
+to the error estimate and carries over from one segment to the next. :func:`advance` is the one
+loop that does this, for the pneumatics-only engine (:func:`run_schedule`, one call per run) and
+the coupled engine (:mod:`frogsim.engine.coupled_kernel`, one call per MuJoCo step).
 
 Method: Dormand and Prince (1980), coefficients as in Hairer, Norsett and Wanner, Solving ODEs I,
 Table 5.2; error norm and step control as in Hairer's DOPRI5 (safety 0.9, factor limits 0.2..5).
@@ -19,13 +21,23 @@ import math
 import numpy as np
 from frogsim._jit import jit
 
-from frogsim.circuit.layout import G_PUMP_ENABLED, G_PUMP_OFF, G_PUMP_ON, Y_PS
 from frogsim.circuit.rhs import rhs
+from frogsim.control.sampled import (CS_PUMP, next_control_time, sample_controllers,
+                                     sampled_laws, start_controllers)
 
 STATUS_OK = 0
 STATUS_STEP_UNDERFLOW = 1
 STATUS_NOT_FINITE = 2
 STATUS_MAX_STEPS = 3
+
+# --- driver state ds[:] (see advance) ----------------------------------------------------------------
+D_T = 0          # time reached [s]
+D_H = 1          # next trial step [s]
+D_ERR = 2        # PI step control: error norm of the last accepted step
+D_SI = 3         # index of the next valve-schedule entry
+D_OUT = 4        # next output row
+D_SIZE = 5
+EPS = 1e-12      # [s] stop times closer than this are one stop (they come from different sums)
 
 # Dormand-Prince 5(4) tableau
 A21 = 1.0 / 5.0
@@ -46,18 +58,64 @@ EXPO = 0.2 - 0.75 * BETA
 
 
 @jit
-def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n,
-                   rtol, atol, max_step, out_t, out_y, out_u, out_i, stats, work):
-    """Advance y from t to exactly t_end with valve states u held constant.
+def start(t0, h0, y, u, commands):
+    """Driver state ``ds`` and controller state ``cs`` of a run that starts at t0.
 
-    ``f`` must hold dy/dt at (t, y) on entry and holds it at the end on return (FSAL). Output
-    times out_t[out_i:] that fall inside (t, t_end] are filled into out_y/out_u by dense output.
-    ``stats`` accumulates [accepted steps, rejected steps, rhs evaluations]; ``work`` is scratch
-    for the right-hand side (3n) and the PI controller's previous error (its last entry).
-
-    Returns (h_next, out_i, status).
+    ``commands`` = (sched_t, sched_u, laws, ctrl_dt). The schedule entries due at t0 are written
+    into u, the controllers take the sample at or just before t0 (:func:`frogsim.control.sampled
+    .start_controllers`), the first trial step is h0 [s].
     """
+    sched_t, sched_u, laws, ctrl_dt = commands
+    ds = np.zeros(D_SIZE)
+    ds[D_T] = t0
+    ds[D_H] = h0
+    ds[D_ERR] = 1e-4
+    si = 0
+    while si < sched_t.size and sched_t[si] <= t0 + EPS:
+        for j in range(u.size):
+            u[j] = sched_u[si, j]
+        si += 1
+    ds[D_SI] = si
+    return ds, start_controllers(laws, t0, y, u, ctrl_dt)
+
+
+@jit
+def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
+    """Advance the circuit's state y from ds[D_T] to t_end: the one stepping loop of frogsim.
+
+    The span is cut at every valve-schedule time and at every time the controllers ask for
+    (:func:`frogsim.control.sampled.next_control_time`: the controller samples when a sampled rule
+    is active), times closer than EPS to each other or to t_end counting as one. Each piece is
+    integrated by adaptive Dormand-Prince steps with the valve states u and the pump's switch
+    held, the last step shortened to end on the piece's end exactly; the step size carries over
+    from piece to piece. At a piece's end the schedule entries due are written into u, the
+    controllers are sampled (:func:`frogsim.control.sampled.sample_controllers`), and if a command
+    changed the right-hand side is evaluated again (the FSAL derivative no longer holds).
+
+    dy/dt is evaluated at entry: the caller may have changed the model since the last call (the
+    coupled engine extends the muscles' length paths every step). Time reached, step size, PI
+    memory, schedule index and output row are carried in ``ds`` (columns D_*), the controllers'
+    memory and the pump's switch in ``cs``, so a run can be advanced in as many calls as wanted:
+    the coupled engine calls this once per MuJoCo step, :func:`run_schedule` once for the run.
+
+    ``model`` = (g, mp, mot_t, mot_L, mot_d, mot_n), the right-hand side's circuit and length
+    paths; ``commands`` = (sched_t, sched_u, laws, ctrl_dt); ``solver`` = (rtol, atol, max_step);
+    ``out`` = (out_t, out_y, out_u): the rows from ds[D_OUT] on whose times fall inside the span
+    are filled by dense output (state, valve states and the pump's switch); ``stats``
+    accumulates [accepted steps, rejected steps, rhs evaluations].
+
+    Returns a STATUS_* code; on failure ds[D_T] and y are the last accepted step's.
+    """
+    g, mp, mot_t, mot_L, mot_d, mot_n = model
+    sched_t, sched_u, laws, ctrl_dt = commands
+    rtol, atol, max_step = solver
+    out_t, out_y, out_u = out
     ny = y.size
+    nu = u.size
+    ns = sched_t.size
+    n = mp.shape[0]
+    n_out = out_t.size
+    f = np.empty(ny)
     k2 = np.empty(ny)
     k3 = np.empty(ny)
     k4 = np.empty(ny)
@@ -70,117 +128,147 @@ def integrate_span(y, f, t, t_end, h, u, pump_on, g, mp, mot_t, mot_L, mot_d, mo
     rc2 = np.empty(ny)
     rc3 = np.empty(ny)
     rc4 = np.empty(ny)
-    aux = np.empty(2 * mp.shape[0] + 1)
-    n_out = out_t.size
-    nu = u.size
-    err_old = work[work.size - 1]
-    while t < t_end:
-        if h > max_step:
-            h = max_step
-        last = False
-        h_try = h
-        if t + h_try >= t_end:
-            h_try = t_end - t
-            last = True
-        for j in range(ny):
-            yt[j] = y[j] + h_try * A21 * f[j]
-        rhs(t + C2 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)
-        for j in range(ny):
-            yt[j] = y[j] + h_try * (A31 * f[j] + A32 * k2[j])
-        rhs(t + C3 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux, work)
-        for j in range(ny):
-            yt[j] = y[j] + h_try * (A41 * f[j] + A42 * k2[j] + A43 * k3[j])
-        rhs(t + C4 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux, work)
-        for j in range(ny):
-            yt[j] = y[j] + h_try * (A51 * f[j] + A52 * k2[j] + A53 * k3[j] + A54 * k4[j])
-        rhs(t + C5 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux, work)
-        for j in range(ny):
-            yt[j] = y[j] + h_try * (A61 * f[j] + A62 * k2[j] + A63 * k3[j] + A64 * k4[j] + A65 * k5[j])
-        rhs(t + h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux, work)
-        for j in range(ny):
-            yn[j] = y[j] + h_try * (B1 * f[j] + B3 * k3[j] + B4 * k4[j] + B5 * k5[j] + B6 * k6[j])
-        t_new = t_end if last else t + h_try
-        rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
-        stats[2] += 6
-        err = 0.0
-        for j in range(ny):
-            e = h_try * (E1 * f[j] + E3 * k3[j] + E4 * k4[j] + E5 * k5[j] + E6 * k6[j] + E7 * k7[j])
-            sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
-            err += (e / sc) ** 2
-        err = math.sqrt(err / ny)
-        if not math.isfinite(err):
-            # a non-finite trial: shrink hard and retry; give up only at step underflow
-            stats[1] += 1
-            h = 0.1 * h_try
-            if h < 1e-14 * max(1.0, abs(t)):
-                return h, out_i, STATUS_NOT_FINITE
-            continue
-        if err <= 1.0:
-            # dense output on (t, t_new]: the 4th-order continuous extension, its coefficients
-            # computed once per step that holds output points
-            if out_i < n_out and out_t[out_i] <= t_new:
-                for j in range(ny):
-                    ydiff = yn[j] - y[j]
-                    bspl = h_try * f[j] - ydiff
-                    rc1[j] = ydiff
-                    rc2[j] = bspl
-                    rc3[j] = ydiff - h_try * k7[j] - bspl
-                    rc4[j] = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j]
-                                      + D6 * k6[j] + D7 * k7[j])
-            while out_i < n_out and out_t[out_i] <= t_new:
-                th = (out_t[out_i] - t) / h_try
-                th1 = 1.0 - th
-                row = out_y[out_i]
-                for j in range(ny):
-                    row[j] = y[j] + th * (rc1[j] + th1 * (rc2[j] + th * (rc3[j] + th1 * rc4[j])))
-                for j in range(nu):
-                    out_u[out_i, j] = u[j]
-                out_u[out_i, nu] = pump_on
-                out_i += 1
+    aux = np.empty(2 * n + 1)
+    work = np.empty(3 * n)
+    t = ds[D_T]
+    h = ds[D_H]
+    err_old = ds[D_ERR]
+    out_i = int(ds[D_OUT])
+    status = STATUS_OK
+    pump_on = cs[CS_PUMP]
+    rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
+    stats[2] += 1
+    while t < t_end - EPS:
+        # -- the piece's end: t_end, the next schedule entry or the controllers' next stop ------
+        t_seg = t_end
+        si = int(ds[D_SI])
+        if si < ns and sched_t[si] < t_end - EPS:
+            t_seg = max(sched_t[si], t)
+        t_control = next_control_time(laws, cs, ctrl_dt)
+        at_control = t_control <= t_seg + EPS
+        if at_control:
+            t_seg = min(t_seg, t_control) if t_control < t_end - EPS else t_end
+        # -- Dormand-Prince steps from t to exactly t_seg, commands held ------------------------
+        while t < t_seg:
+            if h > max_step:
+                h = max_step
+            last = False
+            h_try = h
+            if t + h_try >= t_seg:
+                h_try = t_seg - t
+                last = True
             for j in range(ny):
-                y[j] = yn[j]
-                f[j] = k7[j]
-            t = t_new
-            stats[0] += 1
-            e = max(err, 1e-4)
-            fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
-            err_old = e
-            h_next = h_try * fac
-            h = max(h, h_next) if last else h_next
-        else:
-            stats[1] += 1
-            h = h_try * max(0.2, SAFETY * err ** -EXPO)
-            if h < 1e-14 * max(1.0, abs(t)):
-                work[work.size - 1] = err_old
-                return h, out_i, STATUS_STEP_UNDERFLOW
-        if stats[0] + stats[1] > 50_000_000:
-            work[work.size - 1] = err_old
-            return h, out_i, STATUS_MAX_STEPS
-    work[work.size - 1] = err_old
-    return h, out_i, STATUS_OK
-
-
-@jit
-def pump_band(p_s, pump_on, g):
-    """Pump switching rule at a controller sample: on below the band, off above it."""
-    if g[G_PUMP_ENABLED] < 0.5:
-        return 0.0
-    if p_s < g[G_PUMP_ON]:
-        return 1.0
-    if p_s > g[G_PUMP_OFF]:
-        return 0.0
-    return pump_on
+                yt[j] = y[j] + h_try * A21 * f[j]
+            rhs(t + C2 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)
+            for j in range(ny):
+                yt[j] = y[j] + h_try * (A31 * f[j] + A32 * k2[j])
+            rhs(t + C3 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux, work)
+            for j in range(ny):
+                yt[j] = y[j] + h_try * (A41 * f[j] + A42 * k2[j] + A43 * k3[j])
+            rhs(t + C4 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux, work)
+            for j in range(ny):
+                yt[j] = y[j] + h_try * (A51 * f[j] + A52 * k2[j] + A53 * k3[j] + A54 * k4[j])
+            rhs(t + C5 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux, work)
+            for j in range(ny):
+                yt[j] = y[j] + h_try * (A61 * f[j] + A62 * k2[j] + A63 * k3[j] + A64 * k4[j]
+                                        + A65 * k5[j])
+            rhs(t + h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux, work)
+            for j in range(ny):
+                yn[j] = y[j] + h_try * (B1 * f[j] + B3 * k3[j] + B4 * k4[j] + B5 * k5[j] + B6 * k6[j])
+            t_new = t_seg if last else t + h_try
+            rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
+            stats[2] += 6
+            err = 0.0
+            for j in range(ny):
+                e = h_try * (E1 * f[j] + E3 * k3[j] + E4 * k4[j] + E5 * k5[j] + E6 * k6[j]
+                             + E7 * k7[j])
+                sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
+                err += (e / sc) ** 2
+            err = math.sqrt(err / ny)
+            if not math.isfinite(err):
+                # a non-finite trial: shrink hard and retry; give up only at step underflow
+                stats[1] += 1
+                h = 0.1 * h_try
+                if h < 1e-14 * max(1.0, abs(t)):
+                    status = STATUS_NOT_FINITE
+                    break
+                continue
+            if err <= 1.0:
+                # dense output on (t, t_new]: the 4th-order continuous extension, its
+                # coefficients computed once per step that holds output points
+                if out_i < n_out and out_t[out_i] <= t_new:
+                    for j in range(ny):
+                        ydiff = yn[j] - y[j]
+                        bspl = h_try * f[j] - ydiff
+                        rc1[j] = ydiff
+                        rc2[j] = bspl
+                        rc3[j] = ydiff - h_try * k7[j] - bspl
+                        rc4[j] = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j]
+                                          + D6 * k6[j] + D7 * k7[j])
+                while out_i < n_out and out_t[out_i] <= t_new:
+                    th = (out_t[out_i] - t) / h_try
+                    th1 = 1.0 - th
+                    row = out_y[out_i]
+                    for j in range(ny):
+                        row[j] = y[j] + th * (rc1[j] + th1 * (rc2[j] + th * (rc3[j] + th1 * rc4[j])))
+                    for j in range(nu):
+                        out_u[out_i, j] = u[j]
+                    out_u[out_i, nu] = pump_on
+                    out_i += 1
+                for j in range(ny):
+                    y[j] = yn[j]
+                    f[j] = k7[j]
+                t = t_new
+                stats[0] += 1
+                e = max(err, 1e-4)
+                fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
+                err_old = e
+                h_next = h_try * fac
+                h = max(h, h_next) if last else h_next
+            else:
+                stats[1] += 1
+                h = h_try * max(0.2, SAFETY * err ** -EXPO)
+                if h < 1e-14 * max(1.0, abs(t)):
+                    status = STATUS_STEP_UNDERFLOW
+                    break
+            if stats[0] + stats[1] > 50_000_000:
+                status = STATUS_MAX_STEPS
+                break
+        if status != STATUS_OK:
+            break
+        # -- at t_seg: the schedule's commands due, the controllers' sample ---------------------
+        t = t_seg
+        changed = False
+        while si < ns and sched_t[si] <= t + EPS:
+            for j in range(nu):
+                if u[j] != sched_u[si, j]:
+                    changed = True
+                u[j] = sched_u[si, j]
+            si += 1
+        ds[D_SI] = si
+        if at_control and sample_controllers(laws, t, y, u, cs):
+            changed = True
+        pump_on = cs[CS_PUMP]
+        if changed:
+            rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
+            stats[2] += 1
+    ds[D_T] = t
+    ds[D_H] = h
+    ds[D_ERR] = err_old
+    ds[D_OUT] = out_i
+    return status
 
 
 @jit
 def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
                  ctrl_dt, out_t, rtol, atol, max_step, h0):
-    """Integrate from t0 to t_end under an open-loop valve schedule.
+    """Integrate from t0 to t_end under an open-loop valve schedule and the circuit's sampled
+    rules (the pump's band, :func:`frogsim.control.sampled.sampled_laws`).
 
     ``sched_t`` (sorted) are the times at which valve states become ``sched_u[k]``; before the
     first, ``u0`` holds. Entries may repeat the current state: they only make the integrator stop
-    there (used for kinks in the prescribed motion). With the pump band active the run also stops at every controller sample
-    (multiples of ctrl_dt) to apply the band rule.
+    there (used for kinks in the prescribed motion). Output rows at out_t (sorted); the rows at or
+    before t0 hold the initial state.
 
     Returns (out_y, out_u, y_end, stats, status, t_reached).
     """
@@ -192,61 +280,17 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
     stats = np.zeros(3, dtype=np.int64)
     y = y0.copy()
     u = u0.copy()
-    f = np.empty(ny)
-    aux = np.empty(2 * mp.shape[0] + 1)
-    work = np.zeros(3 * mp.shape[0] + 1)
-    work[work.size - 1] = 1e-4
-    t = t0
-    si = 0
-    while si < sched_t.size and sched_t[si] <= t0:
-        for j in range(nu):
-            u[j] = sched_u[si, j]
-        si += 1
-    pump_active = g[G_PUMP_ENABLED] > 0.5
-    pump_on = pump_band(y[Y_PS], 0.0, g)
+    commands = (sched_t, sched_u, sampled_laws(g), ctrl_dt)
+    ds, cs = start(t0, h0, y, u, commands)
     out_i = 0
     while out_i < n_out and out_t[out_i] <= t0:
         for j in range(ny):
             out_y[out_i, j] = y[j]
         for j in range(nu):
             out_u[out_i, j] = u[j]
-        out_u[out_i, nu] = pump_on
+        out_u[out_i, nu] = cs[CS_PUMP]
         out_i += 1
-    k_sample = int(math.floor(t0 / ctrl_dt + 1e-9))
-    rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
-    stats[2] += 1
-    h = h0
-    status = 0
-    while t < t_end:
-        t_seg = t_end
-        if si < sched_t.size and sched_t[si] < t_seg:
-            t_seg = sched_t[si]
-        at_sample = False
-        if pump_active:
-            t_sample = (k_sample + 1) * ctrl_dt
-            if t_sample <= t_seg:
-                t_seg = t_sample
-                at_sample = True
-        h, out_i, status = integrate_span(y, f, t, t_seg, h, u, pump_on, g, mp, mot_t, mot_L,
-                                          mot_d, mot_n, rtol, atol, max_step, out_t, out_y,
-                                          out_u, out_i, stats, work)
-        if status != 0:
-            return out_y, out_u, y, stats, status, t
-        t = t_seg
-        changed = False
-        while si < sched_t.size and sched_t[si] <= t:
-            for j in range(nu):
-                if u[j] != sched_u[si, j]:
-                    changed = True
-                u[j] = sched_u[si, j]
-            si += 1
-        if at_sample:
-            k_sample += 1
-            new_on = pump_band(y[Y_PS], pump_on, g)
-            if new_on != pump_on:
-                changed = True
-                pump_on = new_on
-        if changed:
-            rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
-            stats[2] += 1
-    return out_y, out_u, y, stats, status, t
+    ds[D_OUT] = out_i
+    status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), commands,
+                     (rtol, atol, max_step), (out_t, out_y, out_u), stats)
+    return out_y, out_u, y, stats, status, ds[D_T]

@@ -1,0 +1,377 @@
+"""The coupled engine's compiled step: muscles on cranks, legs, palms, water, pneumatics.
+
+Each MuJoCo step of length dt (``robot.timestep``) runs
+
+    mj_step1 (positions, velocities, tendon lengths)  ->  step_kernel (one Numba call)  ->  mj_step2
+
+and the kernel does, with the state at the start of the step:
+
+1. muscle tensions from the muscle pressures at t and the tendon lengths MuJoCo reports
+   (:func:`frogsim.physics.muscle_force.muscle_force`), written as actuator controls;
+2. the steering motors move the palms toward their commanded opening at their travel rate;
+3. the water's forces on every part (:mod:`frogsim.physics.hydro`, :mod:`frogsim.robot.water`):
+   strip drag, buoyancy and added mass, written to ``xfrc_applied``;
+4. the pneumatics advanced from t to t + dt by the one stepping driver
+   (:func:`frogsim.engine.integrator.advance`: adaptive Dormand-Prince, split at valve switching
+   times and controller samples), each muscle's length following a cubic Hermite path that starts
+   where the previous step's path ended (value and slope) and ends at MuJoCo's length plus
+   velocity x dt: the muscle's volume (Eq. (5)) and its force come from the same length.
+
+Added mass. An added-mass force -m_A a taken from the last step's acceleration is unstable when
+m_A exceeds the part's own mass, as it does for the palms (about 3 kg of water for 0.3 kg of palm).
+So the added mass enters MuJoCo's mass matrix: each part's body gets an extra mass
+m_iso = max_j m_j (:func:`frogsim.physics.hydro.isotropic_added_mass`) at the centre of its added
+mass, and its added inertia I_A (``body_mass``, ``body_ipos``, ``body_inertia`` are changed at run
+time; for the palms at every step, as they open and fold: :func:`apply_added_mass`). The excess
+(m_iso - m_j) in the directions where the water adds less is taken back by an explicit force
+(m_iso - m_j) a_j, a_j the part's acceleration over the last step: that iteration contracts
+(factor (m_iso - m_j)/(m + m_iso) < 1), so it is stable, and converges to the true
+(m + m_j) a_j = F. The velocity terms of Kirchhoff's equations
+(:func:`frogsim.physics.hydro.kirchhoff_velocity_force`, :func:`frogsim.physics.hydro.munk_moment`)
+and the change of an opening palm's added mass, -dM_A/dt v and -dI_A/dt omega
+(:func:`frogsim.physics.hydro.added_mass_rate_force`), are applied as forces. The weight MuJoCo
+gives the extra mass is cancelled by an equal upward force at the same point.
+
+Every step checks the state: a non-finite position or velocity, a leg joint faster than
+``sc[S_WMAX]`` or a hull faster than ``sc[S_VMAX]`` stops the run with a FAIL_* code that
+:mod:`frogsim.engine.coupled` turns into a message.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from frogsim._jit import jit
+from frogsim.circuit import layout as CL
+from frogsim.control.sampled import CS_PUMP
+from frogsim.engine.coupled_layout import (
+    FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
+    R_EXERGY, R_FIXED, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME, R_V,
+    R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_TRUNK, S_VMAX,
+    S_WMAX, T_EXERGY, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_CMD, T_PALM_TARGET, T_PEAK,
+    T_PEAK_TIME, U_ACT, U_FITTINGS, U_TENDON)
+from frogsim.engine.integrator import advance
+from frogsim.physics.hydro import (added_mass_rate_force, buoyancy, cross, fan_added_mass,
+                                   isotropic_added_mass, kirchhoff_velocity_force, munk_moment,
+                                   strip_drag_wrench)
+from frogsim.physics.muscle_force import muscle_force
+from frogsim.robot.water import (E_BODY, E_C0, E_FAN, E_HEAVE, E_I0, E_IA, E_LIMB, E_M0, E_MA,
+                                 E_VOL, E_XA, E_XB, P_PHI_FOLD, P_PHI_OPEN, P_RATE)
+
+
+@jit
+def _fan_angle(pa, p, frac):
+    """Fan angle [rad] of palm p at opening fraction frac (0 folded, 1 open)."""
+    return pa[p, P_PHI_FOLD] + frac * (pa[p, P_PHI_OPEN] - pa[p, P_PHI_FOLD])
+
+
+@jit
+def _part_added_mass(el, e, pa, frac):
+    """(m1, m2, m3, I1, I2, I3, m_iso) of element e, a palm at its opening in frac."""
+    phi = 1.0
+    p = int(el[e, E_FAN])
+    if p >= 0:
+        phi = _fan_angle(pa, p, frac[p])
+    m1, m2, m3, i1, i2, i3 = fan_added_mass(el[e, E_MA], el[e, E_MA + 1], el[e, E_MA + 2],
+                                            el[e, E_IA], el[e, E_IA + 1], el[e, E_IA + 2], phi)
+    return m1, m2, m3, i1, i2, i3, isotropic_added_mass(m1, m2, m3, el[e, E_HEAVE] > 0.5)
+
+
+@jit
+def apply_added_mass(el, pa, frac, only_palms, body_mass, body_ipos, body_inertia,
+                     body_subtreemass, body_parentid):
+    """Put each part's isotropic added mass m_iso and added inertia into its MuJoCo body.
+
+    Body mass m0 + m_iso at the joint centre of mass; inertia about it = own + added + the
+    parallel-axis terms of both (the two centres lie on one axis of the part's frame, so the
+    inertia stays diagonal in it). Then the subtree masses MuJoCo uses for centres of mass.
+    """
+    for e in range(el.shape[0]):
+        if only_palms and el[e, E_FAN] < 0.0:
+            continue
+        b = int(el[e, E_BODY])
+        m1, m2, m3, i1, i2, i3, miso = _part_added_mass(el, e, pa, frac)
+        m0 = el[e, E_M0]
+        M = m0 + miso
+        for k in range(3):
+            body_ipos[b, k] = (m0 * el[e, E_C0 + k] + miso * el[e, E_XA + k]) / M
+        d0x = el[e, E_C0] - body_ipos[b, 0]
+        d0y = el[e, E_C0 + 1] - body_ipos[b, 1]
+        d0z = el[e, E_C0 + 2] - body_ipos[b, 2]
+        dax = el[e, E_XA] - body_ipos[b, 0]
+        day = el[e, E_XA + 1] - body_ipos[b, 1]
+        daz = el[e, E_XA + 2] - body_ipos[b, 2]
+        body_inertia[b, 0] = el[e, E_I0] + i1 + m0 * (d0y * d0y + d0z * d0z) + miso * (day * day + daz * daz)
+        body_inertia[b, 1] = el[e, E_I0 + 1] + i2 + m0 * (d0x * d0x + d0z * d0z) + miso * (dax * dax + daz * daz)
+        body_inertia[b, 2] = el[e, E_I0 + 2] + i3 + m0 * (d0x * d0x + d0y * d0y) + miso * (dax * dax + day * day)
+        body_mass[b] = M
+    nb = body_mass.size
+    for b in range(nb):
+        body_subtreemass[b] = body_mass[b]
+    for b in range(nb - 1, 0, -1):
+        body_subtreemass[body_parentid[b]] += body_subtreemass[b]
+
+
+@jit
+def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, pal_t, pal_target,
+                frac, frac_new, mu, tension, leg_qpos, leg_dof, y, u, ds, cs, g, mp, mot_t, mot_L,
+                mot_d, mot_n, sched_t, sched_u, laws, atol, stats, ten_length, ten_velocity, xpos,
+                xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass, body_ipos,
+                body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel):
+    """One coupled step at t = k dt (see the module docstring). Returns 0, or a FAIL_* code.
+
+    ``stepping`` = 0 only checks, computes forces and records (the last row of a run).
+    ``row`` >= 0 records the state at t into rec[row]. After the constants sc (S_*), the state st
+    (T_*) and the record rec (R_*), the arrays come in groups
+    (:func:`frogsim.engine.coupled.kernel_args`; one flat list, as Numba's dispatcher unboxes
+    tuples of arrays measurably slower than arrays, and this is called every step):
+
+    * the parts in the water (el, strip_s, strip_k, pa: :mod:`frogsim.robot.water`) and each
+      part's velocity at the last step (vprev);
+    * palms: command times and targets (pal_t, pal_target), openings now and after the step;
+    * the muscle table (mu: U_*), the muscles' tensions, the leg joints' qpos and dof addresses;
+    * pneumatics, as :func:`frogsim.engine.integrator.advance` takes them: state y, valve states
+      u, driver and controller states ds and cs, circuit (g, mp), the muscles' length paths
+      (mot_*), schedule (sched_t, sched_u), sampled rules (laws), atol, stats;
+    * MuJoCo's arrays.
+    """
+    dt = sc[S_DT]
+    t = k * dt
+    n = mu.shape[0]
+    nj = leg_qpos.size
+    # -- 0. is the state MuJoCo produced still sane? --------------------------------------------
+    for j in range(qpos.size):
+        if not math.isfinite(qpos[j]):
+            st[T_FAIL], st[T_FAIL_ARG], st[T_FAIL_VAL] = FAIL_QPOS, j, qpos[j]
+            return FAIL_QPOS
+    for j in range(qvel.size):
+        if not math.isfinite(qvel[j]):
+            st[T_FAIL], st[T_FAIL_ARG], st[T_FAIL_VAL] = FAIL_QVEL, j, qvel[j]
+            return FAIL_QVEL
+    for j in range(nj):
+        w = qvel[leg_dof[j]]
+        if abs(w) > sc[S_WMAX]:
+            st[T_FAIL], st[T_FAIL_ARG], st[T_FAIL_VAL] = FAIL_JOINT_SPEED, j, w
+            return FAIL_JOINT_SPEED
+    tb = int(sc[S_TRUNK])
+    root = body_rootid[tb]
+    wx, wy, wz = cvel[tb, 0], cvel[tb, 1], cvel[tb, 2]
+    cx, cy, cz = cross(wx, wy, wz, xpos[tb, 0] - subtree_com[root, 0],
+                       xpos[tb, 1] - subtree_com[root, 1], xpos[tb, 2] - subtree_com[root, 2])
+    vbx, vby, vbz = cvel[tb, 3] + cx, cvel[tb, 4] + cy, cvel[tb, 5] + cz
+    speed = math.sqrt(vbx * vbx + vby * vby + vbz * vbz)
+    if speed > sc[S_VMAX]:
+        st[T_FAIL], st[T_FAIL_ARG], st[T_FAIL_VAL] = FAIL_BODY_SPEED, 0, speed
+        return FAIL_BODY_SPEED
+    # -- 1. muscle tensions from the pressures at t ------------------------------------------------
+    patm = g[CL.G_PATM]
+    law = int(sc[S_LAW])
+    for i in range(n):
+        L = ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
+        tension[i] = muscle_force(law, y[CL.Y_MUSCLE0 + 2 * i + 1] - patm, L, mp[i, CL.M_L0],
+                                  mp[i, CL.M_B0], mp[i, CL.M_N], sc[S_BLADDER], sc[S_BLADDER + 1],
+                                  sc[S_BLADDER + 2], sc[S_BLADDER + 3], sc[S_BLADDER + 4])
+        ctrl[int(mu[i, U_ACT])] = tension[i]
+    # -- 2. palms: commands on the controller grid, motors at their travel rate ----------------------
+    npal = pa.shape[0]
+    while int(st[T_PALM_CMD]) < pal_t.size and pal_t[int(st[T_PALM_CMD])] <= t + 1e-12:
+        st[T_PALM_TARGET] = pal_target[int(st[T_PALM_CMD])]
+        st[T_PALM_CMD] += 1.0
+    for p in range(npal):
+        step = pa[p, P_RATE] * dt
+        d = st[T_PALM_TARGET] - frac[p]
+        frac_new[p] = frac[p] + (d if abs(d) <= step else math.copysign(step, d))
+        if stepping == 0:
+            frac_new[p] = frac[p]
+    # -- 3. water ------------------------------------------------------------------------------------
+    rho = sc[S_RHO]
+    grav = sc[S_G]
+    hx, hy, hz = xmat[tb, 0], xmat[tb, 3], xmat[tb, 6]          # heading: the hull's x axis
+    thrust = 0.0
+    thrust_am = 0.0
+    hull = 0.0
+    first = st[T_FIRST] > 0.5
+    for e in range(el.shape[0]):
+        b = int(el[e, E_BODY])
+        xfrc[b, 0] = 0.0
+        xfrc[b, 1] = 0.0
+        xfrc[b, 2] = 0.0
+        xfrc[b, 3] = 0.0
+        xfrc[b, 4] = 0.0
+        xfrc[b, 5] = 0.0
+    for e in range(el.shape[0]):
+        b = int(el[e, E_BODY])
+        r = body_rootid[b]
+        ox, oy, oz = xpos[b, 0], xpos[b, 1], xpos[b, 2]
+        e1x, e1y, e1z = xmat[b, 0], xmat[b, 3], xmat[b, 6]
+        e2x, e2y, e2z = xmat[b, 1], xmat[b, 4], xmat[b, 7]
+        e3x, e3y, e3z = xmat[b, 2], xmat[b, 5], xmat[b, 8]
+        wx, wy, wz = cvel[b, 0], cvel[b, 1], cvel[b, 2]
+        lx, ly, lz = cvel[b, 3], cvel[b, 4], cvel[b, 5]
+        comx, comy, comz = subtree_com[r, 0], subtree_com[r, 1], subtree_com[r, 2]
+        gx, gy, gz = xipos[b, 0], xipos[b, 1], xipos[b, 2]
+        fan = int(el[e, E_FAN])
+        kscale = 1.0
+        if fan >= 0:
+            kscale = _fan_angle(pa, fan, frac[fan])
+        # strip drag, Eq. (D); cvel's linear part is the velocity at the root's subtree centre
+        Fx, Fy, Fz, Tx, Ty, Tz = strip_drag_wrench(
+            strip_s[e], strip_k[e], kscale, (ox, oy, oz), (e1x, e1y, e1z), (e2x, e2y, e2z),
+            (e3x, e3y, e3z), (wx, wy, wz), (lx, ly, lz), (comx, comy, comz), (gx, gy, gz))
+        drag_h = Fx * hx + Fy * hy + Fz * hz
+        # added mass (module docstring): explicit part at the added-mass centre
+        m1, m2, m3, i1, i2, i3, miso = _part_added_mass(el, e, pa, frac)
+        n1, n2, n3, j1, j2, j3, _ = _part_added_mass(el, e, pa, frac_new)
+        ax_, ay_, az_ = el[e, E_XA], el[e, E_XA + 1], el[e, E_XA + 2]
+        qx = ox + e1x * ax_ + e2x * ay_ + e3x * az_
+        qy = oy + e1y * ax_ + e2y * ay_ + e3y * az_
+        qz = oz + e1z * ax_ + e2z * ay_ + e3z * az_
+        cx, cy, cz = cross(wx, wy, wz, qx - comx, qy - comy, qz - comz)
+        vx, vy, vz = lx + cx, ly + cy, lz + cz
+        if first:
+            acx, acy, acz = 0.0, 0.0, 0.0
+        else:
+            acx = (vx - vprev[e, 0]) / dt
+            acy = (vy - vprev[e, 1]) / dt
+            acz = (vz - vprev[e, 2]) / dt
+        if stepping != 0:
+            vprev[e, 0], vprev[e, 1], vprev[e, 2] = vx, vy, vz
+        v1 = e1x * vx + e1y * vy + e1z * vz
+        v2 = e2x * vx + e2y * vy + e2z * vz
+        v3 = e3x * vx + e3y * vy + e3z * vz
+        a1 = e1x * acx + e1y * acy + e1z * acz
+        a2 = e2x * acx + e2y * acy + e2z * acz
+        a3 = e3x * acx + e3y * acy + e3z * acz
+        w1 = e1x * wx + e1y * wy + e1z * wz
+        w2 = e2x * wx + e2y * wy + e2z * wz
+        w3 = e3x * wx + e3y * wy + e3z * wz
+        k1, k2, k3 = kirchhoff_velocity_force(m1, m2, m3, w1, w2, w3, v1, v2, v3)
+        vel1 = k1 + added_mass_rate_force(m1, n1, dt, v1)
+        vel2 = k2 + added_mass_rate_force(m2, n2, dt, v2)
+        vel3 = k3 + added_mass_rate_force(m3, n3, dt, v3)
+        g1 = (miso - m1) * a1 + vel1                                   # applied (explicit) part
+        g2 = (miso - m2) * a2 + vel2
+        g3 = (miso - m3) * a3 + vel3
+        am1, am2, am3 = -m1 * a1 + vel1, -m2 * a2 + vel2, -m3 * a3 + vel3   # whole added-mass force
+        mu1, mu2, mu3 = munk_moment(m1, m2, m3, v1, v2, v3)
+        mu1 += added_mass_rate_force(i1, j1, dt, w1)
+        mu2 += added_mass_rate_force(i2, j2, dt, w2)
+        mu3 += added_mass_rate_force(i3, j3, dt, w3)
+        fx = g1 * e1x + g2 * e2x + g3 * e3x
+        fy = g1 * e1y + g2 * e2y + g3 * e3y
+        fz = g1 * e1z + g2 * e2z + g3 * e3z + miso * grav          # cancel the extra mass's weight
+        Fx += fx
+        Fy += fy
+        Fz += fz
+        tx, ty, tz = cross(qx - gx, qy - gy, qz - gz, fx, fy, fz)
+        Tx += tx + mu1 * e1x + mu2 * e2x + mu3 * e3x
+        Ty += ty + mu1 * e1y + mu2 * e2y + mu3 * e3y
+        Tz += tz + mu1 * e1z + mu2 * e2z + mu3 * e3z
+        am_h = ((am1 * e1x + am2 * e2x + am3 * e3x) * hx + (am1 * e1y + am2 * e2y + am3 * e3y) * hy
+                + (am1 * e1z + am2 * e2z + am3 * e3z) * hz)
+        # buoyancy at the centre of the displaced volume
+        bx_, by_, bz_ = el[e, E_XB], el[e, E_XB + 1], el[e, E_XB + 2]
+        fb = buoyancy(rho, grav, el[e, E_VOL])
+        tx, ty, tz = cross(ox + e1x * bx_ + e2x * by_ + e3x * bz_ - gx,
+                           oy + e1y * bx_ + e2y * by_ + e3y * bz_ - gy,
+                           oz + e1z * bx_ + e2z * by_ + e3z * bz_ - gz, 0.0, 0.0, fb)
+        Fz += fb
+        Tx += tx
+        Ty += ty
+        Tz += tz
+        xfrc[b, 0] += Fx
+        xfrc[b, 1] += Fy
+        xfrc[b, 2] += Fz
+        xfrc[b, 3] += Tx
+        xfrc[b, 4] += Ty
+        xfrc[b, 5] += Tz
+        if el[e, E_LIMB] > 0.5:
+            thrust += drag_h + am_h
+            thrust_am += am_h
+        else:
+            hull += drag_h + am_h
+    if stepping != 0:
+        st[T_FIRST] = 0.0
+    if thrust > st[T_PEAK]:
+        st[T_PEAK] = thrust
+        st[T_PEAK_TIME] = t
+    # -- 4. record the state at t -------------------------------------------------------------------
+    if row >= 0:
+        rr = rec[row]
+        rr[R_TIME] = t
+        rr[R_X], rr[R_X + 1], rr[R_X + 2] = xpos[tb, 0], xpos[tb, 1], xpos[tb, 2]
+        rr[R_YAW] = math.atan2(xmat[tb, 3], xmat[tb, 0])
+        rr[R_V], rr[R_V + 1], rr[R_V + 2] = vbx, vby, vbz
+        rr[R_THRUST] = thrust
+        rr[R_THRUST_AM] = thrust_am
+        rr[R_HULL] = hull
+        rr[R_PS] = y[CL.Y_PS]
+        rr[R_PE] = y[CL.Y_PE]
+        q = 0.0
+        air = y[CL.Y_MS] + y[CL.Y_ME]
+        for i in range(n):
+            q += y[CL.Y_MUSCLE0 + 2 * n + i]
+            air += y[CL.Y_MUSCLE0 + 2 * i]
+        rr[R_CHARGED] = q
+        rr[R_PUMPED] = y[CL.Y_MUSCLE0 + 4 * n]
+        rr[R_AIR] = air
+        rr[R_EXERGY] = st[T_EXERGY]
+        rr[R_PUMP_ON] = cs[CS_PUMP]
+        c = R_FIXED
+        for i in range(n):
+            rr[c + i] = y[CL.Y_MUSCLE0 + 2 * i + 1]
+            rr[c + n + i] = ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
+            rr[c + 2 * n + i] = tension[i]
+            rr[c + 3 * n + i] = y[CL.Y_MUSCLE0 + 2 * n + i]
+            rr[c + 4 * n + 2 * i] = u[2 * i]
+            rr[c + 4 * n + 2 * i + 1] = u[2 * i + 1]
+        c += 6 * n
+        for p in range(npal):
+            rr[c + p] = frac[p]
+        c += npal
+        for j in range(nj):
+            rr[c + j] = qpos[leg_qpos[j]]
+            rr[c + nj + j] = qvel[leg_dof[j]]
+        c += 2 * nj
+        for j in range(qpos.size):
+            rr[c + j] = qpos[j]
+    if stepping == 0:
+        return 0
+    # -- 5. pneumatics from t to t + dt, muscle lengths following MuJoCo's -----------------------------
+    t_end = (k + 1) * dt
+    for i in range(n):
+        tid = int(mu[i, U_TENDON])
+        L = ten_length[tid] - mu[i, U_FITTINGS]
+        v = ten_velocity[tid]
+        if first:
+            Ls, slope = L, v
+        else:
+            Ls, slope = mot_L[i, 2], mot_d[i, 2]
+        mot_t[i, 0], mot_L[i, 0], mot_d[i, 0] = t - dt, Ls - slope * dt, slope
+        mot_t[i, 1], mot_L[i, 1], mot_d[i, 1] = t, Ls, slope
+        mot_t[i, 2], mot_L[i, 2], mot_d[i, 2] = t_end, L + v * dt, v
+        mot_t[i, 3], mot_L[i, 3], mot_d[i, 3] = t_end + dt, L + 2.0 * v * dt, v
+        mot_n[i] = 4
+    q0 = 0.0
+    for i in range(n):
+        q0 += y[CL.Y_MUSCLE0 + 2 * n + i]
+    ps0 = y[CL.Y_PS]
+    no_output = (np.empty(0), np.empty((0, y.size)), np.empty((0, u.size + 1)))
+    status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n),
+                     (sched_t, sched_u, laws, sc[S_CTRL_DT]), (sc[S_RTOL], atol, sc[S_MAXSTEP]),
+                     no_output, stats)
+    if status != 0:
+        st[T_FAIL], st[T_FAIL_ARG], st[T_FAIL_VAL] = FAIL_PNEUMATIC, status, t
+        return FAIL_PNEUMATIC
+    q1 = 0.0
+    for i in range(n):
+        q1 += y[CL.Y_MUSCLE0 + 2 * n + i]
+    if ps0 > patm:
+        st[T_EXERGY] += (q1 - q0) * g[CL.G_R] * g[CL.G_TAMB] * math.log(ps0 / patm)
+    # -- 6. palms' added mass for the next step -------------------------------------------------------
+    for p in range(npal):
+        frac[p] = frac_new[p]
+    apply_added_mass(el, pa, frac, np.bool_(True), body_mass, body_ipos, body_inertia, body_subtreemass,
+                     body_parentid)
+    return 0

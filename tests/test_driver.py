@@ -1,0 +1,79 @@
+"""The one stepping driver (frogsim.engine.integrator.advance) and the sampled controllers it calls
+(frogsim.control.sampled): the pump's band, where the driver stops, and a run advanced in many
+calls (as the coupled engine does) against the same run in one call."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import frogsim
+from frogsim.circuit import layout as L
+from frogsim.control.sampled import (CS_PUMP, CS_SAMPLE, KIND_PUMP_BAND, L_HIGH, L_INPUT, L_KIND,
+                                     L_LOW, next_control_time, pump_band, sample_controllers,
+                                     sampled_laws, start_controllers)
+from frogsim.engine.integrator import D_OUT, D_T, STATUS_OK, advance, start
+
+BAR = 1e5
+
+
+def test_pump_band_is_a_hysteresis_switch():
+    low, high = 6.0 * BAR, 6.5 * BAR
+    assert pump_band(5.9 * BAR, 0.0, low, high) == 1.0         # below the band: on
+    assert pump_band(6.6 * BAR, 1.0, low, high) == 0.0         # above: off
+    assert pump_band(6.2 * BAR, 1.0, low, high) == 1.0         # inside: keeps its state
+    assert pump_band(6.2 * BAR, 0.0, low, high) == 0.0
+
+
+def test_rule_table_and_samples():
+    g = np.zeros(L.G_SIZE)
+    assert sampled_laws(g).shape[0] == 0                       # no pump: no sampled rule
+    cs = start_controllers(sampled_laws(g), 0.0035, np.zeros(5), np.zeros(0), 1e-3)
+    assert next_control_time(sampled_laws(g), cs, 1e-3) == math.inf   # the driver never stops for it
+    g[L.G_PUMP_ENABLED], g[L.G_PUMP_ON], g[L.G_PUMP_OFF] = 1.0, 6.0 * BAR, 6.5 * BAR
+    laws = sampled_laws(g)
+    assert laws.shape[0] == 1 and laws[0, L_KIND] == KIND_PUMP_BAND
+    assert (laws[0, L_INPUT], laws[0, L_LOW], laws[0, L_HIGH]) == (L.Y_PS, 6.0 * BAR, 6.5 * BAR)
+    y = np.zeros(5)
+    y[L.Y_PS] = 5.0 * BAR
+    # a run starting at 3.5 ms takes the sample of 3 ms; the next is at 4 ms
+    cs = start_controllers(laws, 0.0035, y, np.zeros(0), 1e-3)
+    assert cs[CS_SAMPLE] == 3.0 and cs[CS_PUMP] == 1.0
+    assert next_control_time(laws, cs, 1e-3) == pytest.approx(4e-3, rel=1e-15)
+    y[L.Y_PS] = 6.2 * BAR
+    assert not sample_controllers(laws, 4e-3, y, np.zeros(0), cs)   # inside the band: unchanged
+    y[L.Y_PS] = 6.6 * BAR
+    assert sample_controllers(laws, 5e-3, y, np.zeros(0), cs)       # above: switched off
+    assert cs[CS_SAMPLE] == 5.0 and cs[CS_PUMP] == 0.0
+
+
+def test_a_run_advanced_in_many_calls_matches_one_call(paper_cycle_raw):
+    # the coupled engine calls advance once per MuJoCo step; the pneumatic engine once per run.
+    # With the pump's band active, 10 ms calls must give the same run: the same pump switchings
+    # at the same samples, and the states within the solver's tolerance.
+    d = paper_cycle_raw
+    d["pump"] = {"enabled": True, "on_below_gauge": "5.5 bar", "off_above_gauge": "6 bar"}
+    model = frogsim.build_model(frogsim.load_scenario(d))
+    res = frogsim.simulate(model)
+    sc = model.scenario
+    commands = (model.sched_t, model.sched_u, sampled_laws(model.g), 1.0 / sc.controller.rate)
+    y, u = model.y0.copy(), model.u0.copy()
+    ds, cs = start(0.0, 1e-4, y, u, commands)
+    circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
+    solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
+    no_output = (np.zeros(0), np.zeros((0, y.size)), np.zeros((0, u.size + 1)))
+    stats = np.zeros(3, np.int64)
+    switched = 0
+    for k in range(1, 201):
+        t_end = k * 0.01
+        assert advance(t_end, y, u, ds, cs, circuit, commands, solver, no_output, stats) == STATUS_OK
+        assert ds[D_T] == t_end and ds[D_OUT] == 0
+        row = int(round(t_end / sc.output_interval))
+        assert res.t[row] == pytest.approx(t_end, abs=1e-12)
+        assert np.array_equal(u, res.u[row, :u.size])
+        assert cs[CS_PUMP] == res.u[row, u.size]
+        switched += cs[CS_PUMP] != res.u[row - 10, u.size]
+        scale = np.maximum(np.abs(res.y[row]), model.atol / sc.solver.rtol)
+        assert np.max(np.abs(y - res.y[row]) / scale) < 1e-5
+    assert switched > 0                                          # the pump did switch
