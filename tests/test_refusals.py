@@ -2,7 +2,6 @@
 stop with the quantity, the value and the time."""
 from __future__ import annotations
 
-import copy
 import math
 import os
 import time
@@ -213,7 +212,7 @@ def test_stiff_run_stops_at_the_wall_time_limit_with_a_hint(capsys):
     assert "simulated s" in capsys.readouterr().err       # the progress bar was shown
 
 
-def test_unsliced_and_sliced_runs_agree(monkeypatch):
+def test_simulate_equals_the_batched_engine_bit_for_bit():
     d = paper_cycle_dict()
     d["duration"] = "0.4 s"
     sc = frogsim.load_scenario(d)
@@ -221,11 +220,3 @@ def test_unsliced_and_sliced_runs_agree(monkeypatch):
     ref = run_models([frogsim.build_model(sc)], threads=1)[0]
     whole = frogsim.simulate(sc)
     assert np.array_equal(whole.y, ref.y) and np.array_equal(whole.u, ref.u)   # bit for bit
-    monkeypatch.setattr(pneumatic, "SLICE_WHEN_S", 0.0)
-    monkeypatch.setattr(pneumatic, "PROBE_MIN_S", 0.0)
-    monkeypatch.setattr(pneumatic, "SLICE_TARGET_S", 1e-3)
-    sliced = frogsim.simulate(sc, progress=False)
-    assert np.array_equal(sliced.u, ref.u)
-    p_ref = ref.y[:, L.Y_MUSCLE0 + 1]
-    assert np.allclose(sliced.y[:, L.Y_MUSCLE0 + 1], p_ref, rtol=1e-5, atol=0)
-    assert np.allclose(sliced.source_pressure, ref.source_pressure, rtol=1e-5, atol=0)

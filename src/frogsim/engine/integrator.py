@@ -29,6 +29,7 @@ STATUS_OK = 0
 STATUS_STEP_UNDERFLOW = 1
 STATUS_NOT_FINITE = 2
 STATUS_MAX_STEPS = 3
+STATUS_PAUSED = 4        # stopped after ds[D_PAUSE] accepted steps, to be resumed (not a failure)
 
 # --- driver state ds[:] (see advance) ----------------------------------------------------------------
 D_T = 0          # time reached [s]
@@ -36,7 +37,8 @@ D_H = 1          # next trial step [s]
 D_ERR = 2        # PI step control: error norm of the last accepted step
 D_SI = 3         # index of the next valve-schedule entry
 D_OUT = 4        # next output row
-D_SIZE = 5
+D_PAUSE = 5      # > 0: pause once this many steps are accepted in all (stats[0]); 0: never
+D_SIZE = 6
 EPS = 1e-12      # [s] stop times closer than this are one stop (they come from different sums)
 
 # Dormand-Prince 5(4) tableau
@@ -103,6 +105,12 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     ``out`` = (out_t, out_y, out_u): the rows from ds[D_OUT] on whose times fall inside the span
     are filled by dense output (state, valve states and the pump's switch); ``stats``
     accumulates [accepted steps, rejected steps, rhs evaluations].
+
+    With ds[D_PAUSE] > 0 the call returns STATUS_PAUSED once stats[0] has reached it, after an
+    accepted step inside a piece or at a piece's end (after its commands); calling again goes on
+    with exactly the steps an uninterrupted call would take, since dy/dt, evaluated again at
+    entry, is a pure function of t, y, u and cs (the caller's clock and progress bar live between
+    the calls).
 
     Returns a STATUS_* code; on failure ds[D_T] and y are the last accepted step's.
     """
@@ -225,6 +233,11 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                 err_old = e
                 h_next = h_try * fac
                 h = max(h, h_next) if last else h_next
+                if not last and ds[D_PAUSE] > 0 and stats[0] >= ds[D_PAUSE]:
+                    # a pause inside a piece: everything the next call needs is in y, ds and cs
+                    # (dy/dt is a pure function of them), so pausing changes no step
+                    status = STATUS_PAUSED
+                    break
             else:
                 stats[1] += 1
                 h = h_try * max(0.2, SAFETY * err ** -EXPO)
@@ -249,6 +262,9 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
         if at_control and sample_controllers(laws, t, y, u, cs):
             changed = True
         pump_on = cs[CS_PUMP]
+        if ds[D_PAUSE] > 0 and stats[0] >= ds[D_PAUSE] and t < t_end - EPS:
+            status = STATUS_PAUSED            # between pieces: the next call starts the next one
+            break
         if changed:
             rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
             stats[2] += 1
@@ -260,18 +276,10 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
 
 
 @jit
-def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
-                 ctrl_dt, out_t, rtol, atol, max_step, h0):
-    """Integrate from t0 to t_end under an open-loop valve schedule and the circuit's sampled
-    rules (the pump's band, :func:`frogsim.control.sampled.sampled_laws`).
-
-    ``sched_t`` (sorted) are the times at which valve states become ``sched_u[k]``; before the
-    first, ``u0`` holds. Entries may repeat the current state: they only make the integrator stop
-    there (used for kinks in the prescribed motion). Output rows at out_t (sorted); the rows at or
-    before t0 hold the initial state.
-
-    Returns (out_y, out_u, y_end, stats, status, t_reached).
-    """
+def begin(y0, t0, u0, g, sched_t, sched_u, ctrl_dt, out_t, h0):
+    """Everything a run from t0 needs before its first :func:`advance`: output arrays (the rows at
+    or before t0 hold the initial state), the state and valve vectors, the driver and controller
+    states, the step statistics and the commands tuple."""
     ny = y0.size
     nu = u0.size
     n_out = out_t.size
@@ -291,6 +299,24 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
         out_u[out_i, nu] = cs[CS_PUMP]
         out_i += 1
     ds[D_OUT] = out_i
+    return out_y, out_u, y, u, ds, cs, stats, commands
+
+
+@jit
+def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
+                 ctrl_dt, out_t, rtol, atol, max_step, h0):
+    """Integrate from t0 to t_end under an open-loop valve schedule and the circuit's sampled
+    rules (the pump's band, :func:`frogsim.control.sampled.sampled_laws`): :func:`begin`, then one
+    :func:`advance`.
+
+    ``sched_t`` (sorted) are the times at which valve states become ``sched_u[k]``; before the
+    first, ``u0`` holds. Entries may repeat the current state: they only make the integrator stop
+    there (used for kinks in the prescribed motion). Output rows at out_t (sorted); the rows at or
+    before t0 hold the initial state.
+
+    Returns (out_y, out_u, y_end, stats, status, t_reached).
+    """
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, g, sched_t, sched_u, ctrl_dt, out_t, h0)
     status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), commands,
                      (rtol, atol, max_step), (out_t, out_y, out_u), stats)
     return out_y, out_u, y, stats, status, ds[D_T]

@@ -2,11 +2,12 @@
 
 :func:`simulate` runs one scenario and checks what it returns: every air mass and pressure in the
 output finite and positive, every muscle volume positive (else SimulationError naming the
-quantity, its value and the time). A run is first probed over its first 1/1024 ... 1/32: if the whole run
-promises to take longer than a few seconds (a stiff circuit: a tiny chamber behind a large valve
-forces microsecond steps), it goes on in slices of simulated time with a progress bar on stderr
-and stops at ``solver.max_wall_time`` with a hint at the cause. Every other run is integrated in
-one piece, bit for bit the same as the batched engine (:mod:`frogsim.engine.batch`).
+quantity, its value and the time). The driver pauses every STEPS_PER_CALL accepted steps
+(:data:`frogsim.engine.integrator.STATUS_PAUSED`), which changes no step: between calls the wall
+clock is read, a run that has taken more than a few seconds shows a progress bar on stderr, and a
+run past ``solver.max_wall_time`` stops with a hint at the cause (a stiff circuit: a tiny chamber
+behind a large valve forces microsecond steps). Every run is bit for bit the same as in the
+batched engine (:mod:`frogsim.engine.batch`), however many calls it took.
 """
 from __future__ import annotations
 
@@ -20,18 +21,15 @@ from frogsim.circuit import layout as L
 from frogsim.circuit.model import PneumaticModel, build_model
 from frogsim.physics.muscle import muscle_volume
 from frogsim.scenario.core import Scenario
-from frogsim.engine.integrator import STATUS_OK, run_schedule
+from frogsim.engine.integrator import D_PAUSE, D_T, STATUS_OK, STATUS_PAUSED, advance, begin
 from frogsim.engine.result import Result
 from frogsim.errors import SimulationError
 
 _STATUS_TEXT = {1: "step size fell below 1e-14 s", 2: "the state became non-finite (NaN or inf)",
                 3: "more than 50 million steps"}
 
-PROBE_FRACTIONS = (1 / 1024, 1 / 256, 1 / 64, 1 / 32)   # shares of the run probed for its wall time
-SLICE_WHEN_S = 3.0            # a run projected to take longer goes in slices (progress bar, limit)...
-PROBE_MIN_S = 0.25            # ...once its probe has taken this long (a projection from a few
-                              # milliseconds would follow every hiccup of a busy machine)
-SLICE_TARGET_S = 0.5          # wall seconds aimed at per slice
+STEPS_PER_CALL = 20_000       # accepted steps between two looks at the clock (about 10-50 ms)
+PROGRESS_AFTER_S = 2.0        # a run still going after this long (or half its limit) shows a progress bar
 
 
 def _as_model(what) -> PneumaticModel:
@@ -92,13 +90,6 @@ def check_state(model: PneumaticModel, t: np.ndarray, y: np.ndarray) -> None:
                           f"{_describe_state(model, y[row])})")
 
 
-def _run(model: PneumaticModel, y0, t0: float, t1: float, out_t: np.ndarray, h0: float):
-    sc = model.scenario
-    return run_schedule(y0, t0, t1, model.g, model.mp, model.mot_t, model.mot_L, model.mot_d,
-                        model.mot_n, model.sched_t, model.sched_u, model.u0, 1.0 / sc.controller.rate,
-                        out_t, sc.solver.rtol, model.atol, sc.solver.max_step, h0)
-
-
 def _check_status(model: PneumaticModel, status: int, t_reached: float, y_end) -> None:
     if status != STATUS_OK:
         raise SimulationError(f"scenario {model.scenario.name!r}: integration stopped at t = {t_reached:.6g} s: "
@@ -133,63 +124,6 @@ def stiffness_hint(model: PneumaticModel) -> str:
             f"stay about that short); raise solver.max_wall_time, shorten the duration or check {paths}")
 
 
-class _Slices:
-    """A run advanced in slices of simulated time (each a restart of the integrator from the
-    state reached), with its outputs gathered on the model's output grid."""
-
-    def __init__(self, model: PneumaticModel, h0: float):
-        self.model = model
-        self.out_y = np.empty((model.out_t.size, model.y0.size))
-        self.out_u = np.empty((model.out_t.size, model.u0.size + 1))
-        self.stats = np.zeros(3, dtype=np.int64)
-        self.y, self.t, self.h = model.y0, 0.0, h0
-
-    def advance(self, t1: float) -> float:
-        """Integrate to t1; returns the wall seconds it took."""
-        out_t = self.model.out_t
-        sel = (out_t <= t1) if self.t == 0.0 else (out_t > self.t) & (out_t <= t1)
-        w0 = time.perf_counter()
-        oy, ou, y_end, st, status, t_reached = _run(self.model, self.y, self.t, t1,
-                                                    np.ascontiguousarray(out_t[sel]), self.h)
-        _check_status(self.model, status, t_reached, y_end)
-        self.out_y[sel], self.out_u[sel] = oy, ou
-        self.stats += st
-        self.h = (t1 - self.t) / max(int(st[0]), 1)     # the next slice starts at the mean step
-        self.t, self.y = t1, y_end
-        return time.perf_counter() - w0
-
-
-def _finish_sliced(run: _Slices, wall0: float, limit: float, progress) -> None:
-    """Go on in slices of about SLICE_TARGET_S wall seconds, checking the clock between them."""
-    sc = run.model.scenario
-    T = sc.duration
-    rate = run.t / max(time.perf_counter() - wall0, 1e-6)      # simulated s per wall s so far
-    dt = rate * SLICE_TARGET_S
-    bar = None
-    if progress is not False:
-        from tqdm import tqdm
-        bar = tqdm(total=T, initial=run.t, file=sys.stderr, leave=False, desc=f"{sc.name[:30]} (simulated s)",
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} [{elapsed}<{remaining}]")
-    try:
-        while run.t < T:
-            elapsed = time.perf_counter() - wall0
-            if elapsed > limit:
-                raise SimulationError(f"scenario {sc.name!r}: stopped at t = {run.t:.6g} s of {T:g} s after "
-                                      f"{elapsed:.0f} s of wall time (solver.max_wall_time = {limit:g} s) and "
-                                      f"{int(run.stats[0])} steps: {stiffness_hint(run.model)}")
-            t0 = run.t
-            t1 = min(T, t0 + dt)
-            if T - t1 < 1e-9 * T:
-                t1 = T
-            w = max(run.advance(t1), 1e-6)
-            dt = min(4.0 * (t1 - t0), (t1 - t0) / w * SLICE_TARGET_S)
-            if bar is not None:
-                bar.update(t1 - t0)
-    finally:
-        if bar is not None:
-            bar.close()
-
-
 def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
              progress: bool | None = None) -> Result:
     """Run one scenario (a Scenario, a built model, a TOML path or a dict) and return its Result.
@@ -204,23 +138,35 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
     limit = sc.solver.max_wall_time if max_wall_s is None else float(max_wall_s)
     check_volumes(model)
     T = sc.duration
-    if not run_schedule.signatures:       # compile (or load the cached code) outside the clock
-        _run(model, model.y0, 0.0, 0.0, model.out_t[:0], h0)
-    # probe: the first 1/1024, 1/256, 1/64 and 1/32 of the run, continuing, with the clock read
-    # after each; a run that promises to be long goes on in slices from where the probe got to
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(model.y0, 0.0, model.u0, model.g, model.sched_t,
+                                                        model.sched_u, 1.0 / sc.controller.rate, model.out_t, h0)
+    circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
+    solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
+    out = (model.out_t, out_y, out_u)
     wall0 = time.perf_counter()
-    run = _Slices(model, h0)
-    for frac in PROBE_FRACTIONS:
-        run.advance(T * frac)
-        elapsed = time.perf_counter() - wall0
-        if elapsed / frac > min(SLICE_WHEN_S, limit) and elapsed > min(PROBE_MIN_S, limit):
-            _finish_sliced(run, wall0, limit, progress)
-            out_y, out_u, y_end, stats = run.out_y, run.out_u, run.y, run.stats
-            break
-    else:
-        # the usual case: one piece from the start, the same steps as every other engine entry
-        out_y, out_u, y_end, stats, status, t_reached = _run(model, model.y0, 0.0, T, model.out_t, h0)
-        _check_status(model, status, t_reached, y_end)
+    bar = None
+    try:
+        while True:
+            ds[D_PAUSE] = stats[0] + STEPS_PER_CALL
+            status = advance(T, y, u, ds, cs, circuit, commands, solver, out, stats)
+            if status != STATUS_PAUSED:
+                break
+            elapsed = time.perf_counter() - wall0
+            if elapsed > limit:
+                raise SimulationError(f"scenario {sc.name!r}: stopped at t = {ds[D_T]:.6g} s of {T:g} s after "
+                                      f"{elapsed:.0f} s of wall time (solver.max_wall_time = {limit:g} s) and "
+                                      f"{int(stats[0])} steps: {stiffness_hint(model)}")
+            if bar is None and progress is not False and elapsed > min(PROGRESS_AFTER_S, limit / 2):
+                from tqdm import tqdm
+                bar = tqdm(total=T, file=sys.stderr, leave=False, desc=f"{sc.name[:30]} (simulated s)",
+                           bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} [{elapsed}<{remaining}]")
+            if bar is not None:
+                bar.update(ds[D_T] - bar.n)
+    finally:
+        if bar is not None:
+            bar.close()
+    y_end = y
+    _check_status(model, status, ds[D_T], y_end)
     check_state(model, model.out_t, out_y)
     if not (np.all(np.isfinite(y_end)) and all(y_end[j] > 0 for j, _, _ in _state_labels(model))):
         raise SimulationError(f"scenario {sc.name!r}: non-physical end state "
