@@ -103,4 +103,8 @@ def test_parquet_needs_pyarrow(tmp_path, rig):
             read_trace(path, rig)
         return
     df.to_parquet(tmp_path / "a.parquet")
-    assert "hip pressure" in read_trace(tmp_path / "a.parquet", rig).signals
+    from_parquet = read_trace(tmp_path / "a.parquet", rig)
+    from_csv = read_trace(_csv(tmp_path / "a.csv", {"time [s]": t, "hip pressure [bar gauge]": t}), rig)
+    assert "hip pressure" in from_parquet.signals
+    for name in from_csv.signals:                 # the same numbers whichever file format
+        assert np.array_equal(np.asarray(from_parquet.signals[name]), np.asarray(from_csv.signals[name])), name
