@@ -201,3 +201,19 @@ def _current_umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+def test_fit_folder_is_owned_and_not_rerun_by_accident(tmp_path, capsys):
+    from pathlib import Path
+    example = Path(__file__).resolve().parent.parent / "examples" / "fit" / "FIT.toml"
+    out = tmp_path / "fit"
+    assert main(["fit", str(example), "--out", str(out), "--quiet", "--starts", "1"]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["command"] == "fit" and manifest["status"] == "complete"
+    assert {"report.html", "summary.json", "fitted-parameters.toml"} <= {f["name"] for f in manifest["files"]}
+    before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
+    capsys.readouterr()
+    assert main(["fit", str(example), "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--overwrite" in err
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before       # nothing touched

@@ -316,15 +316,23 @@ def cmd_plot(args) -> int:
 
 
 def cmd_fit(args) -> int:
-    from frogsim.fit import fit, load_fit_spec
-    from frogsim.fit.report import check_out, write_outputs
-    check_out(args.out)
+    from frogsim.fit import load_fit_spec
+    from frogsim.fit.report import planned_files
+    _out_dir(args.out)
     spec = load_fit_spec(args.spec, starts=args.starts, threads=args.threads)   # traces too: before any write
+    folder = _folder(args, "fit", files=planned_files(spec))
+    return _finishing(folder, lambda: _fit_into(args, folder, spec))
+
+
+def _fit_into(args, folder, spec) -> int:
+    from frogsim.fit import fit
+    from frogsim.fit.report import write_outputs
     tables = f" and {len(spec.force_tables)} force table(s)" if spec.force_tables else ""
     _progress(f"fitting {len(spec.parameters)} parameters to {len(spec.experiments)} trace(s){tables}, "
               f"{spec.starts} start(s) ...")
     res = fit(spec, progress=not args.quiet)
     files = write_outputs(res, args.out)
+    folder.finish()
     for j, path in enumerate(res.paths):
         prm = spec.parameters[j]
         _progress(f"  {path} = {prm.shown(res.values[j])}  [{prm.shown(res.ci_low[j])} .. "
@@ -436,6 +444,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--starts", type=int, default=None, metavar="N", help="least-squares starts (default: the spec's)")
     s.add_argument("--threads", type=int, default=None, metavar="N", help="threads (default: all cores)")
     s.add_argument("--quiet", action="store_true", help="no progress bars")
+    s.add_argument("--overwrite", action="store_true",
+                   help="replace the files of an earlier run in DIR (deleted first)")
     s.set_defaults(func=cmd_fit)
     return p
 

@@ -277,6 +277,13 @@ the errors are independent and the model fits.</p>
 """
 
 
+def planned_files(spec) -> list[str]:
+    """The names of the files :func:`write_outputs` writes for a fit spec (known before the fit)."""
+    names = [f"fit-{k + 1}-{_slug(e.name)}.png" for k, e in enumerate(spec.experiments)]
+    names += [f"force-{k + 1}-{_slug(ft.name)}.png" for k, ft in enumerate(getattr(spec, "force_tables", ()))]
+    return names + [PARAMETER_FILE, "report.html", "summary.json"]
+
+
 def write_outputs(res: FitResult, out) -> dict:
     """Write every output into the folder ``out``; returns {what: path}."""
     out = check_out(out)

@@ -1,12 +1,12 @@
 """Output folders: who owns one, what is in it, and ``manifest.json``.
 
 The rule (README, "Output folders")
-    A folder belongs to the command that first wrote into it (``simulate``, ``swim``,
+    A folder belongs to the command that first wrote into it (``simulate``, ``swim``, ``fit``,
     ``reproduce``, ``design``, ``compare``); its ``manifest.json`` says which.
 
     - Another command refuses to write there (exit 2, nothing written); with ``--overwrite`` it
       first deletes the files the manifest lists, then writes its own: the folder changes hands.
-    - ``simulate``, ``swim`` and ``compare`` hold one run: running again into the same folder
+    - ``simulate``, ``swim``, ``fit`` and ``compare`` hold one run: running again into the same folder
       needs ``--overwrite``, which deletes the previous run's files first (no stale file of the
       old run survives, e.g. an animation the new run does not make).
     - ``reproduce`` and ``design`` hold studies: a later run may add studies the folder does not
