@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from frogsim.errors import UNKNOWN, ScenarioError
-from frogsim.fit.traces import _col_error, _parse_header, _pressure_unit, _read_table, _unit_scale
+from frogsim.fit.traces import _col_error, _parse_header, _pressure_unit, _read_table, _unit_scale, numeric_column
 from frogsim.scenario.units import parse_quantity
 
 #: the force law's constants, in the order of :func:`frogsim.physics.muscle_force.muscle_force`
@@ -132,15 +132,7 @@ def read_force_table(path, scenario) -> ForceTable:
 
     def numbers(key: str) -> np.ndarray:
         col, scale, offset = cols[key]
-        try:
-            x = np.asarray(df[col].to_numpy(), dtype=float)
-        except (TypeError, ValueError):
-            raise _col_error(fname, col, "holds values that are not numbers") from None
-        bad = np.flatnonzero(~np.isfinite(x))
-        if bad.size:
-            raise _col_error(fname, col, f"missing or non-finite value (NaN) in data row {bad[0] + 1} "
-                                         f"({bad.size} in all)")
-        return x * scale + offset
+        return numeric_column(df, fname, col) * scale + offset
 
     p, eps, force = numbers("pressure"), numbers("contraction"), numbers("force")
     neg = np.flatnonzero(p < -1e-9 * max(1.0, patm))

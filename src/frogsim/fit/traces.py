@@ -74,6 +74,20 @@ def simulated(result, signal: str) -> np.ndarray:
     raise KeyError(signal)
 
 
+def numeric_column(df, fname: str, col: str) -> np.ndarray:
+    """Column ``col`` of a table as finite floats, or a ScenarioError naming the file, the column
+    and the first bad data row."""
+    try:
+        x = np.asarray(df[col].to_numpy(), dtype=float)
+    except (TypeError, ValueError):
+        raise _col_error(fname, col, "holds values that are not numbers") from None
+    bad = np.flatnonzero(~np.isfinite(x))
+    if bad.size:
+        raise _col_error(fname, col, f"missing or non-finite value (NaN) in data row {bad[0] + 1} "
+                                     f"({bad.size} in all)")
+    return x
+
+
 def _col_error(fname: str, col: str, allowed: str) -> ScenarioError:
     return ScenarioError(f"{fname}: column {col!r}", UNKNOWN, allowed)
 
@@ -172,15 +186,7 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
         raise ScenarioError(f"trace {fname!r}", UNKNOWN, f"no signal to fit (the model has: {', '.join(known)})")
 
     def numbers(col: str) -> np.ndarray:
-        try:
-            x = np.asarray(df[col].to_numpy(), dtype=float)
-        except (TypeError, ValueError):
-            raise _col_error(fname, col, "holds values that are not numbers") from None
-        bad = np.flatnonzero(~np.isfinite(x))
-        if bad.size:
-            raise _col_error(fname, col, f"missing or non-finite value (NaN) in data row {bad[0] + 1} "
-                                         f"({bad.size} in all)")
-        return x
+        return numeric_column(df, fname, col)
 
     t = numbers(time_col[0]) * time_col[1]
     dt = np.diff(t)
