@@ -258,3 +258,17 @@ def test_shared_overrides_equal_copied_ones_and_leave_the_base_alone():
         with_overrides(raw, {"source.volume.x": 1}, share=True)
     with pytest.raises(ScenarioError, match="nosuch"):      # a misspelt table: refused on loading
         load_scenario(with_overrides(raw, {"nosuch.volume": "1 L"}, share=True))
+
+
+def test_a_valve_sweep_under_the_paper_branch_cap_says_so(folder):
+    # in paper mode the Eq. (9) cap (43.1 L/min for fan2017's main tube and six branches) binds
+    # long before a 0.4 L/(s bar) valve does: doubling C cannot show; the spec says so
+    d = spec_dict({"valves.charge.sonic_conductance": {"values": [0.4, 0.8], "unit": "L/(s*bar)"}})
+    d["base"]["overrides"] = {"supply.mode": "paper"}
+    notes = load_spec(d, folder).notes
+    assert len(notes) == 1 and "caps every branch" in notes[0] and "valves.charge.sonic_conductance" in notes[0]
+    d["base"]["overrides"] = {"supply.mode": "none"}
+    assert load_spec(d, folder).notes == []
+    both = spec_dict({"valves.charge.sonic_conductance": {"values": [0.4, 0.8], "unit": "L/(s*bar)"},
+                      "supply.mode": ["paper", "none"]})
+    assert load_spec(both, folder).notes == []          # the mode is swept: the comparison is there

@@ -280,8 +280,12 @@ def cmd_sweep(args) -> int:
     from frogsim.sweep.runner import run_sweep
     if args.workers is not None and args.workers < 1:
         return _err(f"--workers = {args.workers}: must be >= 1", 2)
+    from frogsim.sweep.spec import load_spec
     t0 = time.perf_counter()
-    ds = run_sweep(args.spec, out=args.out, workers=args.workers, scheduler=args.scheduler,
+    spec = load_spec(args.spec)
+    for note in spec.notes:
+        _progress(f"note: {note}")
+    ds = run_sweep(spec, out=args.out, workers=args.workers, scheduler=args.scheduler,
                    progress=not args.quiet, overwrite=args.overwrite, connect_timeout=args.connect_timeout)
     n, failed = ds.attrs["n_points"], ds.attrs["n_failed"]
     _progress(f"{n} points in {time.perf_counter() - t0:.2f} s -> {args.out}")

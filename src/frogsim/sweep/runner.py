@@ -356,6 +356,7 @@ def to_dataset(spec: SweepSpec, store: _Store):
         "frogsim_version": __version__,
         "sweep_name": spec.name,
         "sweep_description": spec.description,
+        "notes": "\n".join(spec.notes),
         "sweep_method": spec.method,
         "sweep_hash": spec.hash,
         "sweep_parameters": ", ".join(spec.paths),

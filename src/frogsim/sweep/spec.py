@@ -486,6 +486,19 @@ class SweepSpec:
         row = self.si[k]
         return {p.path: _typed(p.info, w, float(x)) for p, w, x in zip(self.parameters, self.written[k], row)}
 
+    @property
+    def notes(self) -> list[str]:
+        """Things a designer should know before reading this sweep's numbers (one line each)."""
+        out = []
+        valve_paths = [p for p in self.paths if p.startswith("valves.charge.")]
+        if valve_paths and "supply.mode" not in self.paths and self.scenario.supply.mode == "paper":
+            from frogsim.circuit.model import branch_limit_standard
+            limit = branch_limit_standard(self.scenario.supply) * 60e3
+            out.append(f"supply.mode = 'paper' caps every branch at {limit:.3g} L/min (Eq. 9): "
+                       f"{', '.join(valve_paths)} matter only where the valve passes less than that; "
+                       "sweep supply.mode or set supply.mode = 'none' or 'physical' to see the valve alone")
+        return out
+
     def variant(self, k: int) -> Scenario:
         """The scenario of point k (validated)."""
         return self.scenario.replace(self.point(k))
