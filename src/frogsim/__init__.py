@@ -23,3 +23,8 @@ from frogsim.robot.scenario import load_robot_scenario
 __all__ = ["FrogsimError", "Result", "Scenario", "ScenarioError", "SimulationError", "SwimResult", "build_model",
            "load_robot_scenario", "load_scenario", "simulate", "swim", "with_overrides"]
 __version__ = "0.1.0"
+
+# Gymnasium environments frogsim/HipPressure-v0 and frogsim/Swim-v0 (names only: cheap)
+from frogsim.envs import register_envs as _register_envs  # noqa: E402
+
+_register_envs()

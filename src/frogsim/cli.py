@@ -11,6 +11,8 @@
     frogsim sweep SPEC.toml --out RESULTS.nc run a parameter sweep (resumable; see docs/sweeps.md)
     frogsim plot RESULTS.nc --x P --metric M a sweep's metric against one or two swept parameters
     frogsim fit FIT.toml --out DIR          calibrate parameters to measured traces (docs/fitting.md)
+    frogsim optimize-gait SCENARIO --trials N --objective speed|distance-per-litre --out DIR
+                                            search the gait's phase timing (resumable; docs/control.md)
     frogsim compare RUN_OR_SCENARIO ... --signal NAME --out DIR
                                             overlay one signal of several runs or scenarios
 
@@ -354,6 +356,58 @@ def _fit_into(args, folder, spec) -> int:
     return 0
 
 
+def cmd_optimize_gait(args) -> int:
+    from frogsim.io.outputs import read_manifest, scenario_inputs, scenario_record
+    from frogsim.optimize import gait as G
+    out = _out_dir(args.out)
+    # every input checked before anything is written or run
+    search = G.prepare(args.scenario, args.objective, args.trials, cycles=args.cycles,
+                       seed=args.seed, workers=args.workers)
+    study_db = out / "study.db"
+    prev = read_manifest(out) if out.exists() else None
+    resume = (not args.overwrite and prev is not None and prev["command"] == "optimize-gait"
+              and study_db.exists())
+    done = G.check_resumable(search, study_db) if resume else 0
+    files = ["best-gait.toml", "trials.csv", "trials.png", "study.db"]
+    folder = _folder(argparse.Namespace(out=args.out, argv=args.argv, overwrite=args.overwrite or resume),
+                     "optimize-gait", files=files,
+                     scenario=scenario_record(search.rs.name, scenario_inputs(search.rs.pneumatic,
+                                                                              args.scenario)))
+    if resume:   # continuing: the study stays, everything else is written again
+        folder._remove = [f for f in folder._remove if f != "study.db"]
+    elif study_db.exists() and not args.overwrite and prev is None:
+        return _err(f"--out = {str(out)!r}: holds a study.db of no optimize-gait run; use --overwrite", 2)
+
+    def work():
+        from frogsim._files import atomic_write, write_csv, write_json
+        _progress(("continuing" if done else "starting") +
+                  f" a gait search on {search.rs.name!r}: objective {search.objective}, "
+                  f"{search.trials} trials ({done} done), {search.cycles} cycles of "
+                  f"{search.period:g} s each, {search.workers} worker(s) ...")
+        res = G.run_search(search, study_db, fresh=not resume, progress=_progress)
+        name = f"{search.rs.name}-best-{search.objective}"
+        best, base = res["best"].value, res["baseline"].value
+        unit = G.OBJECTIVES[search.objective][1]
+        text = G.scenario_text(search.raw, res["best_gait"], name,
+                               f"Gait found by frogsim optimize-gait ({search.objective}: {best:.6g} {unit} "
+                               f"against {base:.6g} {unit} for the scenario's own gait, {search.cycles} cycles)")
+        atomic_write(out / "best-gait.toml", lambda tmp: Path(tmp).write_text(text))
+        table = G.trials_table(res["study"], search)
+        write_csv(out / "trials.csv", table)
+        G.plot_trials(table, search, base, out / "trials.png")
+        s = G.summary_of(res, search, {"best_gait": "best-gait.toml", "trials": "trials.csv",
+                                       "figure": "trials.png", "study": "study.db"})
+        write_json(out / "summary.json", s)
+        folder.finish()
+        _progress(f"best {best:.4g} {unit} (trial {res['best'].number}) against {base:.4g} {unit} for "
+                  f"the scenario's own gait: margin {best - base:+.4g} {unit} "
+                  f"({s['margin_percent']:+.1f} %); run it with: frogsim swim {out / 'best-gait.toml'} "
+                  "--out DIR")
+        _progress("wrote " + ", ".join(str(out / f) for f in files + ["summary.json", "manifest.json"]))
+        return 0
+    return _finishing(folder, work)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="frogsim", description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[2:]).strip(),
@@ -451,6 +505,19 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--overwrite", action="store_true",
                    help="replace the files of an earlier run in DIR (deleted first)")
     s.set_defaults(func=cmd_fit)
+    s = sub.add_parser("optimize-gait", help="search the gait's phase timing (Optuna TPE) for speed or distance "
+                                             "per litre: best-gait.toml, trials.csv, trials.png, summary.json; "
+                                             "running again continues the search")
+    s.add_argument("scenario", metavar="SCENARIO", help="robot scenario TOML file or shipped name (swim)")
+    s.add_argument("--trials", type=int, required=True, metavar="N", help="trials in all (>= 1)")
+    s.add_argument("--objective", required=True, metavar="OBJ", help="speed or distance-per-litre")
+    s.add_argument("--cycles", type=int, default=None, metavar="N", help="gait cycles per trial "
+                                                                          "(default: the scenario's)")
+    s.add_argument("--workers", type=int, default=2, metavar="N", help="trials run side by side (default 2)")
+    s.add_argument("--seed", type=int, default=0, help="sampler seed (default 0)")
+    s.add_argument("--out", required=True, metavar="DIR", help="output folder (holds the study: rerun to continue)")
+    s.add_argument("--overwrite", action="store_true", help="start afresh, replacing what DIR holds")
+    s.set_defaults(func=cmd_optimize_gait)
     return p
 
 

@@ -147,3 +147,32 @@ def phase_windows(gait: Gait, group: str = "drive", joint: str = "hip"):
             end = steps[i + 1][0] if i + 1 < len(steps) else gait.period
             windows.append((t0 + t, t0 + end))
     return windows
+
+
+# --- writing a gait ------------------------------------------------------------------------------
+def time_text(t: float, digits: int = 3) -> str:
+    """A time as the gait table writes it: seconds with the unit, e.g. "0.125 s"."""
+    return f"{round(float(t), digits):.{digits}f}".rstrip("0").rstrip(".") + " s"
+
+
+def steps_raw(steps) -> list:
+    """((t, state), ...) -> [{at = "t s", state = "..."}, ...] (the TOML form)."""
+    return [{"at": time_text(t), "state": s} for t, s in steps]
+
+
+def gait_raw(period: float, cycles: int, drive, recover, palms, joints: dict | None = None) -> dict:
+    """A ``[gait]`` table (units written out) that :meth:`Gait.from_raw` reads back: the common
+    drive, recover and palm steps ((t [s], state), ...) and optional per-joint overrides
+    (joint -> {"drive": steps, "recover": steps})."""
+    raw = {"period": time_text(period), "cycles": int(cycles), "drive": steps_raw(drive),
+           "recover": steps_raw(recover), "palms": steps_raw(palms)}
+    if joints:
+        raw["joints"] = {j: {g: steps_raw(s) for g, s in own.items()} for j, own in joints.items()}
+    return raw
+
+
+def gait_table_of(gait: Gait) -> dict:
+    """The ``[gait]`` table of a validated Gait (each joint's own steps written out)."""
+    first = gait.joints[next(iter(gait.joints))]
+    joints = {j: own for j, own in gait.joints.items() if own != first}
+    return gait_raw(gait.period, gait.cycles, first["drive"], first["recover"], gait.palms, joints)

@@ -18,6 +18,7 @@ quantity and the time.
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 
@@ -32,9 +33,9 @@ from frogsim.engine.coupled_layout import (  # noqa: F401
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
     R_EXERGY, R_FIXED, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
     R_V, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
-    S_TRUNK, S_VMAX, S_WMAX, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PEAK, T_PEAK_TIME, T_SIZE,
-    U_ACT, U_FITTINGS, U_SIZE, U_TENDON, record_columns)
-from frogsim.engine.integrator import start
+    S_TRUNK, S_VMAX, S_WMAX, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK,
+    T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE, U_TENDON, record_columns)
+from frogsim.engine.integrator import D_SI, start
 from frogsim.errors import SimulationError
 from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL
 from frogsim.robot import import_mujoco
@@ -307,3 +308,180 @@ def run_coupled(cm: CoupledModel, progress=None) -> dict:
                                                   "pneumatic_steps": int(a["stats"][0]),
                                                   "pneumatic_rejected": int(a["stats"][1]),
                                                   "rhs_evaluations": int(a["stats"][2])}}
+
+
+# --- stepping one controller period at a time ----------------------------------------------------
+class CoupledStepper:
+    """The coupled engine driven from outside, one controller period per :meth:`step`.
+
+    Built once from a robot scenario (the MJCF compiled, the tables allocated); the scenario's
+    gait is not used: the valve states and the palms' target are set by each call of
+    :meth:`step` and held for ``steps_per_action`` MuJoCo steps (one controller period). A valve
+    command acts after the valve's dead time (``valves.charge.dead_time``,
+    ``valves.discharge.dead_time``), exactly as a gait's command does; the palms' steering motors
+    take their new target at once and move at their travel rate. The pump's pressure band and the
+    scenario's other sampled rules run as in :func:`run_coupled`.
+
+    :meth:`reset` restores the MuJoCo state, the model's masses (the palms' added mass changes
+    them), the pneumatic state and the kernel's memory as they were after the build, so that
+    every episode from a reset is the same run bit for bit. :func:`run_coupled` is not affected
+    (this class works on a model of its own).
+    """
+
+    def __init__(self, rs, steps_per_action: int = 10):
+        if int(steps_per_action) < 1:
+            raise ValueError(f"steps_per_action = {steps_per_action}: must be >= 1")
+        mujoco = import_mujoco()
+        cm = build_coupled(rs)
+        a = cm.arrays
+        n = len(cm.muscle_names)
+        self.cm = cm
+        self.n = n
+        self.steps_per_action = int(steps_per_action)
+        self.dead = np.array([rs.pneumatic.valves.charge.dead_time,
+                              rs.pneumatic.valves.discharge.dead_time] * n)
+        self.rate = rs.pneumatic.controller.rate
+        # no open-loop commands: an empty schedule and no palm commands; the valves start shut
+        a["pal_t"], a["pal_target"] = np.zeros(0), np.zeros(0)
+        a["sched_t"], a["sched_u"] = np.zeros(0), np.zeros((0, 2 * n))
+        a["u"][:] = 0.0
+        ds, cs = start(0.0, 1e-4, a["y"], a["u"], (a["sched_t"], a["sched_u"], a["laws"],
+                                                    a["sc"][S_CTRL_DT]))
+        a["ds"], a["cs"] = ds, cs
+        a["st"][T_PALM_TARGET] = 0.0
+        self._keys = ("st", "y", "u", "ds", "cs", "frac", "frac_new", "vprev", "mot_t", "mot_L",
+                      "mot_d", "mot_n", "stats", "tension")
+        self._saved = {k: a[k].copy() for k in self._keys}
+        m = cm.mjm
+        self._model_saved = {k: getattr(m, k).copy() for k in
+                             ("body_mass", "body_ipos", "body_inertia", "body_subtreemass")}
+        self._d0 = mujoco.MjData(m)
+        mujoco.mj_copyData(self._d0, m, cm.mjd)
+        self._copy = mujoco.mj_copyData
+        self._step1, self._step2 = mujoco.mj_step1, mujoco.mj_step2
+        self.trunk = int(a["sc"][S_TRUNK])
+        self.reset()
+
+    # -- state ----------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Back to the state after the build: t = 0, valves shut, palms folded, no commands due."""
+        cm, a, m = self.cm, self.cm.arrays, self.cm.mjm
+        for k in self._keys:
+            np.copyto(a[k], self._saved[k])
+        for k, v in self._model_saved.items():
+            np.copyto(getattr(m, k), v)
+        self._copy(cm.mjd, m, self._d0)
+        self.k = 0
+        self.u_cmd = np.zeros(2 * self.n)      # the valve states last commanded
+        self.u_due = np.zeros(2 * self.n)      # the valve states once every due command has acted
+        self.pending: list = []                # (time, valve, state) of commands not yet acted
+        self.switches = 0                      # valve state changes commanded since the reset
+        # MuJoCo's derived quantities (positions, velocities, com) for the restored state and the
+        # model's masses as they are now (the build changed them after its forward pass)
+        self._step1(m, cm.mjd)
+        self._fresh = True
+
+    @property
+    def t(self) -> float:
+        return self.k * self.cm.dt
+
+    @property
+    def period(self) -> float:
+        """The controller period: steps_per_action MuJoCo steps [s]."""
+        return self.steps_per_action * self.cm.dt
+
+    def step(self, u, palm: float) -> int:
+        """Command the valve states ``u`` (charge, discharge per muscle; 1 open, 0 shut) and the
+        palms' target (1 open, 0 folded), then run one controller period. Returns the number of
+        valve state changes commanded. SimulationError (with the quantity and the time) if the
+        run goes unstable; the stepper then needs a :meth:`reset`."""
+        cm, a = self.cm, self.cm.arrays
+        u = np.asarray(u, float)
+        if u.shape != (2 * self.n,):
+            raise ValueError(f"u has shape {u.shape}, expected ({2 * self.n},)")
+        t = self.t
+        changed = np.nonzero(u != self.u_cmd)[0]
+        for j in changed:
+            self.pending.append((t + self.dead[j], int(j), float(u[j])))
+        self.u_cmd = u.copy()
+        self.switches += changed.size
+        K = self.steps_per_action
+        t_end = (self.k + K) * cm.dt
+        self.pending.sort()
+        due = [e for e in self.pending if e[0] <= t_end + 1e-12]
+        self.pending = self.pending[len(due):]
+        times, rows = [], []
+        state = self.u_due.copy()
+        for te, j, val in due:
+            state[j] = val
+            if times and abs(times[-1] - te) < 1e-12:
+                rows[-1] = state.copy()
+            else:
+                times.append(te)
+                rows.append(state.copy())
+        self.u_due = state
+        a["sched_t"] = np.array(times, float)
+        a["sched_u"] = np.array(rows, float).reshape(len(times), 2 * self.n)
+        a["ds"][D_SI] = 0.0
+        a["st"][T_PALM_TARGET] = float(palm)
+        args = kernel_args(cm)
+        m, d = cm.mjm, cm.mjd
+        step1, step2, kernel = self._step1, self._step2, step_kernel
+        for _ in range(K):
+            if not self._fresh:
+                step1(m, d)
+            self._fresh = False
+            if kernel(self.k, 1, -1, *args):
+                raise SimulationError(f"scenario {cm.name!r}: unstable at t = {self.t:.4f} s: "
+                                      f"{_failure(cm)}")
+            step2(m, d)
+            self.k += 1
+        step1(m, d)              # positions and velocities' derived quantities at the new time
+        self._fresh = True
+        return int(changed.size)
+
+    # -- what a controller can read --------------------------------------------------------------
+    def joint_angles(self) -> np.ndarray:
+        """Leg joint angles [rad] (order of ``cm.joint_names``)."""
+        return self.cm.mjd.qpos[self.cm.arrays["leg_qpos"]].copy()
+
+    def joint_velocities(self) -> np.ndarray:
+        return self.cm.mjd.qvel[self.cm.arrays["leg_dof"]].copy()
+
+    def body_velocity(self) -> np.ndarray:
+        """(forward, sideways, yaw rate) of the hull: [m/s] along and across its heading, [rad/s]."""
+        m, d, tb = self.cm.mjm, self.cm.mjd, self.trunk
+        root = m.body_rootid[tb]
+        w = d.cvel[tb, :3]
+        v = d.cvel[tb, 3:] + np.cross(w, d.xpos[tb] - d.subtree_com[root])
+        hx, hy = d.xmat[tb, 0], d.xmat[tb, 3]
+        return np.array([v[0] * hx + v[1] * hy, -v[0] * hy + v[1] * hx, w[2]])
+
+    def position(self) -> np.ndarray:
+        """Hull centre in the world [m]."""
+        return self.cm.mjd.xpos[self.trunk].copy()
+
+    def heading(self) -> float:
+        d = self.cm.mjd
+        return float(math.atan2(d.xmat[self.trunk, 3], d.xmat[self.trunk, 0]))
+
+    def pressures(self) -> np.ndarray:
+        """Muscle pressures [Pa abs]."""
+        y = self.cm.arrays["y"]
+        return y[CL.Y_MUSCLE0 + 1:CL.Y_MUSCLE0 + 2 * self.n:2].copy()
+
+    def source_pressure(self) -> float:
+        return float(self.cm.arrays["y"][CL.Y_PS])
+
+    def charged_mass(self) -> float:
+        """Air charged into all muscles since the reset [kg]."""
+        y, n = self.cm.arrays["y"], self.n
+        return float(y[CL.Y_MUSCLE0 + 2 * n:CL.Y_MUSCLE0 + 3 * n].sum())
+
+    def total_air_mass(self) -> float:
+        """Air in source, exhaust and muscles [kg] (constant in the closed circuit)."""
+        y, n = self.cm.arrays["y"], self.n
+        return float(y[CL.Y_MS] + y[CL.Y_ME] + y[CL.Y_MUSCLE0:CL.Y_MUSCLE0 + 2 * n:2].sum())
+
+    def palm_opening(self) -> np.ndarray:
+        return self.cm.arrays["frac"].copy()
