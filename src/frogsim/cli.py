@@ -374,7 +374,7 @@ def cmd_optimize_gait(args) -> int:
                      scenario=scenario_record(search.rs.name, scenario_inputs(search.rs.pneumatic,
                                                                               args.scenario)))
     if resume:   # continuing: the study stays, everything else is written again
-        folder._remove = [f for f in folder._remove if f != "study.db"]
+        folder.keep("study.db")
     elif study_db.exists() and not args.overwrite and prev is None:
         return _err(f"--out = {str(out)!r}: holds a study.db of no optimize-gait run; use --overwrite", 2)
 

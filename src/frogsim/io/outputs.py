@@ -107,6 +107,11 @@ class OutputFolder:
         self.started = None
         self._remove: list[str] = []
 
+    def keep(self, name: str) -> None:
+        """Leave ``name`` in place when an allowed overwrite clears the folder (a resumable
+        store, such as a gait search's study.db, that the run goes on from)."""
+        self._remove = [f for f in self._remove if f != name]
+
     # --- before anything is written -------------------------------------------------------------
     def _refuse(self, why: str):
         raise ScenarioError("--out", str(self.out), why)
