@@ -13,7 +13,8 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-BENCHMARKS = ("bench_engine.py", "bench_variants.py", "bench_sweep.py", "bench_swim.py", "bench_fit.py")
+BENCHMARKS = ("bench_engine.py", "bench_variants.py", "bench_sweep.py", "bench_swim.py", "bench_fit.py",
+              "bench_control.py")
 
 
 def main() -> int:

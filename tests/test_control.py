@@ -6,7 +6,6 @@ volume V filled adiabatically from gas at T changes its pressure at dp/dt = k R 
 """
 from __future__ import annotations
 
-import copy
 import math
 
 import numpy as np
@@ -302,3 +301,18 @@ def test_summary_reports_the_closed_loop_metrics(tmp_path):
     p = json.loads((out / "summary.json").read_text())["muscles"]["hip"]["final_pressure_bar_gauge"] * BAR
     held = p * HIP_V / (K_AIR * R_AIR * T_REF) / RHO_REF * 1e3
     assert s["air_used_L_std"] == pytest.approx(held, rel=5e-3)
+
+
+def test_control_command_writes_the_control_pressure_study(tmp_path):
+    import json
+    out = tmp_path / "c"
+    assert main(["control", "--out", str(out), "--workers", "1"]) == 0
+    s = json.loads((out / "summary.json").read_text())["control_pressure"]
+    assert (out / "control-pressure.png").read_bytes()[:4] == b"\x89PNG"
+    assert (out / "control-pressure.csv").exists()
+    for exp in ("step", "sine"):
+        for ctl in ("pwm", "bang-bang", "sliding-mode"):
+            m = s["runs"][exp][ctl]
+            assert m["tracking_error_rms_bar"] < 0.1 and m["switchings_per_s"] > 0 and m["air_used_L_std"] > 0
+    answer = "yes" if s["sliding_mode_fewer_switchings_no_worse_rms"] else "no"
+    assert f"error? {answer}:" in s["conclusion"]

@@ -43,7 +43,7 @@ from frogsim.circuit.laws import (  # noqa: F401  (the table's layout, re-export
     L_CRL, L_DB, L_DC, L_DEAD_C, L_DEAD_D, L_DM, L_DRL, L_DUTY, L_FS, L_GAIN, L_HIGH, L_HORIZON, L_INPUT,
     L_KIND, L_LAG, L_LOW, L_MINPULSE_N, L_MUSCLE, L_NOISE, L_PATM, L_PBAND, L_PENALTY, L_PERIOD_N,
     L_REST, L_RHOREF, L_SEED, L_SIZE, L_SP0, L_SP_A, L_SP_B, L_SP_C, L_SP_D, L_SP_KIND, L_SP_N,
-    L_TAMB, L_TREF, SP_CONSTANT, SP_SINE, SP_STEPS, SP_TABLE)
+    L_TAMB, L_TREF, SP_CONSTANT, SP_SINE, SP_STEPS, SP_TABLE)  # noqa: F401
 from frogsim.circuit.layout import (G_PUMP_ENABLED, G_PUMP_OFF, G_PUMP_ON, Y_MUSCLE0, Y_PE,
                                     Y_PS)
 from frogsim.physics.flow import iso6358_mass_flow
@@ -264,8 +264,10 @@ def sliding_mode(laws, c, cs, b, y, p, sp, dsp):
     Sliding surface s = e + lambda de/dt, e = sp - p. For each mode m (charge, hold, vent) the
     error rate is de/dt = dsp/dt - dp/dt(m), dp/dt(m) from the valve model (:func:`mode_rates`,
     a model-based feedforward from Eq. (8)); the error is first carried over the valve dead time
-    under the mode already commanded. The mode chosen minimises s(m)^2 + rho^2 [m differs from the
-    mode in force]: a dead band around s = 0 whose width the penalty rho sets.
+    under the mode already commanded. The mode chosen minimises s(m)^2 + rho^2 [m opens a valve
+    that the mode in force keeps shut]: closing (going to hold) is free, opening a valve must
+    reduce s^2 by at least rho^2, which is a dead band around s = 0 whose width the penalty rho
+    sets.
     """
     r_charge, r_vent = mode_rates(laws, c, y, p)
     last = cs[b + B_MODE]
@@ -279,7 +281,7 @@ def sliding_mode(laws, c, cs, b, y, p, sp, dsp):
     for m in (MODE_HOLD, MODE_CHARGE, MODE_VENT):
         r = r_charge if m > 0 else (r_vent if m < 0 else 0.0)
         s = e + lam * (dsp - r)
-        j = s * s + (pen if m != last else 0.0)
+        j = s * s + (pen if (m != last and m != MODE_HOLD) else 0.0)
         if j < cost:
             cost = j
             best = m
