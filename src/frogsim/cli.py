@@ -4,6 +4,7 @@
     frogsim reproduce [STUDY ...] --out DIR reproduce the paper's studies (the pneumatic ones by
                                             default; name leg-in-air for the robot's in-air study)
     frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
+    frogsim control [STUDY ...] --out DIR   the closed-loop control studies (control-pressure)
     frogsim simulate SCENARIO --out DIR     run one scenario (TOML path or shipped name)
     frogsim swim SCENARIO [--cycles N] --out DIR  run the robot in MuJoCo (swim, leg-in-air): CSV,
                                             figure, summary.json, MJCF, animation
@@ -76,7 +77,7 @@ def cmd_studies(args) -> int:
     width = max(len(n) for n in STUDIES)
     for group, command in (("paper", "frogsim reproduce"),
                            ("robot", "frogsim reproduce NAME (named: compiles the MuJoCo engine on first use)"),
-                           ("design", "frogsim design")):
+                           ("design", "frogsim design"), ("control", "frogsim control")):
         print(f"# {command}")
         for name in studies_in(group):
             print(f"{name:<{width}}  {STUDIES[name].title}")
@@ -89,6 +90,10 @@ def cmd_reproduce(args) -> int:
 
 def cmd_design(args) -> int:
     return _run_studies(args, "design")
+
+
+def cmd_control(args) -> int:
+    return _run_studies(args, "control")
 
 
 def _study_task(name: str, out: str) -> tuple:
@@ -433,6 +438,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--overwrite", action="store_true",
                    help="replace studies this folder already holds (or another command's files)")
     s.set_defaults(func=cmd_design)
+    s = sub.add_parser("control", help="run the closed-loop control studies (control-pressure): a PNG and a "
+                                       "CSV per study, DIR/summary.json with written conclusions")
+    s.add_argument("studies", nargs="*", metavar="STUDY", help="studies to run (default: all control studies)")
+    s.add_argument("--out", default="control", metavar="DIR", help="output folder (default: control)")
+    s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
+    s.add_argument("--overwrite", action="store_true",
+                   help="replace studies this folder already holds (or another command's files)")
+    s.set_defaults(func=cmd_control)
     s = sub.add_parser("simulate", help="run one scenario: timeseries.csv, pressures.png, summary.json")
     s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file, or a shipped name (paper-cycle)")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder")

@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from frogsim.circuit import layout as L
+from frogsim.circuit.laws import controller_rows, laws_table
 from frogsim.scenario.core import Scenario
+from frogsim.scenario.rules import setpoint_knots
 from frogsim.scenario.motion import command_time, muscle_knots, output_times
 from frogsim.scenario.schema import VALVE_STATES
 from frogsim.physics.air import critical_pressure_ratio
@@ -98,6 +100,7 @@ class PneumaticModel:
     y0: np.ndarray
     atol: np.ndarray
     out_t: np.ndarray
+    laws: np.ndarray = None
 
     @property
     def n(self) -> int:
@@ -122,17 +125,42 @@ def build_model(scenario: Scenario) -> PneumaticModel:
     motion = _motion_part(muscles, sc.controller.rate, sc.valves.charge.dead_time,
                           sc.valves.discharge.dead_time, files, sc.base_dir)
     mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0, opens, volumes, fixed = motion
+    g = _globals_part(sc.air, sc.source, sc.exhaust, sc.pump, sc.supply, sc.valves).copy()
+    laws = _laws(sc, g, names, volumes)
+    if laws.shape[0] and (laws[:, 0] != 1.0).any():
+        # the valves of a muscle under a closed-loop controller are the controller's: the schedule
+        # leaves them alone (NaN: "not set here", see frogsim.engine.integrator.advance)
+        sched_u = sched_u.copy()
+        for c in sc.controllers.values():
+            if c.kind != "program":
+                i = names.index(c.muscle)
+                sched_u[:, 2 * i:2 * i + 2] = np.nan
     mp = _muscle_part(sc.valves, tuple(mt for _, _, mt in muscles)).copy()
     mp[:, L.M_FIXEDV] = fixed
     y0, atol = _state_part(sc.air, sc.source, sc.exhaust, tuple(m.initial_pressure_gauge for _, m, _ in muscles),
                            volumes, sc.solver.rtol)
     return PneumaticModel(scenario=sc, names=list(names),
-                          g=_globals_part(sc.air, sc.source, sc.exhaust, sc.pump, sc.supply, sc.valves).copy(),
+                          g=g,
                           mp=mp,
                           mot_t=mot_t.copy(), mot_L=mot_L.copy(), mot_d=mot_d.copy(), mot_n=mot_n.copy(),
                           sched_t=sched_t.copy(), sched_u=sched_u.copy(), u0=u0.copy(),
                           charge_open_times=[o.copy() for o in opens], y0=y0.copy(), atol=atol.copy(),
-                          out_t=_output_part(sc.duration, sc.output_interval).copy())
+                          out_t=_output_part(sc.duration, sc.output_interval).copy(), laws=laws)
+
+
+def _laws(sc: Scenario, g: np.ndarray, names: tuple, volumes: tuple) -> np.ndarray:
+    """The table of sampled laws (:mod:`frogsim.circuit.laws`): the pump's band, then one row per
+    closed-loop controller. The controllers' model of a muscle is its volume at the start."""
+    names = list(names)
+    vc, vd = sc.valves.charge, sc.valves.discharge
+    valves = {"values": (vc.sonic_conductance, vc.critical_ratio, vc.subsonic_index, vc.laminar_ratio,
+                         vd.sonic_conductance, vd.critical_ratio, vd.subsonic_index, vd.laminar_ratio),
+              "branch_limit": (g[L.G_BRANCH_LIMIT] if int(g[L.G_SUPPLY_MODE]) == L.SUPPLY_PAPER else np.inf)}
+    knots = {c: setpoint_knots(ctl.setpoint, sc.base_dir, f"controllers.{c}.setpoint")
+             for c, ctl in sc.controllers.items()
+             if ctl.kind != "program" and ctl.setpoint is not None and ctl.setpoint.kind == "table"}
+    rows = controller_rows(sc, g, valves, names, dict(zip(names, volumes)), knots)
+    return laws_table(g, rows)
 
 
 def _file_key(base_dir: str, m) -> tuple | None:

@@ -9,12 +9,15 @@ and the pump's switch. Two sorts of controller give them:
   into the schedule (sched_t, sched_u) of the times at which the valves change (the sample that
   issues a command plus the valve's dead time), and the driver
   (:func:`frogsim.engine.integrator.advance`) applies it;
-* sampled rules (this module): evaluated at every sample from the state at that instant. Today one:
-  the pump's pressure band (:func:`pump_band`), a hysteresis (bang-bang) switch on the source
-  pressure that acts at once (the pump's motor has no dead time in the model).
+* sampled rules (this module): evaluated at every sample from the state at that instant: the
+  pump's pressure band (:func:`pump_band`), a hysteresis (bang-bang) switch on the source pressure
+  that acts at once (the pump's motor has no dead time in the model), and the closed-loop valve
+  controllers of the scenario's ``[controllers]`` sections (:func:`bang_bang`, :func:`pwm_mode`,
+  :func:`sliding_mode`; docs/control.md), each of which drives one muscle's two valves.
 
 A run's sampled rules are the rows of a table ``laws[c, :]`` (a kind and its parameters, columns
-L_*), built by :func:`sampled_laws`; their memory (and the pump's switch) is a small array ``cs``
+L_* of :mod:`frogsim.circuit.laws`), built with the model (``PneumaticModel.laws``; the pump's band
+alone: :func:`sampled_laws`); their memory (and the pump's switch) is a small array ``cs``
 (columns CS_*) made by :func:`start_controllers`. The driver knows only three functions:
 :func:`start_controllers` (once, at the start of a run), :func:`next_control_time` (where it has
 to stop next for the controllers) and :func:`sample_controllers` (called there; returns True when a
@@ -35,22 +38,49 @@ import math
 import numpy as np
 
 from frogsim._jit import jit
-from frogsim.circuit.layout import G_PUMP_ENABLED, G_PUMP_OFF, G_PUMP_ON, Y_PS
+from frogsim.circuit.laws import (  # noqa: F401  (the table's layout, re-exported)
+    KIND_BANG_BANG, KIND_PUMP_BAND, KIND_PWM, KIND_SLIDING, L_BAND, L_BITS, L_BRANCH, L_CB, L_CC, L_CM,
+    L_CRL, L_DB, L_DC, L_DEAD_C, L_DEAD_D, L_DM, L_DRL, L_DUTY, L_FS, L_GAIN, L_HIGH, L_HORIZON, L_INPUT,
+    L_KIND, L_LAG, L_LOW, L_MINPULSE_N, L_MUSCLE, L_NOISE, L_PATM, L_PBAND, L_PENALTY, L_PERIOD_N,
+    L_REST, L_RHOREF, L_SEED, L_SIZE, L_SP0, L_SP_A, L_SP_B, L_SP_C, L_SP_D, L_SP_KIND, L_SP_N,
+    L_TAMB, L_TREF, SP_CONSTANT, SP_SINE, SP_STEPS, SP_TABLE)  # noqa: F401
+from frogsim.circuit.layout import (G_PUMP_ENABLED, G_PUMP_OFF, G_PUMP_ON, Y_MUSCLE0, Y_PE,
+                                    Y_PS)
+from frogsim.physics.flow import iso6358_mass_flow
 
-# --- kinds of sampled rule ---------------------------------------------------------------------------
-KIND_PUMP_BAND = 1.0
+#: a muscle whose valves a Python function drives (frogsim.simulate(..., controller=fn)): the
+#: compiled sample only senses its pressure; the commands come from Python (:func:`command_valves`)
+KIND_EXTERNAL = 5.0
 
-# --- rule table laws[c, :] -----------------------------------------------------------------------------
-L_KIND = 0       # KIND_*
-L_INPUT = 1      # index of the state entry the rule reads (e.g. Y_PS)
-L_LOW = 2        # band: switch on below this value
-L_HIGH = 3       # band: switch off above this value
-L_SIZE = 4
+MODE_VENT = -1.0
+MODE_HOLD = 0.0
+MODE_CHARGE = 1.0
 
 # --- controller state cs[:] ------------------------------------------------------------------------------
 CS_SAMPLE = 0    # index k of the last sample taken
 CS_PUMP = 1      # the pump's switch: 1 running, 0 stopped
-CS_SIZE = 2
+CS_DT = 2        # the controller period [s]
+CS_BLOCK = 3     # length of each law's block of memory
+CS_Q = 4         # capacity of each valve's queue of pending commands
+CS_SIZE = 5      # law c's block starts at CS_SIZE + c * cs[CS_BLOCK]
+# a valve law's block (offsets)
+B_MODE = 0       # the mode last commanded (MODE_*)
+B_CMD_C = 1      # the charge valve's last commanded state (queued or applied)
+B_CMD_D = 2      # the discharge valve's
+B_SW_C = 3       # switchings of the charge valve so far (applied)
+B_SW_D = 4       # switchings of the discharge valve
+B_FILT = 5       # sensor lag: filtered gauge pressure [Pa]
+B_FILT_ON = 6    # 1 once the filter holds a value
+B_PHASE = 7      # pwm: sample index within the period
+B_PULSE = 8      # pwm: this period's pulse, samples (sign: +charge, -vent)
+B_QC_HEAD = 9    # charge queue: first entry, number of entries
+B_QC_N = 10
+B_QD_HEAD = 11   # discharge queue
+B_QD_N = 12
+B_SENSED = 13    # the pressure the law read at the last sample [Pa abs]
+B_SP = 14        # the setpoint at the last sample [Pa abs]
+B_Q0 = 15        # queues: charge (due, state) x Q, then discharge (due, state) x Q
+TOL = 1e-9       # [s] a due time this close to a sample is that sample
 
 
 @jit
@@ -80,20 +110,293 @@ def pump_band(x, on, low, high):
     return on
 
 
+# --- setpoints and the sensor ------------------------------------------------------------------------------
+@jit
+def setpoint(laws, c, t):
+    """Law c's setpoint at time t: (p [Pa abs], dp/dt [Pa/s])."""
+    kind = laws[c, L_SP_KIND]
+    if kind == SP_CONSTANT:
+        return laws[c, L_SP_A], 0.0
+    if kind == SP_SINE:
+        if t < laws[c, L_SP_D]:
+            return laws[c, L_SP_A], 0.0
+        w = 2.0 * math.pi * laws[c, L_SP_C]
+        ph = w * (t - laws[c, L_SP_D])
+        return laws[c, L_SP_A] + laws[c, L_SP_B] * math.sin(ph), laws[c, L_SP_B] * w * math.cos(ph)
+    n = int(laws[c, L_SP_N])
+    if kind == SP_STEPS:
+        p = laws[c, L_SP0 + 1]
+        for j in range(1, n):
+            if t >= laws[c, L_SP0 + 2 * j] - TOL:
+                p = laws[c, L_SP0 + 2 * j + 1]
+        return p, 0.0
+    # table: linear between the rows, constant outside
+    if t <= laws[c, L_SP0]:
+        return laws[c, L_SP0 + 1], 0.0
+    for j in range(1, n):
+        t1 = laws[c, L_SP0 + 2 * j]
+        if t < t1:
+            t0 = laws[c, L_SP0 + 2 * j - 2]
+            p0 = laws[c, L_SP0 + 2 * j - 1]
+            slope = (laws[c, L_SP0 + 2 * j + 1] - p0) / (t1 - t0)
+            return p0 + slope * (t - t0), slope
+    return laws[c, L_SP0 + 2 * n - 1], 0.0
+
+
+@jit
+def _mix64(z):
+    """splitmix64's finaliser (Steele, Lea and Flood 2014): a well-mixed 64-bit hash of z."""
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+@jit
+def _uniform(seed, k, stream):
+    """A uniform number in (0, 1) that depends only on (seed, sample k, stream): counter-based, so a
+    run's noise is the same however it is advanced and on whichever thread."""
+    z = (np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(k) * np.uint64(0xD1B54A32D192ED03)
+         + np.uint64(stream) * np.uint64(0x8CB92BA72F3D8DD7))
+    return (float(_mix64(z) >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0)
+
+
+@jit
+def sensor_noise(seed, k):
+    """Standard normal noise of sample k (Box-Muller on two counter-based uniforms)."""
+    u1 = _uniform(seed, k, 1)
+    u2 = _uniform(seed, k, 2)
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+@jit
+def sense(laws, c, p, cs, b, k, dt):
+    """The pressure [Pa abs] law c reads at sample k when the muscle's is p [Pa abs]: first-order
+    lag, then noise, then the ADC (gauge pressure rounded to full_scale / (2^bits - 1), clipped
+    to 0..full_scale)."""
+    patm = laws[c, L_PATM]
+    x = p - patm
+    lag = laws[c, L_LAG]
+    if lag > 0.0:
+        if cs[b + B_FILT_ON] < 0.5:
+            cs[b + B_FILT] = x
+            cs[b + B_FILT_ON] = 1.0
+        else:
+            cs[b + B_FILT] += (1.0 - math.exp(-dt / lag)) * (x - cs[b + B_FILT])
+        x = cs[b + B_FILT]
+    if laws[c, L_NOISE] > 0.0:
+        x += laws[c, L_NOISE] * sensor_noise(int(laws[c, L_SEED]), k)
+    bits = laws[c, L_BITS]
+    if bits > 0.0:
+        fs = laws[c, L_FS]
+        lsb = fs / (2.0 ** bits - 1.0)
+        x = min(max(math.floor(x / lsb + 0.5) * lsb, 0.0), fs)
+    return x + patm
+
+
+# --- the laws ---------------------------------------------------------------------------------------------
+@jit
+def bang_bang(p, sp, band):
+    """Three-position relay: charge below sp - band/2, vent above sp + band/2, else hold."""
+    if p < sp - 0.5 * band:
+        return MODE_CHARGE
+    if p > sp + 0.5 * band:
+        return MODE_VENT
+    return MODE_HOLD
+
+
+@jit
+def pwm_mode(laws, c, cs, b, p, sp):
+    """PWM on the controller grid: each period of N samples starts with a pulse of n samples,
+    n = round(duty N) (open loop) or round(min(|e|/proportional_band, 1) N) with e = sp - p
+    (closed loop: a charge pulse for e > 0, a vent pulse for e < 0, hold after it); pulses shorter
+    than the minimum are dropped, a gap after the pulse shorter than it is filled."""
+    N = int(laws[c, L_PERIOD_N])
+    phase = int(cs[b + B_PHASE])
+    duty = laws[c, L_DUTY]
+    if phase == 0:
+        sign = 1.0
+        if duty >= 0.0:
+            d = duty
+        else:
+            d = (sp - p) / laws[c, L_PBAND]
+            if d < 0.0:
+                sign = -1.0
+                d = -d
+            d = min(d, 1.0)
+        n_on = math.floor(d * N + 0.5)
+        nmin = laws[c, L_MINPULSE_N]
+        if 0 < n_on < nmin:
+            n_on = 0.0
+        elif n_on < N and N - n_on < nmin:
+            n_on = float(N)
+        cs[b + B_PULSE] = sign * n_on
+    cs[b + B_PHASE] = float((phase + 1) % N)
+    pulse = cs[b + B_PULSE]
+    if phase < abs(pulse):
+        return MODE_CHARGE if pulse > 0 else MODE_VENT
+    if duty >= 0.0 and laws[c, L_REST] > 0.5:
+        return MODE_VENT
+    return MODE_HOLD
+
+
+@jit
+def mode_rates(laws, c, y, p):
+    """The controller's model of the muscle's pressure rate [Pa/s] under charge and under vent:
+    Eq. (8) flows at the measured pressure p (source and exhaust at their pressures, every gas at
+    ambient temperature, the supply's branch limit) times k R T_amb / V."""
+    T = laws[c, L_TAMB]
+    rho = laws[c, L_RHOREF]
+    Tr = laws[c, L_TREF]
+    mc = iso6358_mass_flow(y[Y_PS], T, p, T, laws[c, L_CC], laws[c, L_CB], laws[c, L_CM], laws[c, L_CRL],
+                           rho, Tr)
+    mc = min(mc, laws[c, L_BRANCH])
+    md = iso6358_mass_flow(p, T, y[Y_PE], T, laws[c, L_DC], laws[c, L_DB], laws[c, L_DM], laws[c, L_DRL],
+                           rho, Tr)
+    gain = laws[c, L_GAIN]
+    return gain * mc, -gain * md
+
+
+@jit
+def sliding_mode(laws, c, cs, b, y, p, sp, dsp):
+    """Multi-mode sliding control of the pressure with a switching penalty (after Hodgson et al.'s
+    seven-mode sliding control, reduced to one muscle's three modes).
+
+    Sliding surface s = e + lambda de/dt, e = sp - p. For each mode m (charge, hold, vent) the
+    error rate is de/dt = dsp/dt - dp/dt(m), dp/dt(m) from the valve model (:func:`mode_rates`,
+    a model-based feedforward from Eq. (8)); the error is first carried over the valve dead time
+    under the mode already commanded. The mode chosen minimises s(m)^2 + rho^2 [m opens a valve
+    that the mode in force keeps shut]: closing (going to hold) is free, opening a valve must
+    reduce s^2 by at least rho^2, which is a dead band around s = 0 whose width the penalty rho
+    sets.
+    """
+    r_charge, r_vent = mode_rates(laws, c, y, p)
+    last = cs[b + B_MODE]
+    r_last = r_charge if last > 0 else (r_vent if last < 0 else 0.0)
+    dead = max(laws[c, L_DEAD_C], laws[c, L_DEAD_D])
+    e = sp - p + dead * (dsp - r_last)
+    lam = laws[c, L_HORIZON]
+    pen = laws[c, L_PENALTY] ** 2
+    best = MODE_HOLD
+    cost = math.inf
+    for m in (MODE_HOLD, MODE_CHARGE, MODE_VENT):
+        r = r_charge if m > 0 else (r_vent if m < 0 else 0.0)
+        s = e + lam * (dsp - r)
+        j = s * s + (pen if (m != last and m != MODE_HOLD) else 0.0)
+        if j < cost:
+            cost = j
+            best = m
+    return best
+
+
+# --- commands, their dead time and the driver's protocol ------------------------------------------------
+@jit
+def _block(cs, c):
+    return int(CS_SIZE + c * cs[CS_BLOCK])
+
+
+@jit
+def _push(cs, b, head, q0, due, state):
+    Q = int(cs[CS_Q])
+    n = int(cs[b + head + 1])
+    j = (int(cs[b + head]) + n) % Q
+    cs[b + q0 + 2 * j] = due
+    cs[b + q0 + 2 * j + 1] = state
+    cs[b + head + 1] = n + 1
+
+
+@jit
+def command_valves(laws, c, cs, mode, ts):
+    """Law c commands ``mode`` at sample time ts: each valve whose state changes gets a queued
+    command due one dead time later. Charge opens only with discharge shut and the other way
+    round; an opening is never due before the other valve's closing (with unequal dead times the
+    valves are never open together)."""
+    b = _block(cs, c)
+    Q = int(cs[CS_Q])
+    want_c = 1.0 if mode > 0 else 0.0
+    want_d = 1.0 if mode < 0 else 0.0
+    close_c = -math.inf
+    close_d = -math.inf
+    if want_c < cs[b + B_CMD_C]:
+        close_c = ts + laws[c, L_DEAD_C]
+        _push(cs, b, B_QC_HEAD, B_Q0, close_c, 0.0)
+        cs[b + B_CMD_C] = 0.0
+    if want_d < cs[b + B_CMD_D]:
+        close_d = ts + laws[c, L_DEAD_D]
+        _push(cs, b, B_QD_HEAD, B_Q0 + 2 * Q, close_d, 0.0)
+        cs[b + B_CMD_D] = 0.0
+    if want_c > cs[b + B_CMD_C]:
+        _push(cs, b, B_QC_HEAD, B_Q0, max(ts + laws[c, L_DEAD_C], close_d), 1.0)
+        cs[b + B_CMD_C] = 1.0
+    if want_d > cs[b + B_CMD_D]:
+        _push(cs, b, B_QD_HEAD, B_Q0 + 2 * Q, max(ts + laws[c, L_DEAD_D], close_c), 1.0)
+        cs[b + B_CMD_D] = 1.0
+    cs[b + B_MODE] = mode
+
+
+@jit
+def _is_valve_law(kind):
+    return kind == KIND_BANG_BANG or kind == KIND_PWM or kind == KIND_SLIDING or kind == KIND_EXTERNAL
+
+
+@jit
+def apply_due(laws, t, u, cs):
+    """Write into u every queued valve command due at or before t; True if a valve changed."""
+    changed = False
+    Q = int(cs[CS_Q])
+    for c in range(laws.shape[0]):
+        if not _is_valve_law(laws[c, L_KIND]):
+            continue
+        b = _block(cs, c)
+        i = int(laws[c, L_MUSCLE])
+        for valve in range(2):
+            head = B_QC_HEAD if valve == 0 else B_QD_HEAD
+            q0 = B_Q0 if valve == 0 else B_Q0 + 2 * Q
+            while cs[b + head + 1] > 0:
+                h = int(cs[b + head])
+                if cs[b + q0 + 2 * h] > t + TOL:
+                    break
+                state = cs[b + q0 + 2 * h + 1]
+                if u[2 * i + valve] != state:
+                    u[2 * i + valve] = state
+                    cs[b + B_SW_C + valve] += 1.0
+                    changed = True
+                cs[b + head] = float((h + 1) % Q)
+                cs[b + head + 1] -= 1.0
+    return changed
+
+
 @jit
 def next_control_time(laws, cs, ctrl_dt):
-    """The next time [s] at which the controllers need the integrator to stop (inf if never)."""
+    """The next time [s] at which the controllers need the integrator to stop (inf if never): the
+    next sample, or a queued valve command's due time if earlier."""
     if laws.shape[0] == 0:
         return math.inf
-    return (cs[CS_SAMPLE] + 1.0) * ctrl_dt
+    t = (cs[CS_SAMPLE] + 1.0) * ctrl_dt
+    Q = int(cs[CS_Q])
+    for c in range(laws.shape[0]):
+        if not _is_valve_law(laws[c, L_KIND]):
+            continue
+        b = _block(cs, c)
+        if cs[b + B_QC_N] > 0:
+            t = min(t, cs[b + B_Q0 + 2 * int(cs[b + B_QC_HEAD])])
+        if cs[b + B_QD_N] > 0:
+            t = min(t, cs[b + B_Q0 + 2 * Q + 2 * int(cs[b + B_QD_HEAD])])
+    return t
 
 
 @jit
 def sample_controllers(laws, t, y, u, cs):
-    """Take the next sample at time t: evaluate every rule on the state y, write the commands
-    (valve states u, the pump's switch cs[CS_PUMP]); True if one of them changed."""
+    """At a stop t: write the valve commands that have come due into u; if t is the next sample,
+    take it: evaluate every law on the state y and write or queue its commands (the pump's switch
+    cs[CS_PUMP] at once, valve commands one dead time later). True if a command changed."""
+    changed = apply_due(laws, t, u, cs)
+    dt = cs[CS_DT]
+    if t < (cs[CS_SAMPLE] + 1.0) * dt - TOL:
+        return changed              # a due time between samples
     cs[CS_SAMPLE] += 1.0
-    changed = False
+    k = int(cs[CS_SAMPLE])
+    ts = cs[CS_SAMPLE] * dt
+    valves = False
     for c in range(laws.shape[0]):
         kind = laws[c, L_KIND]
         if kind == KIND_PUMP_BAND:
@@ -101,14 +404,54 @@ def sample_controllers(laws, t, y, u, cs):
             if on != cs[CS_PUMP]:
                 cs[CS_PUMP] = on
                 changed = True
+            continue
+        if not _is_valve_law(kind):
+            continue
+        valves = True
+        b = _block(cs, c)
+        i = int(laws[c, L_MUSCLE])
+        p = sense(laws, c, y[Y_MUSCLE0 + 2 * i + 1], cs, b, k, dt)
+        cs[b + B_SENSED] = p
+        if kind == KIND_EXTERNAL:
+            continue                # commanded from Python (command_valves)
+        sp, dsp = setpoint(laws, c, ts)
+        cs[b + B_SP] = sp
+        if kind == KIND_BANG_BANG:
+            mode = bang_bang(p, sp, laws[c, L_BAND])
+        elif kind == KIND_PWM:
+            mode = pwm_mode(laws, c, cs, b, p, sp)
+        else:
+            mode = sliding_mode(laws, c, cs, b, y, p, sp, dsp)
+        command_valves(laws, c, cs, mode, ts)
+    if valves and apply_due(laws, t, u, cs):       # commands without dead time act at once
+        changed = True
     return changed
 
 
 @jit
 def start_controllers(laws, t0, y, u, ctrl_dt):
-    """Controller state at the start of a run at t0: pump stopped, then the sample at or just before
-    t0 taken (its commands hold from t0 on)."""
-    cs = np.zeros(CS_SIZE)
+    """Controller state at the start of a run at t0: pump stopped, valves under control shut, then
+    the sample at or just before t0 taken (its commands hold from t0 on, or a dead time later)."""
+    dead = 0.0
+    for c in range(laws.shape[0]):
+        if _is_valve_law(laws[c, L_KIND]):
+            dead = max(dead, laws[c, L_DEAD_C], laws[c, L_DEAD_D])
+    Q = int(math.ceil(dead / ctrl_dt)) + 3
+    block = B_Q0 + 4 * Q
+    cs = np.zeros(CS_SIZE + laws.shape[0] * block)
+    cs[CS_DT] = ctrl_dt
+    cs[CS_BLOCK] = block
+    cs[CS_Q] = Q
     cs[CS_SAMPLE] = math.floor(t0 / ctrl_dt + 1e-9) - 1.0
     sample_controllers(laws, t0, y, u, cs)
     return cs
+
+
+def switch_counts(laws, cs) -> dict:
+    """{law row c: (charge valve switchings, discharge valve switchings)} of the valve laws."""
+    out = {}
+    for c in range(laws.shape[0]):
+        if _is_valve_law(laws[c, L_KIND]):
+            b = int(CS_SIZE + c * cs[CS_BLOCK])
+            out[c] = (int(cs[b + B_SW_C]), int(cs[b + B_SW_D]))
+    return out

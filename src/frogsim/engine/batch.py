@@ -16,7 +16,7 @@ from __future__ import annotations
 from frogsim._parallel import default_threads, map_pieces
 from frogsim.circuit.model import PneumaticModel, build_model
 from frogsim.engine.integrator import STATUS_OK, run_schedule
-from frogsim.engine.result import Result
+from frogsim.engine.result import Result, valve_switchings
 from frogsim.errors import ScenarioError, SimulationError
 from frogsim.scenario.core import Scenario
 
@@ -40,7 +40,7 @@ def _run_one(m: PneumaticModel):
     sc = m.scenario
     return run_schedule(m.y0, 0.0, sc.duration, m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n,
                         m.sched_t, m.sched_u, m.u0, 1.0 / sc.controller.rate, m.out_t, sc.solver.rtol,
-                        m.atol, sc.solver.max_step, 1e-4)
+                        m.atol, sc.solver.max_step, 1e-4, m.laws)
 
 
 def run_models(models: list[PneumaticModel], threads: int | None = None) -> list[Result]:
@@ -51,11 +51,12 @@ def run_models(models: list[PneumaticModel], threads: int | None = None) -> list
     piece = max(1, len(models) // (8 * default_threads(threads)))
     raw = [r for part in map_pieces(lambda ms: [_run_one(m) for m in ms], models, piece, threads) for r in part]
     results = []
-    for b, (m, (oy, ou, y_end, stats, status, t_r)) in enumerate(zip(models, raw)):
+    for b, (m, (oy, ou, y_end, stats, status, t_r, cs)) in enumerate(zip(models, raw)):
         if status != STATUS_OK:
             raise SimulationError(f"batch point {b} ({m.scenario.name!r}): integration stopped at "
                                   f"t = {t_r:.6g} s (status {status})")
         results.append(Result(t=m.out_t, y=oy, u=ou, model=m,
                               stats={"steps": int(stats[0]), "rejected": int(stats[1]),
-                                     "rhs_evaluations": int(stats[2])}))
+                                     "rhs_evaluations": int(stats[2])},
+                              switchings=valve_switchings(m, cs)))
     return results

@@ -22,8 +22,7 @@ import numpy as np
 from frogsim._jit import jit
 
 from frogsim.circuit.rhs import rhs
-from frogsim.control.sampled import (CS_PUMP, next_control_time, sample_controllers,
-                                     sampled_laws, start_controllers)
+from frogsim.control.sampled import CS_PUMP, next_control_time, sample_controllers, start_controllers
 
 STATUS_OK = 0
 STATUS_STEP_UNDERFLOW = 1
@@ -75,7 +74,8 @@ def start(t0, h0, y, u, commands):
     si = 0
     while si < sched_t.size and sched_t[si] <= t0 + EPS:
         for j in range(u.size):
-            u[j] = sched_u[si, j]
+            if sched_u[si, j] == sched_u[si, j]:      # NaN: a valve under closed-loop control
+                u[j] = sched_u[si, j]
         si += 1
     ds[D_SI] = si
     return ds, start_controllers(laws, t0, y, u, ctrl_dt)
@@ -254,6 +254,8 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
         changed = False
         while si < ns and sched_t[si] <= t + EPS:
             for j in range(nu):
+                if sched_u[si, j] != sched_u[si, j]:
+                    continue            # NaN: the valve is a closed-loop controller's, not the schedule's
                 if u[j] != sched_u[si, j]:
                     changed = True
                 u[j] = sched_u[si, j]
@@ -276,10 +278,11 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
 
 
 @jit
-def begin(y0, t0, u0, g, sched_t, sched_u, ctrl_dt, out_t, h0):
+def begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
     """Everything a run from t0 needs before its first :func:`advance`: output arrays (the rows at
     or before t0 hold the initial state), the state and valve vectors, the driver and controller
-    states, the step statistics and the commands tuple."""
+    states, the step statistics and the commands tuple. ``laws`` is the run's table of sampled
+    laws (``PneumaticModel.laws``: the pump's band and the closed-loop controllers)."""
     ny = y0.size
     nu = u0.size
     n_out = out_t.size
@@ -288,7 +291,7 @@ def begin(y0, t0, u0, g, sched_t, sched_u, ctrl_dt, out_t, h0):
     stats = np.zeros(3, dtype=np.int64)
     y = y0.copy()
     u = u0.copy()
-    commands = (sched_t, sched_u, sampled_laws(g), ctrl_dt)
+    commands = (sched_t, sched_u, laws, ctrl_dt)
     ds, cs = start(t0, h0, y, u, commands)
     out_i = 0
     while out_i < n_out and out_t[out_i] <= t0:
@@ -304,19 +307,19 @@ def begin(y0, t0, u0, g, sched_t, sched_u, ctrl_dt, out_t, h0):
 
 @jit
 def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
-                 ctrl_dt, out_t, rtol, atol, max_step, h0):
-    """Integrate from t0 to t_end under an open-loop valve schedule and the circuit's sampled
-    rules (the pump's band, :func:`frogsim.control.sampled.sampled_laws`): :func:`begin`, then one
-    :func:`advance`.
+                 ctrl_dt, out_t, rtol, atol, max_step, h0, laws):
+    """Integrate from t0 to t_end under an open-loop valve schedule and the run's sampled laws
+    ``laws`` (the pump's band and the closed-loop controllers, ``PneumaticModel.laws``):
+    :func:`begin`, then one :func:`advance`.
 
     ``sched_t`` (sorted) are the times at which valve states become ``sched_u[k]``; before the
     first, ``u0`` holds. Entries may repeat the current state: they only make the integrator stop
     there (used for kinks in the prescribed motion). Output rows at out_t (sorted); the rows at or
     before t0 hold the initial state.
 
-    Returns (out_y, out_u, y_end, stats, status, t_reached).
+    Returns (out_y, out_u, y_end, stats, status, t_reached, cs).
     """
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, g, sched_t, sched_u, ctrl_dt, out_t, h0)
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0)
     status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), commands,
                      (rtol, atol, max_step), (out_t, out_y, out_u), stats)
-    return out_y, out_u, y, stats, status, ds[D_T]
+    return out_y, out_u, y, stats, status, ds[D_T], cs

@@ -21,8 +21,12 @@ from frogsim.circuit import layout as L
 from frogsim.circuit.model import PneumaticModel, build_model
 from frogsim.physics.muscle import muscle_volume
 from frogsim.scenario.core import Scenario
-from frogsim.engine.integrator import D_PAUSE, D_T, STATUS_OK, STATUS_PAUSED, advance, begin
-from frogsim.engine.result import Result
+from frogsim.circuit.laws import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM
+from frogsim.control.sampled import (B_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE, KIND_EXTERNAL, KIND_PUMP_BAND,
+                                     MODE_CHARGE, MODE_HOLD, MODE_VENT, apply_due, command_valves,
+                                     next_control_time)
+from frogsim.engine.integrator import D_PAUSE, D_T, EPS, STATUS_OK, STATUS_PAUSED, advance, begin
+from frogsim.engine.result import Result, valve_switchings
 from frogsim.errors import SimulationError
 
 _STATUS_TEXT = {1: "step size fell below 1e-14 s", 2: "the state became non-finite (NaN or inf)",
@@ -125,20 +129,25 @@ def stiffness_hint(model: PneumaticModel) -> str:
 
 
 def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
-             progress: bool | None = None) -> Result:
+             progress: bool | None = None, controller=None) -> Result:
     """Run one scenario (a Scenario, a built model, a TOML path or a dict) and return its Result.
 
     ``max_wall_s`` [s] overrides the scenario's ``solver.max_wall_time``; ``progress`` False hides
     the progress bar a long run shows on stderr. Raises SimulationError naming the time and the
     offending quantity if integration fails, the state turns non-physical (a mass, pressure or
     volume not positive) or the run exceeds its wall-time limit (with a hint at the stiff part).
+
+    ``controller``: a Python function ``fn(t, obs) -> commands`` called at every controller sample
+    instead of the scenario's compiled closed-loop laws (see :func:`run_python_controller`).
     """
     model = _as_model(scenario)
+    if controller is not None:
+        return run_python_controller(model, controller, h0, max_wall_s=max_wall_s)
     sc = model.scenario
     limit = sc.solver.max_wall_time if max_wall_s is None else float(max_wall_s)
     check_volumes(model)
     T = sc.duration
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(model.y0, 0.0, model.u0, model.g, model.sched_t,
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(model.y0, 0.0, model.u0, model.laws, model.sched_t,
                                                         model.sched_u, 1.0 / sc.controller.rate, model.out_t, h0)
     circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
     solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
@@ -165,11 +174,109 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
     finally:
         if bar is not None:
             bar.close()
-    y_end = y
+    return _finish(model, status, ds, y, out_y, out_u, stats, cs)
+
+
+def _finish(model, status, ds, y_end, out_y, out_u, stats, cs) -> Result:
+    sc = model.scenario
     _check_status(model, status, ds[D_T], y_end)
     check_state(model, model.out_t, out_y)
     if not (np.all(np.isfinite(y_end)) and all(y_end[j] > 0 for j, _, _ in _state_labels(model))):
         raise SimulationError(f"scenario {sc.name!r}: non-physical end state "
                               f"({_describe_state(model, y_end)})")
     return Result(t=model.out_t, y=out_y, u=out_u, model=model,
-                  stats={"steps": int(stats[0]), "rejected": int(stats[1]), "rhs_evaluations": int(stats[2])})
+                  stats={"steps": int(stats[0]), "rejected": int(stats[1]), "rhs_evaluations": int(stats[2])},
+                  switchings=valve_switchings(model, cs))
+
+
+_MODES = {"charge": MODE_CHARGE, "hold": MODE_HOLD, "vent": MODE_VENT,
+          1: MODE_CHARGE, 0: MODE_HOLD, -1: MODE_VENT}
+
+
+def python_laws(model: PneumaticModel) -> tuple[np.ndarray, list]:
+    """The model's table of laws with every closed-loop controller's row turned into an external
+    one (its sensor kept, its law left to Python), plus an external row for each muscle without a
+    program; and the muscle name of each external row, in row order."""
+    laws = model.laws.copy()
+    names = []
+    free = set(model.names)
+    for c in range(laws.shape[0]):
+        if laws[c, L_KIND] != KIND_PUMP_BAND:
+            laws[c, L_KIND] = KIND_EXTERNAL
+            names.append(model.names[int(laws[c, L_MUSCLE])])
+    for name in model.names:
+        if name in names or model.scenario.muscles[name].program.steps:
+            free.discard(name)
+    extra = [n for n in model.names if n in free]
+    if extra:
+        add = np.zeros((len(extra), laws.shape[1]))
+        for r, n in enumerate(extra):
+            add[r, L_KIND] = KIND_EXTERNAL
+            add[r, L_MUSCLE] = model.names.index(n)
+            add[r, L_DEAD_C] = model.scenario.valves.charge.dead_time
+            add[r, L_DEAD_D] = model.scenario.valves.discharge.dead_time
+            add[r, L_PATM] = model.g[L.G_PATM]
+        laws = np.vstack([laws, add])
+        names += extra
+    return laws, names
+
+
+def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
+                          max_wall_s: float | None = None) -> Result:
+    """A run whose closed-loop muscles are driven by a Python function, sample by sample.
+
+    At every controller sample t_k the driver stops (:func:`frogsim.engine.integrator.advance` to
+    t_k), and ``fn(t_k, obs)`` is called with ``obs``: {muscle: pressure [Pa abs] as its sensor
+    reads it (the controller section's sensor model, if any), "source": p_s, "exhaust": p_e}
+    [Pa abs]. It returns {muscle: "charge" | "hold" | "vent"} (or +1, 0, -1) for any of the
+    muscles without a program (under a ``[controllers]`` section); a muscle left out keeps its
+    mode. The commands go through the same dead-time queue as the compiled laws', so the same
+    law written in Python gives the same valve sequence, and the same run, bit for bit. Slow but
+    flexible: see docs/control.md for the cost.
+    """
+    sc = model.scenario
+    limit = sc.solver.max_wall_time if max_wall_s is None else float(max_wall_s)
+    check_volumes(model)
+    laws, ext = python_laws(model)
+    rows = {n: c for c, n in zip([c for c in range(laws.shape[0]) if laws[c, L_KIND] == KIND_EXTERNAL], ext)}
+    dt = 1.0 / sc.controller.rate
+    T = sc.duration
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(model.y0, 0.0, model.u0, laws, model.sched_t,
+                                                        model.sched_u, dt, model.out_t, h0)
+    circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
+    solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
+    out = (model.out_t, out_y, out_u)
+    block = cs[CS_BLOCK]
+
+    def decide():
+        t_k = cs[CS_SAMPLE] * dt
+        obs = {n: float(cs[int(CS_SIZE + c * block) + B_SENSED]) for n, c in rows.items()}
+        obs["source"], obs["exhaust"] = float(y[L.Y_PS]), float(y[L.Y_PE])
+        cmds = fn(t_k, obs) or {}
+        for name, mode in cmds.items():
+            if name not in rows:
+                raise SimulationError(f"controller function: muscle {name!r} is not free for closed-loop "
+                                      f"control (free: {', '.join(rows) or 'none'})")
+            if mode not in _MODES:
+                raise SimulationError(f"controller function: mode {mode!r} for {name!r} must be "
+                                      "'charge', 'hold' or 'vent'")
+            command_valves(laws, rows[name], cs, _MODES[mode], t_k)
+        apply_due(laws, ds[D_T], u, cs)         # commands without dead time act at once
+
+    decide()
+    wall0 = time.perf_counter()
+    status = STATUS_OK
+    n = 0
+    while ds[D_T] < T - EPS:
+        k = cs[CS_SAMPLE]
+        t_stop = min(next_control_time(laws, cs, dt), T)
+        status = advance(t_stop, y, u, ds, cs, circuit, commands, solver, out, stats)
+        if status != STATUS_OK:
+            break
+        if cs[CS_SAMPLE] != k:
+            decide()
+        n += 1
+        if n % 1000 == 0 and time.perf_counter() - wall0 > limit:
+            raise SimulationError(f"scenario {sc.name!r}: stopped at t = {ds[D_T]:.6g} s of {T:g} s after "
+                                  f"{limit:g} s of wall time (solver.max_wall_time)")
+    return _finish(model, status, ds, y, out_y, out_u, stats, cs)

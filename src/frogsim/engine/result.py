@@ -12,6 +12,15 @@ from frogsim.engine.measures import (
 )
 
 
+def valve_switchings(model, cs) -> dict:
+    """{muscle: (charge valve switchings, discharge valve switchings)} of the muscles under a
+    closed-loop controller, from the controllers' final state ``cs`` (exact: counted as the
+    commands are applied, not read off the output grid)."""
+    from frogsim.control.sampled import L_MUSCLE, switch_counts
+    counts = switch_counts(model.laws, cs)
+    return {model.names[int(model.laws[c, L_MUSCLE])]: v for c, v in counts.items()}
+
+
 @dataclass
 class Result:
     """Time series of one pneumatic run (SI inside).
@@ -26,6 +35,56 @@ class Result:
     model: object
     stats: dict = field(default_factory=dict)
     status: str = "ok"
+    switchings: dict = field(default_factory=dict)   # closed-loop muscles: (charge, discharge) valve switchings
+
+    # -- closed-loop control (docs/control.md) -------------------------------------------------------
+    def _law_rows(self) -> dict:
+        """{controller name: its row in the model's table of laws} of the closed-loop controllers."""
+        rows = {}
+        c = int(self.model.laws.shape[0]) - sum(1 for k in self.model.scenario.controllers.values()
+                                                 if k.kind != "program")
+        for name, ctl in self.model.scenario.controllers.items():
+            if ctl.kind != "program":
+                rows[name] = c
+                c += 1
+        return rows
+
+    def setpoint(self, controller: str) -> np.ndarray:
+        """A closed-loop controller's setpoint at the output times [Pa abs] (NaN for open-loop PWM)."""
+        from frogsim.control.sampled import setpoint
+        rows = self._law_rows()
+        if controller not in rows:
+            raise KeyError(f"no closed-loop controller {controller!r}; controllers: {', '.join(rows) or 'none'}")
+        ctl = self.model.scenario.controllers[controller]
+        if ctl.setpoint is None:
+            return np.full(self.t.size, np.nan)
+        laws, c = self.model.laws, rows[controller]
+        return np.array([setpoint(laws, c, float(t))[0] for t in self.t])
+
+    def control_metrics(self) -> dict:
+        """Per closed-loop controller (docs/control.md): tracking error RMS and max [bar] from its
+        ``settle`` time on (true pressure against the setpoint, on the output grid), valve
+        switchings (charge, discharge, total) and per second of run, air used [L standard]."""
+        out = {}
+        T = float(self.t[-1] - self.t[0]) if self.t.size > 1 else 0.0
+        for name in self._law_rows():
+            ctl = self.model.scenario.controllers[name]
+            m = ctl.muscle
+            sw_c, sw_d = self.switchings.get(m, (0, 0))
+            entry = {"kind": ctl.kind, "muscle": m}
+            if ctl.setpoint is not None:
+                e = self.setpoint(name) - self.muscle_pressure(m)
+                after = e[self.t >= ctl.settle]
+                entry["settle_s"] = ctl.settle
+                entry["tracking_error_rms_bar"] = float(np.sqrt(np.mean(after ** 2)) / 1e5) if after.size else None
+                entry["tracking_error_max_bar"] = float(np.max(np.abs(after)) / 1e5) if after.size else None
+            entry["switchings_charge_valve"] = int(sw_c)
+            entry["switchings_discharge_valve"] = int(sw_d)
+            entry["switchings_per_s"] = (sw_c + sw_d) / T if T > 0 else None
+            entry["air_used_L_std"] = float((self.charged_mass(m)[-1] - self.charged_mass(m)[0])
+                                            / self.reference_density * 1e3)
+            out[name] = entry
+        return out
 
     # -- basic series -------------------------------------------------------------------------
     @property

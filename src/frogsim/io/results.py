@@ -42,6 +42,9 @@ def limit_notes(result) -> list[str]:
 def run_summary(result, notes: bool = True) -> dict:
     """Headline figures of one run, in display units with the unit in each key (docs/metrics.md).
 
+    A run with closed-loop controllers adds "control": each controller's tracking error (RMS and
+    max after its settling time), valve switchings and air used (docs/control.md).
+
     A rise time that is not reached is None (JSON null) with ``rise_time_90_reason`` saying why.
     Limits that dominate the charging are listed under "notes" and, with ``notes``, logged on the
     "frogsim" logger as warnings (one line each on stderr unless logging is configured otherwise).
@@ -81,6 +84,7 @@ def run_summary(result, notes: bool = True) -> dict:
         "notes": found,
         "air_mass_relative_drift": float(np.ptp(m_total) / m_total[0]),
         "solver": result.stats,
+        **({"control": result.control_metrics()} if result.switchings else {}),
     }
 
 

@@ -17,7 +17,7 @@ from frogsim.scenario.files import check_raw, read_text
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.rules import check
 from frogsim.scenario.schema import (
-    Air, Chamber, Controller, Muscle, MuscleType, Program, Pump, Solver, Supply, Valves,
+    Air, Chamber, Controller, Muscle, MuscleType, Program, Pump, Solver, Supply, Valves, ValveController,
 )
 from frogsim.errors import MISSING, ScenarioError, Shown
 
@@ -27,7 +27,7 @@ PARAM_SECTIONS = ("air", "source", "exhaust", "pump", "valves", "supply", "muscl
                   # the robot as a moving body (frogsim.robot.params)
                   "muscle_force", "body", "legs", "joints", "palms", "water", "hydro")
 RUN_KEYS = ("name", "description", "parameters", "duration", "output_interval", "controller",
-            "solver", "programs", "muscles",
+            "solver", "programs", "muscles", "controllers",
             # robot scenarios (frogsim.robot.scenario): options and gait instead of muscles
             "robot", "gait")
 
@@ -232,9 +232,14 @@ def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None 
         muscles = {mname: Muscle.from_raw(gauge_from_abs(mraw, Muscle, f"muscles.{mname}", p_atm),
                                           f"muscles.{mname}", programs)
                    for mname, mraw in muscles_raw.items()}
+    controllers_raw = raw.get("controllers", {})
+    if not isinstance(controllers_raw, dict):
+        raise ScenarioError("controllers", controllers_raw, "expected a table of named controllers")
+    controllers = {c: ValveController.from_raw(v, f"controllers.{c}") for c, v in controllers_raw.items()}
     scenario = Scenario(name=name, parameters=raw["parameters"], duration=duration,
                         output_interval=interval, controller=controller, solver=solver,
                         muscle_types=muscle_types, muscles=muscles, programs=programs,
+                        controllers=controllers,
                         base_dir=base_dir, raw=raw, **sections)
     check(scenario)
     return scenario

@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.fields import shown
 from frogsim.scenario.motion import build_motions
-from frogsim.scenario.schema import MOTION_KINDS
+from frogsim.scenario.files import read_text
+from frogsim.scenario.schema import MOTION_KINDS, SETPOINT_FIELDS
 
 if TYPE_CHECKING:   # annotations only
     from frogsim.scenario.core import Scenario
@@ -76,4 +77,104 @@ def check(sc: Scenario) -> None:
                 raise ScenarioError(f"{path}.motion.contraction_percent", c,
                                     f"must be <= the muscle's max_contraction ({mt.max_contraction:.0%})")
     # program steps after the end of the run are allowed: they simply never happen
+    check_controllers(sc)
     build_motions(sc)      # overlapping strokes, joint-angle files
+
+
+def setpoint_knots(sp, base_dir: str, path: str) -> tuple:
+    """The rows ((t [s], p [Pa gauge]), ...) of a table setpoint's CSV file (times increasing)."""
+    import csv
+    import io
+    import math
+    from pathlib import Path
+    where = f"{path}.file"
+    text = read_text(Path(base_dir) / sp.file, where)
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        raise ScenarioError(where, sp.file, "is empty")
+    head = [h.strip() for h in rows[0]]
+    for col in (sp.time_column, sp.column):
+        if col not in head:
+            raise ScenarioError(where, sp.file, f"has no column {col!r} (columns: {', '.join(head)})")
+    it, ip = head.index(sp.time_column), head.index(sp.column)
+    out = []
+    for k, r in enumerate(rows[1:], start=2):
+        try:
+            t, p = float(r[it]), float(r[ip]) * 1e5
+        except (ValueError, IndexError):
+            raise ScenarioError(where, sp.file, f"line {k}: expected numbers in {sp.time_column} and "
+                                                f"{sp.column}") from None
+        if not (math.isfinite(t) and math.isfinite(p)):
+            raise ScenarioError(where, sp.file, f"line {k}: must be finite numbers")
+        if out and t <= out[-1][0]:
+            raise ScenarioError(where, sp.file, f"line {k}: times must increase")
+        out.append((t, p))
+    if not out:
+        raise ScenarioError(where, sp.file, "has no rows")
+    return tuple(out)
+
+
+def check_controllers(sc: Scenario) -> None:
+    """[controllers.NAME]: a muscle that exists, one controller per muscle, the settings the kind
+    needs, a setpoint the source can reach, a PWM period of at least two valve dead times (and two
+    controller samples); a muscle under a closed-loop controller has no program, every other
+    muscle has one."""
+    driven = {}
+    dead = max(sc.valves.charge.dead_time, sc.valves.discharge.dead_time)
+    dt = 1.0 / sc.controller.rate
+    p_top = sc.source.initial_pressure_gauge
+    if sc.pump.enabled and sc.pump.displacement > 0:
+        p_top = max(p_top, sc.pump.off_above_gauge)
+    for cname, c in sc.controllers.items():
+        path = f"controllers.{cname}"
+        if c.muscle not in sc.muscles:
+            raise ScenarioError(f"{path}.muscle", c.muscle,
+                                f"must name a muscle of this scenario ({', '.join(sc.muscles)})")
+        if c.muscle in driven:
+            raise ScenarioError(f"{path}.muscle", c.muscle, f"already under controllers.{driven[c.muscle]}")
+        driven[c.muscle] = cname
+        m = sc.muscles[c.muscle]
+        if c.kind == "program":
+            if not m.program.steps:
+                raise ScenarioError(f"muscles.{c.muscle}.program", MISSING,
+                                    f"{path} is of kind 'program': the muscle needs a program")
+            continue
+        if m.program.steps:
+            raise ScenarioError(f"muscles.{c.muscle}.program", "(a program)",
+                                f"refused: the muscle is under the closed-loop {path} ({c.kind}), "
+                                "which drives its valves; remove its program")
+        if c.kind == "pwm":
+            if (c.duty is None) == (c.setpoint is None):
+                raise ScenarioError(f"{path}.duty", MISSING if c.duty is None else c.duty,
+                                    "a pwm controller takes either a duty (open loop) or a setpoint, one of them")
+            period = 1.0 / c.frequency
+            if period < 2.0 * dead:
+                raise _err(f"{path}.frequency", c, "frequency",
+                           f"the period {period * 1e3:g} ms must be at least twice the valve dead time "
+                           f"({dead * 1e3:g} ms): at most {1.0 / (2.0 * dead):g} Hz")
+            if period < 2.0 * dt - 1e-12:
+                raise _err(f"{path}.frequency", c, "frequency",
+                           f"the period must span at least two controller samples (at most "
+                           f"{sc.controller.rate / 2:g} Hz at controller.rate = {sc.controller.rate:g} Hz)")
+        elif c.setpoint is None:
+            raise ScenarioError(f"{path}.setpoint", MISSING, f"required for kind {c.kind!r}")
+        sp = c.setpoint
+        if sp is None:
+            continue
+        for key in SETPOINT_FIELDS[sp.kind]:
+            if key not in ("start", "time_column", "column") and getattr(sp, key) in (None, ()):
+                raise ScenarioError(f"{path}.setpoint.{key}", MISSING, f"required for setpoint kind {sp.kind!r}")
+        knots = setpoint_knots(sp, sc.base_dir, f"{path}.setpoint") if sp.kind == "table" else ()
+        lo, hi = sp.bounds(knots)
+        if hi > p_top:
+            raise ScenarioError(f"{path}.setpoint", f"{hi / 1e5:g} bar (highest value)",
+                                f"must not exceed the source pressure ({p_top / 1e5:g} bar gauge): "
+                                "the charge valve cannot reach it")
+        if lo < -sc.air.atmospheric_pressure_abs:
+            raise ScenarioError(f"{path}.setpoint", f"{lo / 1e5:g} bar (lowest value)",
+                                "must be above absolute zero")
+    for mname, m in sc.muscles.items():
+        if not m.program.steps and mname not in driven:
+            raise ScenarioError(f"muscles.{mname}.program", MISSING,
+                                "required setting is missing (or put the muscle under a closed-loop "
+                                "[controllers] section)")

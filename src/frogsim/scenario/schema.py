@@ -321,15 +321,16 @@ class Muscle:
         for key in raw:
             if key not in allowed:
                 raise unknown_key_error(path, key, allowed)
-        for key in ("type", "program"):
-            if key not in raw:
-                raise ScenarioError(f"{path}.{key}", MISSING, "required setting is missing")
+        if "type" not in raw:
+            raise ScenarioError(f"{path}.type", MISSING, "required setting is missing")
         mtype = unwrap(raw["type"])
         if not isinstance(mtype, str):
             raise ScenarioError(f"{path}.type", mtype, "expected the name of a muscle type")
-        prog_raw = raw["program"]
+        prog_raw = raw.get("program")       # none: the muscle must be under a closed-loop controller
         ref = ""
-        if isinstance(prog_raw, str):
+        if prog_raw is None:
+            program = Program()
+        elif isinstance(prog_raw, str):
             if programs is None or prog_raw not in programs:
                 known = ", ".join(sorted(programs or {})) or "none defined"
                 raise ScenarioError(f"{path}.program", prog_raw,
@@ -360,3 +361,173 @@ class Solver:
     max_step: float = quantity("time", gt=0.0, display="ms", default=0.05)
     max_wall_time: float = quantity("time", gt=0.0, le=1e7, display="s", default=300.0,
                                     doc="wall-clock seconds one run may take (frogsim.simulate)")
+
+
+# --- closed-loop controllers ([controllers.NAME]) ---------------------------------------------------------
+CONTROLLER_KINDS = ("program", "pwm", "bang-bang", "sliding-mode")
+SETPOINT_KINDS = ("constant", "steps", "sine", "table")
+#: settings each controller kind reads (besides kind and muscle)
+CONTROLLER_FIELDS = {
+    "program": (),
+    "bang-bang": ("setpoint", "band", "sensor", "settle"),
+    "pwm": ("setpoint", "frequency", "duty", "proportional_band", "minimum_pulse", "rest", "sensor", "settle"),
+    "sliding-mode": ("setpoint", "horizon", "penalty", "sensor", "settle"),
+}
+SETPOINT_FIELDS = {"constant": ("value",), "steps": ("steps",), "sine": ("mean", "amplitude", "frequency", "start"),
+                   "table": ("file", "time_column", "column")}
+
+
+@dataclass(frozen=True)
+class Setpoint:
+    """A pressure setpoint (gauge) as a function of time, evaluated in compiled code at each sample.
+
+    Written "3 bar" (constant) or as a table with a kind:
+      constant  { kind = "constant", value = "3 bar" }
+      steps     { kind = "steps", steps = [ { at = "0 s", value = "0 bar" }, { at = "0.1 s", value = "3 bar" } ] }
+                (the value of the last step at or before t; the first before it)
+      sine      { kind = "sine", mean = "3 bar", amplitude = "1 bar", frequency = "0.5 Hz", start = "0 s" }
+                (mean before start, mean + amplitude sin(2 pi f (t - start)) from it)
+      table     { kind = "table", file = "sp.csv", time_column = "time_s", column = "pressure_bar" }
+                (a CSV of times [s] and gauge pressures [bar], linear between rows, constant outside)
+    """
+    kind: str = choice(SETPOINT_KINDS, default="constant")
+    value: float | None = quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar", default=None)
+    mean: float | None = quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar", default=None)
+    amplitude: float | None = quantity("pressure", ge=0.0, le=GAUGE_MAX, display="bar", default=None)
+    frequency: float | None = quantity("frequency", gt=0.0, le=1e3, display="Hz", default=None)
+    start: float = quantity("time", ge=0.0, display="s", default=0.0)
+    steps: tuple = ()
+    file: str | None = None
+    time_column: str = "time_s"
+    column: str = "pressure_bar"
+
+    def unused(self, name: str) -> str:
+        if name == "kind" or name in SETPOINT_FIELDS[self.kind]:
+            return ""
+        return f"not used by setpoint kind {self.kind!r} (it uses: {', '.join(SETPOINT_FIELDS[self.kind])})"
+
+    def bounds(self, knots=()) -> tuple[float, float]:
+        """Lowest and highest value [Pa gauge] the setpoint takes (``knots``: a table's rows)."""
+        if self.kind == "constant":
+            return self.value, self.value
+        if self.kind == "sine":
+            return self.mean - self.amplitude, self.mean + self.amplitude
+        vals = [p for _, p in (self.steps if self.kind == "steps" else knots)]
+        return min(vals), max(vals)
+
+    @classmethod
+    def from_raw(cls, raw, path: str) -> "Setpoint":
+        raw = unwrap(raw)
+        fields = {f.name: f.metadata for f in dataclasses.fields(cls)}
+        if not isinstance(raw, dict):
+            return cls("constant", value=parse_field(raw, fields["value"], path))
+        kind = parse_field(raw.get("kind", "constant"), fields["kind"], f"{path}.kind")
+        allowed = set(SETPOINT_FIELDS[kind]) | {"kind"}
+        for key in raw:
+            if key not in allowed:
+                raise unknown_key_error(path, key, allowed)
+        required = {"constant": ("value",), "steps": ("steps",), "sine": ("mean", "amplitude", "frequency"),
+                    "table": ("file",)}[kind]
+        for key in required:
+            if key not in raw:
+                raise ScenarioError(f"{path}.{key}", MISSING, f"required for setpoint kind {kind!r}")
+        kw = {"kind": kind}
+        for key in ("value", "mean", "amplitude", "frequency", "start"):
+            if key in raw:
+                kw[key] = parse_field(raw[key], fields[key], f"{path}.{key}")
+        if kind == "steps":
+            steps_raw = raw["steps"]
+            if not isinstance(steps_raw, list) or not steps_raw:
+                raise ScenarioError(f"{path}.steps", steps_raw, "expected a non-empty list of steps")
+            steps = []
+            for j, st in enumerate(steps_raw):
+                sp = f"{path}.steps[{j}]"
+                if not isinstance(st, dict) or set(st) != {"at", "value"}:
+                    raise ScenarioError(sp, st, 'expected { at = "<time>", value = "<pressure>" }')
+                t = parse_field(st["at"], dict(kind="time", ge=0.0, display="s"), f"{sp}.at")
+                p = parse_field(st["value"], fields["value"], f"{sp}.value")
+                if steps and t <= steps[-1][0]:
+                    raise ScenarioError(f"{sp}.at", st["at"], "step times must increase")
+                steps.append((t, p))
+            kw["steps"] = tuple(steps)
+        for key in ("file", "time_column", "column"):
+            if key in raw:
+                if not isinstance(unwrap(raw[key]), str) or not unwrap(raw[key]):
+                    raise ScenarioError(f"{path}.{key}", raw[key], "expected text")
+                kw[key] = unwrap(raw[key])
+        return cls(**kw)
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """The pressure sensor between the muscle and its controller: first-order lag, then Gaussian
+    noise (seeded: the same seed gives the same run), then an ADC of ``bits`` over 0..full_scale
+    gauge (0 bits: no quantisation)."""
+    noise: float = quantity("pressure", ge=0.0, le=GAUGE_MAX, display="bar", default=0.0,
+                            doc="standard deviation of the noise")
+    seed: int = integer(ge=0, le=2**31 - 1, default=0)
+    bits: int = integer(ge=0, le=24, default=0)
+    full_scale: float = quantity("pressure", gt=0.0, le=GAUGE_MAX, display="bar", default=10.0 * BAR)
+    lag: float = quantity("time", ge=0.0, le=1.0, display="ms", default=0.0)
+
+
+@dataclass(frozen=True)
+class ValveController:
+    """A closed-loop controller of one muscle's two valves (see docs/control.md).
+
+    Every sample it commands charge (charge valve open, discharge shut), hold (both shut) or vent
+    (discharge open, charge shut); both valves open at once is never commanded. The commands act
+    one valve dead time after the sample. kind "program" leaves the muscle to its open-loop
+    program; the others take the muscle's valves (the muscle then has no program).
+    """
+    kind: str = choice(CONTROLLER_KINDS)
+    muscle: str = ""
+    setpoint: Setpoint | None = None
+    band: float = quantity("pressure", gt=0.0, le=GAUGE_MAX, display="bar", default=0.1 * BAR,
+                           doc="bang-bang: charge below setpoint - band/2, vent above setpoint + band/2")
+    frequency: float = quantity("frequency", gt=0.0, le=1e4, display="Hz", default=20.0, doc="pwm: carrier")
+    duty: float | None = quantity("dimensionless", ge=0.0, le=1.0, display="%", default=None,
+                                  doc="pwm: open-loop duty (no setpoint)")
+    proportional_band: float = quantity("pressure", gt=0.0, le=GAUGE_MAX, display="bar", default=1.0 * BAR,
+                                        doc="pwm with a setpoint: the error giving 100 % duty")
+    minimum_pulse: float = quantity("time", ge=0.0, le=1.0, display="ms", default=0.0)
+    rest: str = choice(("vent", "hold"), default="vent", doc="pwm open loop: valve state between pulses")
+    horizon: float = quantity("time", gt=0.0, le=1.0, display="ms", default=2e-3,
+                              doc="sliding mode: lambda of s = e + lambda de/dt")
+    penalty: float = quantity("pressure", ge=0.0, le=GAUGE_MAX, display="bar", default=0.05 * BAR,
+                              doc="sliding mode: switching penalty rho (cost s^2 + rho^2 per change)")
+    settle: float = quantity("time", ge=0.0, display="s", default=0.2,
+                             doc="tracking metrics count from this time on")
+    sensor: Sensor = field(default_factory=Sensor)
+
+    def unused(self, name: str) -> str:
+        if name in ("kind",) or name in CONTROLLER_FIELDS[self.kind]:
+            return ""
+        return f"not used by controller kind {self.kind!r}"
+
+    @classmethod
+    def from_raw(cls, raw, path: str) -> "ValveController":
+        if not isinstance(raw, dict) or "kind" not in raw:
+            raise ScenarioError(path, raw, f"expected a table with kind = one of {', '.join(CONTROLLER_KINDS)}")
+        fields = {f.name: f.metadata for f in dataclasses.fields(cls)}
+        kind = parse_field(raw["kind"], fields["kind"], f"{path}.kind")
+        allowed = set(CONTROLLER_FIELDS[kind]) | {"kind", "muscle"}
+        for key in raw:
+            if key not in allowed:
+                raise unknown_key_error(path, key, allowed)
+        if "muscle" not in raw:
+            raise ScenarioError(f"{path}.muscle", MISSING, "required setting is missing")
+        muscle = unwrap(raw["muscle"])
+        if not isinstance(muscle, str) or not muscle:
+            raise ScenarioError(f"{path}.muscle", muscle, "expected the name of a muscle")
+        kw = {"kind": kind, "muscle": muscle}
+        for key, val in raw.items():
+            if key in ("kind", "muscle"):
+                continue
+            if key == "setpoint":
+                kw[key] = Setpoint.from_raw(val, f"{path}.setpoint")
+            elif key == "sensor":
+                kw[key] = build(Sensor, unwrap(val), f"{path}.sensor")
+            else:
+                kw[key] = parse_field(val, fields[key], f"{path}.{key}")
+        return cls(**kw)

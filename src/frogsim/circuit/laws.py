@@ -1,0 +1,160 @@
+"""The table of sampled laws ``laws[c, :]`` a run's controllers are compiled from (layout and builder).
+
+One row per sampled law: the pump's pressure band (first, when the pump is enabled) and one row
+per closed-loop controller of the scenario (``[controllers.NAME]``, kinds bang-bang, pwm,
+sliding-mode). The laws themselves are compiled in :mod:`frogsim.control.sampled`; this module
+only fixes the columns (compile-time constants for Numba) and fills them from a validated Scenario,
+so that :func:`frogsim.circuit.model.build_model` can hand the table to the driver with the rest
+of the model. A row is L_SIZE columns plus the setpoint's knots (t_j [s], p_j [Pa abs]) in pairs
+from column L_SP0 on; the table is as wide as its widest row.
+
+Pressures are absolute [Pa] inside; times [s]; the PWM period and minimum pulse in controller
+samples (the commands change only on the controller's grid).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from frogsim.circuit.layout import (G_PATM, G_PUMP_ENABLED, G_PUMP_OFF, G_PUMP_ON, G_R, G_RHOREF,
+                                    G_TAMB, G_TREF, G_K, Y_PS)
+
+# --- kinds of sampled law -----------------------------------------------------------------------------
+KIND_PUMP_BAND = 1.0
+KIND_BANG_BANG = 2.0
+KIND_PWM = 3.0
+KIND_SLIDING = 4.0
+
+# --- setpoint generators -----------------------------------------------------------------------------
+SP_CONSTANT = 0.0
+SP_STEPS = 1.0
+SP_SINE = 2.0
+SP_TABLE = 3.0
+
+# --- columns ---------------------------------------------------------------------------------------------
+L_KIND = 0       # KIND_*
+L_INPUT = 1      # pump band: index of the state entry the rule reads (Y_PS)
+L_LOW = 2        # pump band: switch on below this value
+L_HIGH = 3       # pump band: switch off above this value
+L_MUSCLE = 4     # muscle index i (valves u[2i] charge, u[2i+1] discharge; pressure y[Y_MUSCLE0+2i+1])
+L_DEAD_C = 5     # charge valve dead time [s]
+L_DEAD_D = 6     # discharge valve dead time [s]
+L_BAND = 7       # bang-bang: width of the hold band [Pa]
+L_PERIOD_N = 8   # pwm: period [controller samples]
+L_DUTY = 9       # pwm: open-loop duty [-]; < 0: closed loop (duty from the pressure error)
+L_PBAND = 10     # pwm closed loop: proportional band [Pa] (error giving 100 % duty)
+L_MINPULSE_N = 11  # pwm: minimum pulse [controller samples]
+L_REST = 12      # pwm open loop: 1 vent, 0 hold between the charge pulses
+L_HORIZON = 13   # sliding mode: lambda [s] of s = e + lambda de/dt
+L_PENALTY = 14   # sliding mode: switching penalty rho [Pa] (J = s^2 + rho^2 per mode change)
+L_GAIN = 15      # sliding mode: k R T_amb / V_nominal [Pa/kg]: pressure rate per mass flow
+L_PATM = 16      # atmospheric pressure [Pa]: the sensor reads gauge pressure
+L_NOISE = 17     # sensor noise standard deviation [Pa]
+L_SEED = 18      # sensor noise seed
+L_BITS = 19      # ADC bits (0: no quantisation)
+L_FS = 20        # ADC full scale [Pa gauge] (the range is 0..full scale)
+L_LAG = 21       # sensor first-order lag time constant [s] (0: none)
+L_CC = 22        # the controller's valve model (Eq. 8): charge C, b, m, r_lam
+L_CB = 23
+L_CM = 24
+L_CRL = 25
+L_DC = 26        # discharge C, b, m, r_lam
+L_DB = 27
+L_DM = 28
+L_DRL = 29
+L_RHOREF = 30
+L_TREF = 31
+L_TAMB = 32
+L_BRANCH = 33    # charge-flow limit of the supply [kg/s] (inf: none)
+L_SP_KIND = 34   # SP_*
+L_SP_A = 35      # constant: value; sine: mean [Pa abs]
+L_SP_B = 36      # sine: amplitude [Pa]
+L_SP_C = 37      # sine: frequency [Hz]
+L_SP_D = 38      # sine: start time [s]
+L_SP_N = 39      # steps / table: number of knots
+L_SIZE = 40
+L_SP0 = L_SIZE   # knots (t_j, p_j) from here on
+
+
+def pump_row(g) -> np.ndarray:
+    """The pump band's row (the same numbers as :func:`frogsim.control.sampled.sampled_laws`)."""
+    row = np.zeros(L_SIZE)
+    row[L_KIND] = KIND_PUMP_BAND
+    row[L_INPUT] = Y_PS
+    row[L_LOW] = g[G_PUMP_ON]
+    row[L_HIGH] = g[G_PUMP_OFF]
+    return row
+
+
+def setpoint_columns(sp, patm: float, knots) -> tuple[dict, list]:
+    """Columns of a setpoint generator (a :class:`frogsim.scenario.schema.Setpoint`) and its knots
+    [(t, p_abs)] (steps: the step times and values; table: the file's rows, ``knots`` given)."""
+    cols = {L_SP_KIND: {"constant": SP_CONSTANT, "steps": SP_STEPS, "sine": SP_SINE,
+                        "table": SP_TABLE}[sp.kind]}
+    pts = []
+    if sp.kind == "constant":
+        cols[L_SP_A] = patm + sp.value
+    elif sp.kind == "sine":
+        cols[L_SP_A] = patm + sp.mean
+        cols[L_SP_B] = sp.amplitude
+        cols[L_SP_C] = sp.frequency
+        cols[L_SP_D] = sp.start
+    else:
+        pts = [(t, patm + p) for t, p in (sp.steps if sp.kind == "steps" else knots)]
+    cols[L_SP_N] = len(pts)
+    return cols, pts
+
+
+def controller_rows(sc, g, mp_valves: dict, names: list, volumes: dict, knots: dict) -> list:
+    """One row per closed-loop controller of the scenario (``program`` controllers have none).
+
+    ``mp_valves``: the valves' ISO 6358 constants; ``volumes``: each muscle's nominal volume [m^3]
+    (the controller's model of it); ``knots``: setpoint table knots by controller name.
+    """
+    rows = []
+    patm = g[G_PATM]
+    for cname, c in sc.controllers.items():
+        if c.kind == "program":
+            continue
+        row = np.zeros(L_SIZE)
+        row[L_KIND] = {"bang-bang": KIND_BANG_BANG, "pwm": KIND_PWM, "sliding-mode": KIND_SLIDING}[c.kind]
+        row[L_MUSCLE] = names.index(c.muscle)
+        row[L_DEAD_C] = sc.valves.charge.dead_time
+        row[L_DEAD_D] = sc.valves.discharge.dead_time
+        row[L_BAND] = c.band
+        dt = 1.0 / sc.controller.rate
+        row[L_PERIOD_N] = max(1, round(1.0 / (c.frequency * dt)))
+        row[L_DUTY] = c.duty if c.duty is not None else -1.0
+        row[L_PBAND] = c.proportional_band
+        row[L_MINPULSE_N] = math.ceil(c.minimum_pulse / dt - 1e-9)
+        row[L_REST] = 1.0 if c.rest == "vent" else 0.0
+        row[L_HORIZON] = c.horizon
+        row[L_PENALTY] = c.penalty
+        row[L_GAIN] = g[G_K] * g[G_R] * g[G_TAMB] / volumes[c.muscle]
+        row[L_PATM] = patm
+        s = c.sensor
+        row[L_NOISE], row[L_SEED], row[L_BITS], row[L_FS], row[L_LAG] = (
+            s.noise, s.seed, s.bits, s.full_scale, s.lag)
+        for col, val in zip((L_CC, L_CB, L_CM, L_CRL, L_DC, L_DB, L_DM, L_DRL), mp_valves["values"]):
+            row[col] = val
+        row[L_RHOREF], row[L_TREF], row[L_TAMB] = g[G_RHOREF], g[G_TREF], g[G_TAMB]
+        row[L_BRANCH] = mp_valves["branch_limit"]
+        pts = []
+        if c.setpoint is not None:
+            cols, pts = setpoint_columns(c.setpoint, patm, knots.get(cname, ()))
+            for col, val in cols.items():
+                row[col] = val
+        rows.append(np.concatenate([row, np.array([v for pt in pts for v in pt], float)]))
+    return rows
+
+
+def laws_table(g, rows: list) -> np.ndarray:
+    """The pump band's row (when the pump is enabled) then the controllers' rows, zero-padded to
+    the widest."""
+    allrows = ([pump_row(g)] if g[G_PUMP_ENABLED] >= 0.5 else []) + list(rows)
+    width = max([L_SIZE] + [r.size for r in allrows])
+    laws = np.zeros((len(allrows), width))
+    for c, r in enumerate(allrows):
+        laws[c, :r.size] = r
+    return laws
