@@ -24,6 +24,7 @@ import numpy as np
 
 from frogsim.circuit import layout as L
 from frogsim.circuit.model import PneumaticModel, build_model
+from frogsim.control.sampled import sampled_laws
 from frogsim.engine.integrator import D_SI, D_T, STATUS_OK, advance, begin
 from frogsim.errors import SimulationError
 
@@ -85,7 +86,9 @@ class PneumaticPlant:
         m = self.model
         nu = 2 * self.n
         empty_t, empty_u = np.zeros(0), np.zeros((0, nu))
-        _, _, y, u, ds, cs, stats, commands = begin(m.y0, 0.0, np.zeros(nu), m.g, empty_t, empty_u,
+        # the pump's band only: the valves are the agent's (a scenario's closed-loop controllers
+        # are not run here)
+        _, _, y, u, ds, cs, stats, commands = begin(m.y0, 0.0, np.zeros(nu), sampled_laws(m.g), empty_t, empty_u,
                                                     self.ctrl_dt, np.zeros(0), self.h0)
         self.y, self.u, self.ds, self.cs, self.stats = y, u, ds, cs, stats
         self.laws = commands[2]
