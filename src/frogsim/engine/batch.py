@@ -40,7 +40,7 @@ def _run_one(m: PneumaticModel):
     sc = m.scenario
     return run_schedule(m.y0, 0.0, sc.duration, m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n,
                         m.sched_t, m.sched_u, m.u0, 1.0 / sc.controller.rate, m.out_t, sc.solver.rtol,
-                        m.atol, sc.solver.max_step, 1e-4, m.laws)
+                        m.atol, sc.solver.max_step, 1e-4, m.laws, 0)
 
 
 def run_models(models: list[PneumaticModel], threads: int | None = None) -> list[Result]:
@@ -51,7 +51,7 @@ def run_models(models: list[PneumaticModel], threads: int | None = None) -> list
     piece = max(1, len(models) // (8 * default_threads(threads)))
     raw = [r for part in map_pieces(lambda ms: [_run_one(m) for m in ms], models, piece, threads) for r in part]
     results = []
-    for b, (m, (oy, ou, y_end, stats, status, t_r, cs)) in enumerate(zip(models, raw)):
+    for b, (m, (oy, ou, y_end, stats, status, t_r, cs, _, _)) in enumerate(zip(models, raw)):
         if status != STATUS_OK:
             raise SimulationError(f"batch point {b} ({m.scenario.name!r}): integration stopped at "
                                   f"t = {t_r:.6g} s (status {status})")

@@ -35,14 +35,12 @@ from frogsim.engine.coupled_layout import (  # noqa: F401
     R_V, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
     S_TRUNK, S_VMAX, S_WMAX, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK,
     T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE, U_TENDON, record_columns)
-from frogsim.engine.integrator import D_SI, start
+from frogsim.engine.integrator import D_SI, STATUS_TEXT, start
 from frogsim.errors import SimulationError
 from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL
 from frogsim.robot import import_mujoco
 from frogsim.robot.water import E_BODY, P_SIZE, hydro_tables
 
-_PNEUMATIC_TEXT = {1: "step size fell below 1e-14 s", 2: "the state became non-finite (NaN or inf)",
-                   3: "more than 50 million steps"}
 BODY_SPEED_LIMIT = 20.0       # [m/s]: ten times anything the robot can swim
 JOINT_SPEED_LIMIT = 200.0     # [rad/s]: a leg joint swinging its whole range in 4 ms
 
@@ -252,7 +250,7 @@ def _failure(cm: CoupledModel) -> str:
     m = cm.mjm
     mujoco = import_mujoco()
     if code == FAIL_PNEUMATIC:
-        return f"the pneumatic integration stopped: {_PNEUMATIC_TEXT.get(arg, arg)}"
+        return f"the pneumatic integration stopped: {STATUS_TEXT.get(arg, arg)}"
     if code in (FAIL_QPOS, FAIL_QVEL):
         what = "position" if code == FAIL_QPOS else "velocity"
         jid = (np.searchsorted(m.jnt_qposadr, arg, side="right") - 1 if code == FAIL_QPOS

@@ -21,6 +21,7 @@ import math
 import numpy as np
 from frogsim._jit import jit
 
+from frogsim.circuit.layout import Y_MUSCLE0
 from frogsim.circuit.rhs import rhs
 from frogsim.control.sampled import CS_PUMP, next_control_time, sample_controllers, start_controllers
 
@@ -29,6 +30,11 @@ STATUS_STEP_UNDERFLOW = 1
 STATUS_NOT_FINITE = 2
 STATUS_MAX_STEPS = 3
 STATUS_PAUSED = 4        # stopped after ds[D_PAUSE] accepted steps, to be resumed (not a failure)
+STATUS_NONPHYSICAL = 5   # an accepted step left an air mass or pressure <= 0 (or NaN): ds[D_T], y show it
+STATUS_TEXT = {STATUS_STEP_UNDERFLOW: "step size fell below 1e-14 s",
+               STATUS_NOT_FINITE: "the state became non-finite (NaN or inf)",
+               STATUS_MAX_STEPS: "more than 50 million steps",
+               STATUS_NONPHYSICAL: "an air mass or pressure became zero or negative"}
 
 # --- driver state ds[:] (see advance) ----------------------------------------------------------------
 D_T = 0          # time reached [s]
@@ -228,6 +234,11 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                     f[j] = k7[j]
                 t = t_new
                 stats[0] += 1
+                for j in range(Y_MUSCLE0 + 2 * n):
+                    if not y[j] > 0.0:          # every air mass and pressure; NaN fails too
+                        status = STATUS_NONPHYSICAL
+                if status != STATUS_OK:
+                    break
                 e = max(err, 1e-4)
                 fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
                 err_old = e
@@ -307,7 +318,7 @@ def begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
 
 @jit
 def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
-                 ctrl_dt, out_t, rtol, atol, max_step, h0, laws):
+                 ctrl_dt, out_t, rtol, atol, max_step, h0, laws, pause_every):
     """Integrate from t0 to t_end under an open-loop valve schedule and the run's sampled laws
     ``laws`` (the pump's band and the closed-loop controllers, ``PneumaticModel.laws``):
     :func:`begin`, then one :func:`advance`.
@@ -315,11 +326,13 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
     ``sched_t`` (sorted) are the times at which valve states become ``sched_u[k]``; before the
     first, ``u0`` holds. Entries may repeat the current state: they only make the integrator stop
     there (used for kinks in the prescribed motion). Output rows at out_t (sorted); the rows at or
-    before t0 hold the initial state.
+    before t0 hold the initial state. ``pause_every`` > 0 pauses after that many accepted steps
+    (STATUS_PAUSED; go on with :func:`advance` and the returned u, ds, cs); 0 never pauses.
 
-    Returns (out_y, out_u, y_end, stats, status, t_reached, cs).
+    Returns (out_y, out_u, y_end, stats, status, t_reached, cs, u, ds).
     """
     out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0)
+    ds[D_PAUSE] = pause_every
     status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), commands,
                      (rtol, atol, max_step), (out_t, out_y, out_u), stats)
-    return out_y, out_u, y, stats, status, ds[D_T], cs
+    return out_y, out_u, y, stats, status, ds[D_T], cs, u, ds

@@ -25,12 +25,10 @@ from frogsim.circuit.laws import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM
 from frogsim.control.sampled import (B_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE, KIND_EXTERNAL, KIND_PUMP_BAND,
                                      MODE_CHARGE, MODE_HOLD, MODE_VENT, apply_due, command_valves,
                                      next_control_time)
-from frogsim.engine.integrator import D_PAUSE, D_T, EPS, STATUS_OK, STATUS_PAUSED, advance, begin
+from frogsim.engine.integrator import (D_PAUSE, D_T, EPS, STATUS_NONPHYSICAL, STATUS_OK, STATUS_PAUSED,
+                                       STATUS_TEXT, advance, begin, run_schedule)
 from frogsim.engine.result import Result, valve_switchings
 from frogsim.errors import SimulationError
-
-_STATUS_TEXT = {1: "step size fell below 1e-14 s", 2: "the state became non-finite (NaN or inf)",
-                3: "more than 50 million steps"}
 
 STEPS_PER_CALL = 20_000       # accepted steps between two looks at the clock (about 10-50 ms)
 PROGRESS_AFTER_S = 2.0        # a run still going after this long (or half its limit) shows a progress bar
@@ -95,9 +93,11 @@ def check_state(model: PneumaticModel, t: np.ndarray, y: np.ndarray) -> None:
 
 
 def _check_status(model: PneumaticModel, status: int, t_reached: float, y_end) -> None:
+    if status == STATUS_NONPHYSICAL:          # the quantity, its value and the time
+        check_state(model, np.array([t_reached]), np.asarray(y_end)[None, :])
     if status != STATUS_OK:
         raise SimulationError(f"scenario {model.scenario.name!r}: integration stopped at t = {t_reached:.6g} s: "
-                              f"{_STATUS_TEXT.get(status, status)} ({_describe_state(model, y_end)})")
+                              f"{STATUS_TEXT.get(status, status)} ({_describe_state(model, y_end)})")
 
 
 def stiffness_hint(model: PneumaticModel) -> str:
@@ -147,19 +147,20 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
     limit = sc.solver.max_wall_time if max_wall_s is None else float(max_wall_s)
     check_volumes(model)
     T = sc.duration
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(model.y0, 0.0, model.u0, model.laws, model.sched_t,
-                                                        model.sched_u, 1.0 / sc.controller.rate, model.out_t, h0)
+    wall0 = time.perf_counter()
+    ctrl_dt = 1.0 / sc.controller.rate
+    # the first STEPS_PER_CALL steps in one compiled call (most runs end within it)
+    out_y, out_u, y, stats, status, _, cs, u, ds = run_schedule(
+        model.y0, 0.0, T, model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n,
+        model.sched_t, model.sched_u, model.u0, ctrl_dt, model.out_t, sc.solver.rtol, model.atol,
+        sc.solver.max_step, h0, model.laws, STEPS_PER_CALL)
     circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
+    commands = (model.sched_t, model.sched_u, model.laws, ctrl_dt)
     solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
     out = (model.out_t, out_y, out_u)
-    wall0 = time.perf_counter()
     bar = None
     try:
-        while True:
-            ds[D_PAUSE] = stats[0] + STEPS_PER_CALL
-            status = advance(T, y, u, ds, cs, circuit, commands, solver, out, stats)
-            if status != STATUS_PAUSED:
-                break
+        while status == STATUS_PAUSED:
             elapsed = time.perf_counter() - wall0
             if elapsed > limit:
                 raise SimulationError(f"scenario {sc.name!r}: stopped at t = {ds[D_T]:.6g} s of {T:g} s after "
@@ -171,6 +172,8 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
                            bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.4g}/{total:.4g} [{elapsed}<{remaining}]")
             if bar is not None:
                 bar.update(ds[D_T] - bar.n)
+            ds[D_PAUSE] = stats[0] + STEPS_PER_CALL
+            status = advance(T, y, u, ds, cs, circuit, commands, solver, out, stats)
     finally:
         if bar is not None:
             bar.close()
@@ -178,12 +181,7 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
 
 
 def _finish(model, status, ds, y_end, out_y, out_u, stats, cs) -> Result:
-    sc = model.scenario
-    _check_status(model, status, ds[D_T], y_end)
-    check_state(model, model.out_t, out_y)
-    if not (np.all(np.isfinite(y_end)) and all(y_end[j] > 0 for j, _, _ in _state_labels(model))):
-        raise SimulationError(f"scenario {sc.name!r}: non-physical end state "
-                              f"({_describe_state(model, y_end)})")
+    _check_status(model, status, ds[D_T], y_end)     # every accepted step was checked by the driver
     return Result(t=model.out_t, y=out_y, u=out_u, model=model,
                   stats={"steps": int(stats[0]), "rejected": int(stats[1]), "rhs_evaluations": int(stats[2])},
                   switchings=valve_switchings(model, cs))
