@@ -145,11 +145,12 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
     import os
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    from frogsim._jit import cache_is_warm
+    from frogsim._jit import cache_is_warm, warm_up
     from frogsim._files import write_json
     from frogsim.studies import STUDIES
     workers = min(args.workers or os.cpu_count() or 1, len(names))
-    if not cache_is_warm():
+    cold = not cache_is_warm()
+    if cold:
         _progress("first run: compiling the engines (cached afterwards)")
     _progress(f"{len(names)} studies on {workers} process{'es' if workers > 1 else ''} -> {out}/")
     order = sorted(names, key=lambda n: -STUDIES[n].cost)     # costly first, so they overlap the rest
@@ -172,6 +173,9 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
         methods = multiprocessing.get_all_start_methods()
         ctx = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
         with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+            if cold:      # two independent parts of the engine compiled side by side, first
+                for fut in [pool.submit(warm_up, part) for part in ("controllers", "rhs")]:
+                    fut.result()
             futures = [pool.submit(_study_task, name, str(out)) for name in order]
             for k, fut in enumerate(as_completed(futures), 1):
                 report(k, *fut.result())
