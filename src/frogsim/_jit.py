@@ -65,22 +65,3 @@ def cache_is_warm() -> bool:
     d = numba.config.CACHE_DIR
     return bool(d) and os.path.isdir(d) and any(n.endswith(".nbi") for _, _, fs in os.walk(d) for n in fs)
 
-
-def warm_up(part: str) -> None:
-    """Compile (or load from the cache) one independent part of the pneumatic engine: "rhs" (the
-    circuit's right-hand side) or "controllers" (the driver's start and the sampled laws). Two
-    processes warming one part each, before anything calls the driver, compile them side by side;
-    the driver itself then finds both in the cache."""
-    import numpy as np
-    if part == "rhs":
-        from frogsim.circuit.rhs import rhs
-        n = 1
-        mp = np.zeros((n, 13))
-        rhs(0.0, np.ones(9), np.zeros(2 * n), 0.0, np.ones(18), mp, np.zeros((n, 1)), np.ones((n, 1)),
-            np.zeros((n, 1)), np.ones(n, np.int64), np.zeros(9), np.zeros(2 * n + 1), np.zeros(3 * n))
-    elif part == "controllers":
-        from frogsim.engine.integrator import begin
-        begin(np.ones(9), 0.0, np.zeros(2), np.zeros((0, 1)), np.zeros(0), np.zeros((0, 2)), 1e-3,
-              np.zeros(1), 1e-4)
-    else:
-        raise ValueError(f"unknown part {part!r}")

@@ -145,7 +145,8 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
     import os
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
-    from frogsim._jit import cache_is_warm, warm_up
+    from frogsim._jit import cache_is_warm
+    from frogsim.engine.warmup import warm_up
     from frogsim._files import write_json
     from frogsim.studies import STUDIES
     workers = min(args.workers or os.cpu_count() or 1, len(names))
