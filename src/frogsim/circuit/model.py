@@ -41,18 +41,24 @@ def build_schedule(programs: list, rate: float, charge_dead: float, discharge_de
                 events.append((tq + discharge_dead, 2 * i + 1, float(new[1])))
             prev = new
         opens.append(np.array(ch_open))
-    events.sort()
-    u = np.zeros(2 * len(names))
+    sched_t, sched_u = schedule_from_events(events, np.zeros(2 * len(names)))
+    return sched_t, sched_u, np.zeros(2 * len(names)), opens
+
+
+def schedule_from_events(events, u_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Valve events (time [s], valve column, new state) -> (times (S,), states (S, nu)): from
+    ``u_start``, the full valve vector after each distinct time (events closer than 1e-12 s are
+    one time), in time order."""
+    u = np.array(u_start, float)
     times, states = [], []
-    for t, j, val in events:
+    for t, j, val in sorted(events):
         u[j] = val
         if times and abs(times[-1] - t) < 1e-12:
             states[-1] = u.copy()
         else:
             times.append(t)
             states.append(u.copy())
-    sched_u = np.array(states) if states else np.zeros((0, 2 * len(names)))
-    return np.array(times, float), sched_u.reshape(len(times), 2 * len(names)), np.zeros(2 * len(names)), opens
+    return np.array(times, float), np.array(states, float).reshape(len(times), u.size)
 
 
 def add_breakpoints(sched_t, sched_u, u0, times):

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from frogsim.circuit import layout as CL
-from frogsim.circuit.model import build_model
+from frogsim.circuit.model import build_model, schedule_from_events
 from frogsim.control.sampled import sampled_laws
 from frogsim.engine.coupled_kernel import apply_added_mass, step_kernel
 # R_* and T_PEAK*: the record's and the state's columns, read by callers of run_coupled
@@ -408,18 +408,9 @@ class CoupledStepper:
         self.pending.sort()
         due = [e for e in self.pending if e[0] <= t_end + 1e-12]
         self.pending = self.pending[len(due):]
-        times, rows = [], []
-        state = self.u_due.copy()
-        for te, j, val in due:
-            state[j] = val
-            if times and abs(times[-1] - te) < 1e-12:
-                rows[-1] = state.copy()
-            else:
-                times.append(te)
-                rows.append(state.copy())
-        self.u_due = state
-        a["sched_t"] = np.array(times, float)
-        a["sched_u"] = np.array(rows, float).reshape(len(times), 2 * self.n)
+        a["sched_t"], a["sched_u"] = schedule_from_events(due, self.u_due)
+        if due:
+            self.u_due = a["sched_u"][-1].copy()
         a["ds"][D_SI] = 0.0
         a["st"][T_PALM_TARGET] = float(palm)
         args = kernel_args(cm)

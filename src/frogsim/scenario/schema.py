@@ -146,6 +146,24 @@ class MuscleType:
 VALVE_STATES = {"charge": (1, 0), "vent": (0, 1), "hold": (0, 0)}
 
 
+def timed_steps(steps_raw, path: str, key: str, meta: dict, form: str) -> tuple:
+    """((t [s], value), ...) from a list of { at = "<time>", <key> = ... } tables, times increasing;
+    ScenarioError naming the step otherwise. ``meta`` reads the value (a choice, a quantity)."""
+    if not isinstance(steps_raw, list) or not steps_raw:
+        raise ScenarioError(path, steps_raw, "expected a non-empty list of steps")
+    steps = []
+    for j, st in enumerate(steps_raw):
+        sp = f"{path}[{j}]"
+        if not isinstance(st, dict) or set(st) != {"at", key}:
+            raise ScenarioError(sp, st, f"expected {form}")
+        t = parse_field(st["at"], dict(kind="time", ge=0.0, display="s"), f"{sp}.at")
+        value = parse_field(st[key], meta, f"{sp}.{key}")
+        if steps and t <= steps[-1][0]:
+            raise ScenarioError(f"{sp}.at", st["at"], "step times must increase")
+        steps.append((t, value))
+    return tuple(steps)
+
+
 def cycle_steps(pressurise: float, release: float, start: float, cycles: int) -> tuple:
     """Steps ((t [s], state), ...) of a cycle program: charge at start + c*period, vent pressurise later."""
     steps = []
@@ -190,20 +208,8 @@ class Program:
             if extra:
                 raise ScenarioError(f"{path}.{sorted(extra)[0]}", raw[sorted(extra)[0]],
                                     "a program has either steps or cycle settings, not both")
-            steps_raw = raw["steps"]
-            if not isinstance(steps_raw, list) or not steps_raw:
-                raise ScenarioError(f"{path}.steps", steps_raw, "expected a non-empty list of steps")
-            steps = []
-            for j, st in enumerate(steps_raw):
-                sp = f"{path}.steps[{j}]"
-                if not isinstance(st, dict) or set(st) != {"at", "state"}:
-                    raise ScenarioError(sp, st, 'expected { at = "<time>", state = "charge|vent|hold" }')
-                t = parse_field(st["at"], dict(kind="time", ge=0.0, display="s"), f"{sp}.at")
-                state = parse_field(st["state"], dict(choices=tuple(VALVE_STATES)), f"{sp}.state")
-                if steps and t <= steps[-1][0]:
-                    raise ScenarioError(f"{sp}.at", st["at"], "step times must increase")
-                steps.append((t, state))
-            return cls(tuple(steps))
+            return cls(timed_steps(raw["steps"], f"{path}.steps", "state", dict(choices=tuple(VALVE_STATES)),
+                                   '{ at = "<time>", state = "charge|vent|hold" }'))
         cyc = build(_Cycle, raw, path)
         return cls(pressurise=cyc.pressurise, release=cyc.release, start=cyc.start, cycles=cyc.cycles)
 
@@ -436,20 +442,8 @@ class Setpoint:
             if key in raw:
                 kw[key] = parse_field(raw[key], fields[key], f"{path}.{key}")
         if kind == "steps":
-            steps_raw = raw["steps"]
-            if not isinstance(steps_raw, list) or not steps_raw:
-                raise ScenarioError(f"{path}.steps", steps_raw, "expected a non-empty list of steps")
-            steps = []
-            for j, st in enumerate(steps_raw):
-                sp = f"{path}.steps[{j}]"
-                if not isinstance(st, dict) or set(st) != {"at", "value"}:
-                    raise ScenarioError(sp, st, 'expected { at = "<time>", value = "<pressure>" }')
-                t = parse_field(st["at"], dict(kind="time", ge=0.0, display="s"), f"{sp}.at")
-                p = parse_field(st["value"], fields["value"], f"{sp}.value")
-                if steps and t <= steps[-1][0]:
-                    raise ScenarioError(f"{sp}.at", st["at"], "step times must increase")
-                steps.append((t, p))
-            kw["steps"] = tuple(steps)
+            kw["steps"] = timed_steps(raw["steps"], f"{path}.steps", "value", fields["value"],
+                                      '{ at = "<time>", value = "<pressure>" }')
         for key in ("file", "time_column", "column"):
             if key in raw:
                 if not isinstance(unwrap(raw[key]), str) or not unwrap(raw[key]):
