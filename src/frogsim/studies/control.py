@@ -129,7 +129,8 @@ def _draw(data: StudyData, path: str) -> None:
             b.step(s.time_s, -s.discharge_valve * 0.4 + k, where="post", color=colors[ctl], lw=0.6, ls=":")
         a.set_title(f"{exp}: hip pressure against the setpoint")
         a.set_ylabel("pressure [bar gauge]")
-        a.legend(fontsize=8, loc="lower right")
+        # below the axes: the sine fills its panel, a legend inside would cover a trough
+        a.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=2, frameon=False)
         b.set_yticks(range(len(CONTROLLERS)), list(CONTROLLERS), fontsize=8)
         b.set_xlabel("time [s]")
         b.set_title("valves: up = charge open, dotted down = vent open", fontsize=9)
