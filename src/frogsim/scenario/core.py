@@ -104,12 +104,19 @@ def _with(obj, **changes):
     return new
 
 
+_LEAVES: dict = {}      # id of a field's metadata (fixed for the class's life) -> its dict, or None
+
+
 def _leaf_meta(meta, root: Scenario) -> dict | None:
-    if not meta or not any(k in meta for k in _LEAF_KEYS):
-        return None
-    if "choices_from" in meta:
-        return {**meta, "choices": tuple(getattr(root, meta["choices_from"]))}
-    return dict(meta)
+    """The metadata of a setting a variant can change (a copy; choices of a ``choices_from``
+    field read from the scenario), or None for a table or a fixed setting. Read-only for callers."""
+    key = id(meta)
+    if key not in _LEAVES:
+        _LEAVES[key] = dict(meta) if meta and any(k in meta for k in _LEAF_KEYS) else None
+    leaf = _LEAVES[key]
+    if leaf is not None and "choices_from" in leaf:
+        return {**leaf, "choices": tuple(getattr(root, leaf["choices_from"]))}
+    return leaf
 
 
 def _unused(obj, name: str) -> str:
@@ -134,7 +141,7 @@ def _walk(obj, prefix: str, root: Scenario, out: dict) -> None:
         val = getattr(obj, f.name)
         if meta is not None:
             if not _unused(obj, f.name):
-                out[path] = meta
+                out[path] = dict(meta)          # the caller's own copy
         elif dataclasses.is_dataclass(val):
             if not (isinstance(obj, Muscle) and f.name == "program" and obj.program_ref):
                 _walk(val, path + ".", root, out)

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, quantity, unknown_key_error,
@@ -124,23 +125,29 @@ class MuscleType:
     def _check_braid(self, path: str) -> None:
         """The braid (Eq. (5)) must give the rest cylinder's volume at rest and a positive volume
         over the whole contraction range (V is concave in L: its ends bound it)."""
-        shown = Shown(f"{math.degrees(self.braid_angle):.4g} deg")
         where = f"{path}.braid_angle"
         if self.braid_angle < MIN_BRAID_ANGLE:
-            raise ScenarioError(where, shown, f"must be >= {math.degrees(MIN_BRAID_ANGLE):.2g} deg: Eq. (5) "
-                                              "V = (b0^2 - L^2) L/(4 pi n^2) cannot be computed for a "
-                                              "thinner braid (b0^2 - L0^2 = L0^2 tan^2 of the angle "
-                                              "vanishes against b0^2)")
-        L0, D0 = self.nominal_length, self.inner_diameter
-        b0, n = braid_parameters(L0, D0, self.braid_angle)
-        v_rest = muscle_volume(L0, b0, n)
-        v_cyl = math.pi * D0 * D0 * L0 / 4.0
-        v_short = muscle_volume(L0 * (1.0 - self.max_contraction), b0, n)
+            raise ScenarioError(where, Shown(f"{math.degrees(self.braid_angle):.4g} deg"),
+                                f"must be >= {math.degrees(MIN_BRAID_ANGLE):.2g} deg: Eq. (5) "
+                                "V = (b0^2 - L^2) L/(4 pi n^2) cannot be computed for a "
+                                "thinner braid (b0^2 - L0^2 = L0^2 tan^2 of the angle "
+                                "vanishes against b0^2)")
+        v_rest, v_cyl, v_short = _braid_volumes(self.nominal_length, self.inner_diameter, self.braid_angle,
+                                                self.max_contraction)
         if not (v_rest > 0 and v_short > 0 and abs(v_rest / v_cyl - 1.0) <= 1e-6):
-            raise ScenarioError(where, shown, f"the braid gives a volume of {v_rest * 1e6:.4g} cm^3 at "
-                                              f"rest (the cylinder holds {v_cyl * 1e6:.4g} cm^3) and "
-                                              f"{v_short * 1e6:.4g} cm^3 at max_contraction: must be "
-                                              "positive and match")
+            raise ScenarioError(where, Shown(f"{math.degrees(self.braid_angle):.4g} deg"),
+                                f"the braid gives a volume of {v_rest * 1e6:.4g} cm^3 at "
+                                f"rest (the cylinder holds {v_cyl * 1e6:.4g} cm^3) and "
+                                f"{v_short * 1e6:.4g} cm^3 at max_contraction: must be "
+                                "positive and match")
+
+
+@functools.lru_cache(maxsize=4096)
+def _braid_volumes(L0: float, D0: float, braid_angle: float, max_contraction: float) -> tuple:
+    """(Eq. (5) volume at rest, the rest cylinder's volume, Eq. (5) volume at max_contraction) [m^3]."""
+    b0, n = braid_parameters(L0, D0, braid_angle)
+    return (muscle_volume(L0, b0, n), math.pi * D0 * D0 * L0 / 4.0,
+            muscle_volume(L0 * (1.0 - max_contraction), b0, n))
 
 
 VALVE_STATES = {"charge": (1, 0), "vent": (0, 1), "hold": (0, 0)}
