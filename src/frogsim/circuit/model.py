@@ -227,6 +227,7 @@ def _muscle_part(valves, types: tuple) -> np.ndarray:
     return mp
 
 
+@functools.lru_cache(maxsize=_CACHE)
 def _motion_part(muscles: tuple, rate: float, charge_dead: float, discharge_dead: float, files: tuple,
                  base_dir: str):
     """Motion knots (padded to a common length), the valve schedule with the knots as extra stops,
