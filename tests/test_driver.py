@@ -28,24 +28,26 @@ def test_pump_band_is_a_hysteresis_switch():
 
 def test_rule_table_and_samples():
     g = np.zeros(L.G_SIZE)
-    assert sampled_laws(g).shape[0] == 0                       # no pump: no sampled rule
+    assert sampled_laws(g).size == 0                           # no pump: no sampled rule
     cs = start_controllers(sampled_laws(g), 0.0035, np.zeros(5), np.zeros(0), 1e-3)
     assert next_control_time(sampled_laws(g), cs, 1e-3) == math.inf   # the driver never stops for it
     g[L.G_PUMP_ENABLED], g[L.G_PUMP_ON], g[L.G_PUMP_OFF] = 1.0, 6.0 * BAR, 6.5 * BAR
-    laws = sampled_laws(g)
-    assert laws.shape[0] == 1 and laws[0, L_KIND] == KIND_PUMP_BAND
-    assert (laws[0, L_INPUT], laws[0, L_LOW], laws[0, L_HIGH]) == (L.Y_PS, 6.0 * BAR, 6.5 * BAR)
-    y = np.zeros(5)
-    y[L.Y_PS] = 5.0 * BAR
-    # a run starting at 3.5 ms takes the sample of 3 ms; the next is at 4 ms
-    cs = start_controllers(laws, 0.0035, y, np.zeros(0), 1e-3)
-    assert cs[CS_SAMPLE] == 3.0 and cs[CS_PUMP] == 1.0
-    assert next_control_time(laws, cs, 1e-3) == pytest.approx(4e-3, rel=1e-15)
-    y[L.Y_PS] = 6.2 * BAR
-    assert not sample_controllers(laws, 4e-3, y, np.zeros(0), cs)   # inside the band: unchanged
-    y[L.Y_PS] = 6.6 * BAR
-    assert sample_controllers(laws, 5e-3, y, np.zeros(0), cs)       # above: switched off
-    assert cs[CS_SAMPLE] == 5.0 and cs[CS_PUMP] == 0.0
+    row = sampled_laws(g)                                      # the open-loop form: one 1-D row
+    assert row.ndim == 1 and row[L_KIND] == KIND_PUMP_BAND
+    assert (row[L_INPUT], row[L_LOW], row[L_HIGH]) == (L.Y_PS, 6.0 * BAR, 6.5 * BAR)
+    # the same band as a row of the closed-loop table must sample exactly alike
+    for laws in (row, row.reshape(1, -1)):
+        y = np.zeros(5)
+        y[L.Y_PS] = 5.0 * BAR
+        # a run starting at 3.5 ms takes the sample of 3 ms; the next is at 4 ms
+        cs = start_controllers(laws, 0.0035, y, np.zeros(0), 1e-3)
+        assert cs[CS_SAMPLE] == 3.0 and cs[CS_PUMP] == 1.0
+        assert next_control_time(laws, cs, 1e-3) == pytest.approx(4e-3, rel=1e-15)
+        y[L.Y_PS] = 6.2 * BAR
+        assert not sample_controllers(laws, 4e-3, y, np.zeros(0), cs)   # inside the band: unchanged
+        y[L.Y_PS] = 6.6 * BAR
+        assert sample_controllers(laws, 5e-3, y, np.zeros(0), cs)       # above: switched off
+        assert cs[CS_SAMPLE] == 5.0 and cs[CS_PUMP] == 0.0
 
 
 def test_a_run_advanced_in_many_calls_matches_one_call(paper_cycle_raw):
@@ -97,3 +99,20 @@ def test_pausing_the_driver_changes_no_step(monkeypatch):
     assert paused.stats["steps"] == whole.stats["steps"]
     assert np.array_equal(paused.y, whole.y) and np.array_equal(paused.u, whole.u)
     assert set(np.unique(paused.u[:, -1])) == {0.0, 1.0}                          # the pump switched
+
+
+def test_open_loop_row_and_table_forms_give_the_same_run():
+    """Open-loop runs pass the pump's band as a 1-D row (so the closed-loop laws are never
+    compiled for them); the same band as a one-row table takes the general path: same run, bit
+    for bit."""
+    import frogsim
+    from frogsim.engine.integrator import run_schedule
+    sc = frogsim.load_scenario("paper-cycle").replace({"pump.enabled": True, "pump.displacement": 3e-4,
+                                                       "duration": 3.0, "programs.stroke.cycles": 2})
+    m = frogsim.build_model(sc)
+    assert m.laws.ndim == 1
+    runs = [run_schedule(m.y0, 0.0, sc.duration, m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n, m.sched_t,
+                         m.sched_u, m.u0, 1.0 / sc.controller.rate, m.out_t, sc.solver.rtol, m.atol,
+                         sc.solver.max_step, 1e-4, laws, 0) for laws in (m.laws, m.laws.reshape(1, -1))]
+    assert np.array_equal(runs[0][0], runs[1][0]) and np.array_equal(runs[0][1], runs[1][1])
+    assert set(np.unique(runs[0][1][:, -1])) == {0.0, 1.0}                   # the pump switched

@@ -151,7 +151,10 @@ def controller_rows(sc, g, mp_valves: dict, names: list, volumes: dict, knots: d
 
 def laws_table(g, rows: list) -> np.ndarray:
     """The pump band's row (when the pump is enabled) then the controllers' rows, zero-padded to
-    the widest."""
+    the widest. Without controllers: the 1-D open-loop form of
+    :func:`frogsim.control.sampled.sampled_laws` (the pump's row, or an empty row)."""
+    if not rows:
+        return pump_row(g) if g[G_PUMP_ENABLED] >= 0.5 else np.zeros(0)
     allrows = ([pump_row(g)] if g[G_PUMP_ENABLED] >= 0.5 else []) + list(rows)
     width = max([L_SIZE] + [r.size for r in allrows])
     laws = np.zeros((len(allrows), width))

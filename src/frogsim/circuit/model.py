@@ -133,7 +133,7 @@ def build_model(scenario: Scenario) -> PneumaticModel:
     mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0, opens, volumes, fixed = motion
     g = _globals_part(sc.air, sc.source, sc.exhaust, sc.pump, sc.supply, sc.valves).copy()
     laws = _laws(sc, g, names, volumes)
-    if laws.shape[0] and (laws[:, 0] != 1.0).any():
+    if laws.ndim == 2 and laws.shape[0] and (laws[:, 0] != 1.0).any():     # 1-D: open loop
         # the valves of a muscle under a closed-loop controller are the controller's: the schedule
         # leaves them alone (NaN: "not set here", see frogsim.engine.integrator.advance)
         sched_u = sched_u.copy()

@@ -85,14 +85,17 @@ TOL = 1e-9       # [s] a due time this close to a sample is that sample
 
 @jit
 def sampled_laws(g):
-    """The rule table of a circuit with constants g: the pump's band when the pump is enabled."""
+    """The laws of a run without closed-loop controllers: the pump's band as a 1-D row (columns
+    L_*; an empty row when the pump is off). A 1-D table is the open-loop form: the functions below
+    take their ``laws.ndim == 1`` branch, which Numba compiles alone, so open-loop runs never
+    compile the closed-loop laws."""
     if g[G_PUMP_ENABLED] < 0.5:
-        return np.zeros((0, L_SIZE))
-    laws = np.zeros((1, L_SIZE))
-    laws[0, L_KIND] = KIND_PUMP_BAND
-    laws[0, L_INPUT] = Y_PS
-    laws[0, L_LOW] = g[G_PUMP_ON]
-    laws[0, L_HIGH] = g[G_PUMP_OFF]
+        return np.zeros(0)
+    laws = np.zeros(L_SIZE)
+    laws[L_KIND] = KIND_PUMP_BAND
+    laws[L_INPUT] = Y_PS
+    laws[L_LOW] = g[G_PUMP_ON]
+    laws[L_HIGH] = g[G_PUMP_OFF]
     return laws
 
 
@@ -369,6 +372,8 @@ def apply_due(laws, t, u, cs):
 def next_control_time(laws, cs, ctrl_dt):
     """The next time [s] at which the controllers need the integrator to stop (inf if never): the
     next sample, or a queued valve command's due time if earlier."""
+    if laws.ndim == 1:                     # open loop: the pump's band samples, if there is a pump
+        return (cs[CS_SAMPLE] + 1.0) * ctrl_dt if laws.size else math.inf
     if laws.shape[0] == 0:
         return math.inf
     t = (cs[CS_SAMPLE] + 1.0) * ctrl_dt
@@ -389,6 +394,17 @@ def sample_controllers(laws, t, y, u, cs):
     """At a stop t: write the valve commands that have come due into u; if t is the next sample,
     take it: evaluate every law on the state y and write or queue its commands (the pump's switch
     cs[CS_PUMP] at once, valve commands one dead time later). True if a command changed."""
+    if laws.ndim == 1:                     # open loop (see sampled_laws): the pump's band only
+        if t < (cs[CS_SAMPLE] + 1.0) * cs[CS_DT] - TOL:
+            return False
+        cs[CS_SAMPLE] += 1.0
+        if laws.size == 0:
+            return False
+        on = pump_band(y[int(laws[L_INPUT])], cs[CS_PUMP], laws[L_LOW], laws[L_HIGH])
+        if on != cs[CS_PUMP]:
+            cs[CS_PUMP] = on
+            return True
+        return False
     changed = apply_due(laws, t, u, cs)
     dt = cs[CS_DT]
     if t < (cs[CS_SAMPLE] + 1.0) * dt - TOL:
@@ -432,6 +448,12 @@ def sample_controllers(laws, t, y, u, cs):
 def start_controllers(laws, t0, y, u, ctrl_dt):
     """Controller state at the start of a run at t0: pump stopped, valves under control shut, then
     the sample at or just before t0 taken (its commands hold from t0 on, or a dead time later)."""
+    if laws.ndim == 1:                     # open loop: no valve laws, no command queue
+        cs = np.zeros(CS_SIZE)
+        cs[CS_DT] = ctrl_dt
+        cs[CS_SAMPLE] = math.floor(t0 / ctrl_dt + 1e-9) - 1.0
+        sample_controllers(laws, t0, y, u, cs)
+        return cs
     dead = 0.0
     for c in range(laws.shape[0]):
         if _is_valve_law(laws[c, L_KIND]):
@@ -450,6 +472,8 @@ def start_controllers(laws, t0, y, u, ctrl_dt):
 def switch_counts(laws, cs) -> dict:
     """{law row c: (charge valve switchings, discharge valve switchings)} of the valve laws."""
     out = {}
+    if laws.ndim == 1:
+        return out
     for c in range(laws.shape[0]):
         if _is_valve_law(laws[c, L_KIND]):
             b = int(CS_SIZE + c * cs[CS_BLOCK])

@@ -21,7 +21,7 @@ from frogsim.circuit import layout as L
 from frogsim.circuit.model import PneumaticModel, build_model
 from frogsim.physics.muscle import muscle_volume
 from frogsim.scenario.core import Scenario
-from frogsim.circuit.laws import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM
+from frogsim.circuit.laws import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM, L_SIZE
 from frogsim.control.sampled import (B_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE, KIND_EXTERNAL, KIND_PUMP_BAND,
                                      MODE_CHARGE, MODE_HOLD, MODE_VENT, apply_due, command_valves,
                                      next_control_time)
@@ -195,7 +195,8 @@ def python_laws(model: PneumaticModel) -> tuple[np.ndarray, list]:
     """The model's table of laws with every closed-loop controller's row turned into an external
     one (its sensor kept, its law left to Python), plus an external row for each muscle without a
     program; and the muscle name of each external row, in row order."""
-    laws = model.laws.copy()
+    # the open-loop 1-D row (or an empty one) as a table
+    laws = (model.laws.reshape(-1, L_SIZE) if model.laws.ndim == 1 else model.laws).copy()
     names = []
     free = set(model.names)
     for c in range(laws.shape[0]):
