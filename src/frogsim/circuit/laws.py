@@ -78,7 +78,7 @@ L_SP0 = L_SIZE   # knots (t_j, p_j) from here on
 
 
 def pump_row(g) -> np.ndarray:
-    """The pump band's row (the same numbers as :func:`frogsim.control.sampled.sampled_laws`)."""
+    """The pump band's row: switch on below G_PUMP_ON, off above G_PUMP_OFF, on the source pressure."""
     row = np.zeros(L_SIZE)
     row[L_KIND] = KIND_PUMP_BAND
     row[L_INPUT] = Y_PS

@@ -44,8 +44,8 @@ from frogsim.circuit.laws import (  # noqa: F401  (the table's layout, re-export
     L_KIND, L_LAG, L_LOW, L_MINPULSE_N, L_MUSCLE, L_NOISE, L_PATM, L_PBAND, L_PENALTY, L_PERIOD_N,
     L_REST, L_RHOREF, L_SEED, L_SIZE, L_SP0, L_SP_A, L_SP_B, L_SP_C, L_SP_D, L_SP_KIND, L_SP_N,
     L_TAMB, L_TREF, SP_CONSTANT, SP_SINE, SP_STEPS, SP_TABLE)  # noqa: F401
-from frogsim.circuit.layout import (G_PUMP_ENABLED, G_PUMP_OFF, G_PUMP_ON, Y_MUSCLE0, Y_PE,
-                                    Y_PS)
+from frogsim.circuit.laws import laws_table
+from frogsim.circuit.layout import Y_MUSCLE0, Y_PE, Y_PS
 from frogsim.physics.flow import iso6358_mass_flow
 
 #: a muscle whose valves a Python function drives (frogsim.simulate(..., controller=fn)): the
@@ -83,20 +83,12 @@ B_Q0 = 15        # queues: charge (due, state) x Q, then discharge (due, state) 
 TOL = 1e-9       # [s] a due time this close to a sample is that sample
 
 
-@jit
 def sampled_laws(g):
     """The laws of a run without closed-loop controllers: the pump's band as a 1-D row (columns
-    L_*; an empty row when the pump is off). A 1-D table is the open-loop form: the functions below
-    take their ``laws.ndim == 1`` branch, which Numba compiles alone, so open-loop runs never
-    compile the closed-loop laws."""
-    if g[G_PUMP_ENABLED] < 0.5:
-        return np.zeros(0)
-    laws = np.zeros(L_SIZE)
-    laws[L_KIND] = KIND_PUMP_BAND
-    laws[L_INPUT] = Y_PS
-    laws[L_LOW] = g[G_PUMP_ON]
-    laws[L_HIGH] = g[G_PUMP_OFF]
-    return laws
+    L_*; an empty row when the pump is off), as :func:`frogsim.circuit.laws.laws_table` makes it.
+    A 1-D table is the open-loop form: the functions below take their ``laws.ndim == 1`` branch,
+    which Numba compiles alone, so open-loop runs never compile the closed-loop laws."""
+    return laws_table(g, [])
 
 
 @jit
