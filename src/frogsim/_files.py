@@ -44,6 +44,16 @@ def umask() -> int:
     return mask
 
 
+def out_folder(path) -> Path:
+    """An output folder given by the user: ScenarioError (the CLI's exit 2, nothing written) if the
+    path exists and is not a directory."""
+    from frogsim.errors import ScenarioError
+    out = Path(path)
+    if out.exists() and not out.is_dir():
+        raise ScenarioError("--out", str(out), "exists and is not a directory")
+    return out
+
+
 def atomic_write(path: str | os.PathLike, write, durable: bool = False) -> None:
     """Call write(tmp_path) then move the file into place, so readers never see half a file.
 

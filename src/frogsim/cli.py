@@ -34,19 +34,12 @@ import textwrap
 import time
 from pathlib import Path
 
+from frogsim._files import out_folder
+
 
 def _err(msg: str, code: int) -> int:
     print(f"frogsim: error: {msg}", file=sys.stderr)
     return code
-
-
-def _out_dir(path: str) -> Path:
-    """The output folder; ScenarioError (exit 2, nothing written) if the path is a file."""
-    from frogsim.errors import ScenarioError
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise ScenarioError("--out", str(out), "exists and is not a directory")
-    return out
 
 
 def _progress(msg: str) -> None:
@@ -120,7 +113,7 @@ def _run_studies(args, group: str) -> int:
     unknown = [n for n in names if n not in STUDIES]
     if unknown:
         return _err(f"study = {unknown[0]!r}: must be one of {', '.join(STUDIES)}", 2)
-    out = _out_dir(args.out)
+    out = out_folder(args.out)
     if args.workers is not None and args.workers < 1:
         return _err(f"--workers = {args.workers}: must be a whole number >= 1", 2)
     folder = _folder(args, args.command, studies={n: [f"{n}.csv", f"{n}.png"] for n in names},
@@ -195,7 +188,7 @@ def cmd_simulate(args) -> int:
     from frogsim.io.outputs import scenario_inputs, scenario_record
     from frogsim.io.results import plot_run, run_summary
     from frogsim.scenario.load import load_scenario
-    out = _out_dir(args.out)
+    out = out_folder(args.out)
     scenario = load_scenario(args.scenario)          # all validation happens here, before any write
     folder = _folder(args, "simulate", files=["timeseries.csv", "pressures.png", "summary.json"],
                      scenario=scenario_record(scenario.name, scenario_inputs(scenario, args.scenario)))
@@ -218,7 +211,7 @@ def cmd_simulate(args) -> int:
 def cmd_swim(args) -> int:
     from frogsim.io.outputs import scenario_inputs, scenario_record
     from frogsim.robot.scenario import load_robot_scenario
-    out = _out_dir(args.out)
+    out = out_folder(args.out)
     rs = load_robot_scenario(args.scenario, cycles=args.cycles)   # all validation before any write
     planned = ["timeseries.csv", "swim.png", "frog.xml", "summary.json"] + ([] if args.no_animation else
                                                                            ["animation.gif"])
@@ -252,7 +245,7 @@ def _swim_into(args, folder, out: Path, rs) -> int:
 
 def cmd_compare(args) -> int:
     from frogsim.io import compare
-    out = _out_dir(args.out)
+    out = out_folder(args.out)
     runs = compare.prepare(args.inputs, args.signal)         # every input and the signal, before any run
     folder = _folder(args, "compare", files=compare.file_names(runs, args.signal),
                      scenario=compare.inputs_record(runs))
@@ -334,7 +327,7 @@ def cmd_plot(args) -> int:
 def cmd_fit(args) -> int:
     from frogsim.fit import load_fit_spec
     from frogsim.fit.report import planned_files
-    _out_dir(args.out)
+    out_folder(args.out)
     spec = load_fit_spec(args.spec, starts=args.starts, threads=args.threads)   # traces too: before any write
     folder = _folder(args, "fit", files=planned_files(spec))
     return _finishing(folder, lambda: _fit_into(args, folder, spec))
@@ -369,7 +362,7 @@ def _fit_into(args, folder, spec) -> int:
 def cmd_optimize_gait(args) -> int:
     from frogsim.io.outputs import read_manifest, scenario_inputs, scenario_record
     from frogsim.optimize import gait as G
-    out = _out_dir(args.out)
+    out = out_folder(args.out)
     # every input checked before anything is written or run
     search = G.prepare(args.scenario, args.objective, args.trials, cycles=args.cycles,
                        seed=args.seed, workers=args.workers)

@@ -173,13 +173,6 @@ def fraction_of_window(t, flag, t_start, t_end):
         return np.where(total > 0, held / total, np.nan)
 
 
-def fraction_of_phase(t, flag, u_charge, t_open):
-    """Fraction of the pressurise phase (valve opening to its first closed output sample) during
-    which ``flag`` (B, T) holds (:func:`fraction_of_window`)."""
-    _, kc, _ = pressurise_window(t, u_charge, t_open)
-    return fraction_of_window(t, flag, t_open, t[kc])
-
-
 def format_rise(seconds, digits: int = 3) -> str:
     """A rise time for text: "0.081 s", or "not reached" for NaN/None (never a number)."""
     if seconds is None or not np.isfinite(seconds):

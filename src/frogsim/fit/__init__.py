@@ -19,8 +19,8 @@ def fit(spec, out=None, *, progress: bool = False, starts: int | None = None,
     if not isinstance(spec, FitSpec):
         spec = load_fit_spec(spec, starts=starts, threads=threads)
     if out is not None:
-        from frogsim.fit.report import check_out
-        check_out(out)
+        from frogsim._files import out_folder
+        out_folder(out)
     result = fit_spec(spec, progress=progress)
     if out is not None:
         from frogsim.fit.report import write_outputs

@@ -178,12 +178,6 @@ class ForceModel:
         return law_forces(pressure, contraction, self.constants(point), d, theta, model=self.model)
 
 
-def uses_force_law(path: str, muscle_types) -> bool:
-    """True if a fitted path enters the force tables' model (a constant, or a braid setting)."""
-    if path.startswith(PREFIX):
-        return True
-    return any(path == f"muscle_types.{m}.{g}" for m in muscle_types for g in GEOMETRY)
-
 
 def worst_errors(table: ForceTable, model: np.ndarray) -> list[dict]:
     """Per pressure: the number of rows, the rms and the worst absolute error of model - measured

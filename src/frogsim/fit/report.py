@@ -21,23 +21,14 @@ from pathlib import Path
 
 import numpy as np
 
-from frogsim._files import atomic_write, write_figure, write_json
+from frogsim._files import atomic_write, out_folder, write_figure, write_json
 from frogsim._plotting import figure, save
-from frogsim.errors import ScenarioError
 from frogsim.fit.core import FitResult
 from frogsim.scenario.load import PARAM_SECTIONS, load_parameter_set
 from frogsim.scenario.units import SI_UNITS, display_factor
 from frogsim.sweep.spec import dumps_toml
 
 PARAMETER_FILE = "fitted-parameters.toml"
-
-
-def check_out(out) -> Path:
-    """The output folder; ScenarioError (nothing written) if the path is a file."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise ScenarioError("--out", str(out), "exists and is not a directory")
-    return out
 
 
 def _display(x: float, meta: dict, digits: int = 6) -> str:
@@ -286,7 +277,7 @@ def planned_files(spec) -> list[str]:
 
 def write_outputs(res: FitResult, out) -> dict:
     """Write every output into the folder ``out``; returns {what: path}."""
-    out = check_out(out)
+    out = out_folder(out)
     date = datetime.date.today().isoformat()
     text, left_out = parameter_file_text(res, date)
     s = summary(res, date, left_out)
