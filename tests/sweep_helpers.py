@@ -4,6 +4,10 @@ from __future__ import annotations
 import textwrap
 from pathlib import Path
 
+import pytest
+
+from frogsim.sweep import run_sweep, runner
+
 # one hip muscle held at a fixed volume, charged for 0.3 s then vented: 0.5 s per run
 ONE_HIP = """
 name = "one-hip"
@@ -46,3 +50,20 @@ def write_case(folder: Path, spec: str = GRID, base: str = ONE_HIP, name: str = 
     path = folder / name
     path.write_text(textwrap.dedent(spec))
     return path
+
+
+def interrupted(monkeypatch, spec_path, out, after: int) -> list:
+    """Run the sweep until `after` chunks are done, then interrupt it (as Ctrl-C would)."""
+    real = runner.run_built
+    calls = []
+
+    def failing(*args, **kw):
+        if len(calls) == after:
+            raise KeyboardInterrupt
+        calls.append(1)
+        return real(*args, **kw)
+    monkeypatch.setattr(runner, "run_built", failing)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(spec_path, out=out, workers=1, progress=False)
+    monkeypatch.setattr(runner, "run_built", real)
+    return sorted((out.parent / f"{out.name}.parts").glob("chunk-*.npz"))

@@ -7,7 +7,7 @@ import zipfile
 
 import numpy as np
 import pytest
-from sweep_helpers import GRID, write_case
+from sweep_helpers import GRID, ONE_HIP, interrupted, write_case
 
 from frogsim.cli import main
 from frogsim.errors import ScenarioError
@@ -19,23 +19,6 @@ def same(a, b):
     assert list(a.data_vars) == list(b.data_vars)
     for name in a.data_vars:
         assert np.array_equal(a[name].values, b[name].values, equal_nan=True), name
-
-
-def interrupted(monkeypatch, spec_path, out, after: int) -> list:
-    """Run the sweep until `after` chunks are done, then interrupt it (as Ctrl-C would)."""
-    real = runner.run_built
-    calls = []
-
-    def failing(*args, **kw):
-        if len(calls) == after:
-            raise KeyboardInterrupt
-        calls.append(1)
-        return real(*args, **kw)
-    monkeypatch.setattr(runner, "run_built", failing)
-    with pytest.raises(KeyboardInterrupt):
-        run_sweep(spec_path, out=out, workers=1, progress=False)
-    monkeypatch.setattr(runner, "run_built", real)
-    return sorted((out.parent / f"{out.name}.parts").glob("chunk-*.npz"))
 
 
 def counting(monkeypatch) -> list:
@@ -93,20 +76,9 @@ def test_a_sound_journal_is_used_as_is(tmp_path, monkeypatch):
 
 
 ANGLES = "time_s,hip_deg\n0,0\n0.1,0\n0.3,5\n0.5,5\n"
-JOINT_BASE = """
-name = "one-hip-angles"
-duration = "0.5 s"
-output_interval = "1 ms"
-[controller]
-rate = "1 kHz"
-[programs.stroke]
-pressurise = "0.3 s"
-release = "0.2 s"
-[muscles.hip]
-type = "hip"
-program = "stroke"
-motion = { kind = "joint_angles", file = "angles.csv", column = "hip_deg" }
-"""
+JOINT_BASE = ONE_HIP.replace('name = "one-hip"', 'name = "one-hip-angles"').replace(
+    'motion = { kind = "volume_constant", fraction = 0.5 }',
+    'motion = { kind = "joint_angles", file = "angles.csv", column = "hip_deg" }')
 JOINT_GRID = GRID.replace('"muscles.hip.motion.fraction" = [0.0, 1.0]\n', "")
 
 

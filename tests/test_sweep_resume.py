@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 import pytest
-from sweep_helpers import GRID, write_case
+from sweep_helpers import GRID, interrupted, write_case
 
 from frogsim.errors import ScenarioError
 from frogsim.sweep import load_spec, read_results, run_sweep
@@ -76,18 +76,7 @@ def test_sigkill_part_way_then_rerun_completes(tmp_path):
 def test_interrupted_in_process_resumes_and_refuses_another_spec(tmp_path, monkeypatch):
     spec_path = write_case(tmp_path)           # 24 points, chunks of 5
     out = tmp_path / "r.nc"
-    real = runner.run_built            # runs one chunk of built models (local runs)
-    calls = []
-
-    def failing(*args, **kw):
-        if len(calls) == 2:
-            raise KeyboardInterrupt
-        calls.append(1)
-        return real(*args, **kw)
-    monkeypatch.setattr(runner, "run_built", failing)
-    with pytest.raises(KeyboardInterrupt):
-        run_sweep(spec_path, out=out, workers=1, progress=False)
-    monkeypatch.setattr(runner, "run_built", real)
+    interrupted(monkeypatch, spec_path, out, after=2)
     assert len(_chunk_files(tmp_path / "r.nc.parts")) == 2
     assert int(read_results(out)["completed"].sum()) == 10     # brought up to date on Ctrl-C
     # a different spec must not mix into this run
@@ -97,6 +86,7 @@ def test_interrupted_in_process_resumes_and_refuses_another_spec(tmp_path, monke
         run_sweep(other, out=out, progress=False)
     assert len(_chunk_files(tmp_path / "r.nc.parts")) == 2
     # the same spec resumes: only the missing chunks run
+    real, calls = runner.run_built, []
     monkeypatch.setattr(runner, "run_built", lambda *a, **k: (calls.append(2), real(*a, **k))[1])
     ds = run_sweep(spec_path, out=out, workers=1, progress=False)
     assert calls.count(2) == len(load_spec(spec_path).chunks()) - 2
