@@ -23,7 +23,8 @@ from frogsim._jit import jit
 
 from frogsim.circuit.layout import Y_MUSCLE0
 from frogsim.circuit.rhs import rhs
-from frogsim.control.sampled import CS_PUMP, next_control_time, sample_controllers, start_controllers
+from frogsim.control.sampled import (CS_PUMP, apply_due, next_due_time, next_sample_time, sample_controllers,
+                                    start_controllers)
 
 STATUS_OK = 0
 STATUS_STEP_UNDERFLOW = 1
@@ -65,6 +66,14 @@ EXPO = 0.2 - 0.75 * BETA
 
 
 @jit
+def _dense(y, rc1, rc2, rc3, rc4, th, out):
+    """The continuous extension at th in [0, 1] of the step: out = y(t + th h)."""
+    th1 = 1.0 - th
+    for j in range(y.size):
+        out[j] = y[j] + th * (rc1[j] + th1 * (rc2[j] + th * (rc3[j] + th1 * rc4[j])))
+
+
+@jit
 def start(t0, h0, y, u, commands):
     """Driver state ``ds`` and controller state ``cs`` of a run that starts at t0.
 
@@ -91,14 +100,24 @@ def start(t0, h0, y, u, commands):
 def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     """Advance the circuit's state y from ds[D_T] to t_end: the one stepping loop of frogsim.
 
-    The span is cut at every valve-schedule time and at every time the controllers ask for
-    (:func:`frogsim.control.sampled.next_control_time`: the controller samples when a sampled rule
-    is active), times closer than EPS to each other or to t_end counting as one. Each piece is
-    integrated by adaptive Dormand-Prince steps with the valve states u and the pump's switch
-    held, the last step shortened to end on the piece's end exactly; the step size carries over
-    from piece to piece. At a piece's end the schedule entries due are written into u, the
-    controllers are sampled (:func:`frogsim.control.sampled.sample_controllers`), and if a command
-    changed the right-hand side is evaluated again (the FSAL derivative no longer holds).
+    The span is cut at every valve-schedule time and at every due time of a queued valve command
+    (:func:`frogsim.control.sampled.next_due_time`), times closer than EPS to each other or to
+    t_end counting as one. Each piece is integrated by adaptive Dormand-Prince steps with the
+    valve states u and the pump's switch held, the last step shortened to end on the piece's end
+    exactly; the step size carries over from piece to piece. At a piece's end the schedule
+    entries and the queued commands due are written into u, and if a command changed the
+    right-hand side is evaluated again (the FSAL derivative no longer holds).
+
+    Controller samples are not stops. After each accepted step the samples t_k inside it
+    (:func:`frogsim.control.sampled.next_sample_time`) are taken in order from the step's
+    continuous extension (:func:`frogsim.control.sampled.sample_controllers`). A sample whose
+    command acts at once (the pump's switch, a valve without dead time), or whose valve command
+    comes due before the step's end, ends the step there: the state at that time is the
+    continuous extension's (as an event-locating solver restarts from its interpolant) and the
+    rest of the step is dropped. Steps are therefore as long as accuracy allows while the
+    controllers hold their commands, and commands still change only at t_k (plus dead time).
+    The Python-controller driver (:func:`frogsim.engine.pneumatic.run_python_controller`) calls
+    this with t_end on every sample, so there each sample is a step's end.
 
     dy/dt is evaluated at entry: the caller may have changed the model since the last call (the
     coupled engine extends the muscles' length paths every step). Time reached, step size, PI
@@ -142,6 +161,8 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     rc2 = np.empty(ny)
     rc3 = np.empty(ny)
     rc4 = np.empty(ny)
+    ys = np.empty(ny)
+    u_prev = np.empty(nu)
     aux = np.empty(2 * n + 1)
     work = np.empty(3 * n)
     t = ds[D_T]
@@ -153,16 +174,15 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
     stats[2] += 1
     while t < t_end - EPS:
-        # -- the piece's end: t_end, the next schedule entry or the controllers' next stop ------
+        # -- the piece's end: t_end, the next schedule entry or the next queued valve command ----
         t_seg = t_end
         si = int(ds[D_SI])
         if si < ns and sched_t[si] < t_end - EPS:
             t_seg = max(sched_t[si], t)
-        t_control = next_control_time(laws, cs, ctrl_dt)
-        at_control = t_control <= t_seg + EPS
-        if at_control:
-            t_seg = min(t_seg, t_control) if t_control < t_end - EPS else t_end
-        # -- Dormand-Prince steps from t to exactly t_seg, commands held ------------------------
+        t_due = next_due_time(laws, cs)
+        if t_due < t_seg - EPS:
+            t_seg = max(t_due, t)
+        # -- Dormand-Prince steps from t to exactly t_seg ---------------------------------------
         while t < t_seg:
             if h > max_step:
                 h = max_step
@@ -208,26 +228,55 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                     break
                 continue
             if err <= 1.0:
-                # dense output on (t, t_new]: the 4th-order continuous extension, its
-                # coefficients computed once per step that holds output points
-                if out_i < n_out and out_t[out_i] <= t_new:
-                    for j in range(ny):
-                        ydiff = yn[j] - y[j]
-                        bspl = h_try * f[j] - ydiff
-                        rc1[j] = ydiff
-                        rc2[j] = bspl
-                        rc3[j] = ydiff - h_try * k7[j] - bspl
-                        rc4[j] = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j]
-                                          + D6 * k6[j] + D7 * k7[j])
+                # the 4th-order continuous extension on (t, t_new], for the controllers' samples
+                # and the output rows inside the step (no extra right-hand-side evaluations)
+                for j in range(ny):
+                    ydiff = yn[j] - y[j]
+                    bspl = h_try * f[j] - ydiff
+                    rc1[j] = ydiff
+                    rc2[j] = bspl
+                    rc3[j] = ydiff - h_try * k7[j] - bspl
+                    rc4[j] = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j]
+                                      + D6 * k6[j] + D7 * k7[j])
+                # -- the controllers' samples inside the step, read from the dense output. A
+                # command that acts at once (the pump's switch, a valve without dead time) or a
+                # valve command that comes due before t_new ends the step there: the state at
+                # that time is the continuous extension's, the rest of the step is dropped.
+                for j in range(nu):
+                    u_prev[j] = u[j]
+                pump_prev = pump_on
+                t_cut = t_new
+                refresh = False
+                t_s = next_sample_time(laws, cs)
+                while t_s <= t_cut + EPS:
+                    if t_s >= t_new - EPS:
+                        t_s = t_new
+                        for j in range(ny):
+                            ys[j] = yn[j]
+                    else:
+                        _dense(y, rc1, rc2, rc3, rc4, (t_s - t) / h_try, ys)
+                    if sample_controllers(laws, t_s, ys, u, cs):
+                        refresh = True
+                        if t_s < t_new - EPS:
+                            t_cut = t_s
+                            break
+                    t_due = next_due_time(laws, cs)
+                    if t_due < t_cut - EPS:
+                        t_cut = max(t_due, t)
+                    t_s = next_sample_time(laws, cs)
+                if t_cut < t_new - EPS:
+                    # the step ends at t_cut (a sample that changed a command, or a due time)
+                    _dense(y, rc1, rc2, rc3, rc4, (t_cut - t) / h_try, yn)
+                    t_new = t_cut
+                    apply_due(laws, t_new, u, cs)
+                    refresh = True
+                pump_on = cs[CS_PUMP]
                 while out_i < n_out and out_t[out_i] <= t_new:
                     th = (out_t[out_i] - t) / h_try
-                    th1 = 1.0 - th
-                    row = out_y[out_i]
-                    for j in range(ny):
-                        row[j] = y[j] + th * (rc1[j] + th1 * (rc2[j] + th * (rc3[j] + th1 * rc4[j])))
+                    _dense(y, rc1, rc2, rc3, rc4, th, out_y[out_i])
                     for j in range(nu):
-                        out_u[out_i, j] = u[j]
-                    out_u[out_i, nu] = pump_on
+                        out_u[out_i, j] = u_prev[j]
+                    out_u[out_i, nu] = pump_prev
                     out_i += 1
                 for j in range(ny):
                     y[j] = yn[j]
@@ -239,12 +288,21 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                         status = STATUS_NONPHYSICAL
                 if status != STATUS_OK:
                     break
+                if refresh:
+                    # commands changed (or the step was cut): dy/dt at the new point under them
+                    rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
+                    stats[2] += 1
                 e = max(err, 1e-4)
                 fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
                 err_old = e
                 h_next = h_try * fac
-                h = max(h, h_next) if last else h_next
-                if not last and ds[D_PAUSE] > 0 and stats[0] >= ds[D_PAUSE]:
+                h = max(h, h_next) if (last and t >= t_seg) else h_next
+                if t < t_seg:
+                    # a sample in the step may have queued a command due before the piece's end
+                    t_due = next_due_time(laws, cs)
+                    if t_due < t_seg - EPS:
+                        t_seg = max(t_due, t)
+                if t < t_seg and ds[D_PAUSE] > 0 and stats[0] >= ds[D_PAUSE]:
                     # a pause inside a piece: everything the next call needs is in y, ds and cs
                     # (dy/dt is a pure function of them), so pausing changes no step
                     status = STATUS_PAUSED
@@ -260,7 +318,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                 break
         if status != STATUS_OK:
             break
-        # -- at t_seg: the schedule's commands due, the controllers' sample ---------------------
+        # -- at t_seg: the schedule's commands due and the queued valve commands due ------------
         t = t_seg
         changed = False
         while si < ns and sched_t[si] <= t + EPS:
@@ -272,9 +330,8 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                 u[j] = sched_u[si, j]
             si += 1
         ds[D_SI] = si
-        if at_control and sample_controllers(laws, t, y, u, cs):
+        if apply_due(laws, t, u, cs):
             changed = True
-        pump_on = cs[CS_PUMP]
         if ds[D_PAUSE] > 0 and stats[0] >= ds[D_PAUSE] and t < t_end - EPS:
             status = STATUS_PAUSED            # between pieces: the next call starts the next one
             break

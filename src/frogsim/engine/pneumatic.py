@@ -230,7 +230,8 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
     [Pa abs]. It returns {muscle: "charge" | "hold" | "vent"} (or +1, 0, -1) for any of the
     muscles without a program (under a ``[controllers]`` section); a muscle left out keeps its
     mode. The commands go through the same dead-time queue as the compiled laws', so the same
-    law written in Python gives the same valve sequence, and the same run, bit for bit. Slow but
+    law written in Python gives the same valve sequence (the states agree to the solver tolerance:
+    this driver stops on every sample, the compiled one reads samples from dense output). Slow but
     flexible: see docs/control.md for the cost.
     """
     sc = model.scenario
