@@ -336,6 +336,8 @@ def _is_valve_law(kind):
 @jit
 def apply_due(laws, t, u, cs):
     """Write into u every queued valve command due at or before t; True if a valve changed."""
+    if laws.ndim == 1:                     # open loop: no valve laws, no command queue
+        return False
     changed = False
     Q = int(cs[CS_Q])
     for c in range(laws.shape[0]):
@@ -378,6 +380,43 @@ def next_control_time(laws, cs, ctrl_dt):
             t = min(t, cs[b + B_Q0 + 2 * int(cs[b + B_QC_HEAD])])
         if cs[b + B_QD_N] > 0:
             t = min(t, cs[b + B_Q0 + 2 * Q + 2 * int(cs[b + B_QD_HEAD])])
+    return t
+
+
+@jit
+def next_sample_time(laws, cs):
+    """The time [s] of the controllers' next sample (inf when the run has no sampled rule)."""
+    if laws.ndim == 1:
+        return (cs[CS_SAMPLE] + 1.0) * cs[CS_DT] if laws.size else math.inf
+    if laws.shape[0] == 0:
+        return math.inf
+    return (cs[CS_SAMPLE] + 1.0) * cs[CS_DT]
+
+
+@jit
+def next_due_time(laws, cs):
+    """The earliest due time [s] of the valve commands waiting in the queues (inf if none): the
+    times at which a valve's state will change, known since the sample that decided it. A due
+    time within TOL of a sample time k dt (a dead time that is a whole number of periods, summed
+    in floating point) is that sample time when the sample is earlier: the command acts there, as
+    :func:`apply_due` (tolerance TOL) applies it at that sample."""
+    t = math.inf
+    if laws.ndim == 1:
+        return t
+    Q = int(cs[CS_Q])
+    for c in range(laws.shape[0]):
+        if not _is_valve_law(laws[c, L_KIND]):
+            continue
+        b = _block(cs, c)
+        if cs[b + B_QC_N] > 0:
+            t = min(t, cs[b + B_Q0 + 2 * int(cs[b + B_QC_HEAD])])
+        if cs[b + B_QD_N] > 0:
+            t = min(t, cs[b + B_Q0 + 2 * Q + 2 * int(cs[b + B_QD_HEAD])])
+    if t < math.inf:
+        dt = cs[CS_DT]
+        ts = math.floor(t / dt + 0.5) * dt
+        if ts < t and t - ts <= TOL:
+            t = ts
     return t
 
 

@@ -57,6 +57,7 @@ def run_models(models: list[PneumaticModel], threads: int | None = None) -> list
                                   f"t = {t_r:.6g} s (status {status})")
         results.append(Result(t=m.out_t, y=oy, u=ou, model=m,
                               stats={"steps": int(stats[0]), "rejected": int(stats[1]),
-                                     "rhs_evaluations": int(stats[2])},
+                                     "rhs_evaluations": int(stats[2]),
+                                     "stiff_steps": int(stats[3])},
                               switchings=valve_switchings(m, cs)))
     return results

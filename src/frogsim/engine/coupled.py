@@ -107,7 +107,7 @@ def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joint
         pal_target=pal_target, frac=frac, frac_new=frac.copy(), mu=mu, mp=mp, g=g, y=y, u=u,
         ds=ds, cs=cs, mot_t=np.zeros((n, 4)), mot_L=np.zeros((n, 4)), mot_d=np.zeros((n, 4)),
         mot_n=np.full(n, 4, np.int64), sched_t=sched_t, sched_u=sched_u, laws=laws, atol=atol,
-        stats=np.zeros(3, np.int64), vprev=np.zeros((el.shape[0], 3)), tension=np.zeros(n),
+        stats=np.zeros(4, np.int64), vprev=np.zeros((el.shape[0], 3)), tension=np.zeros(n),
         rec=np.full((n_steps // rec_every + 2, cols["size"]), np.nan), leg_qpos=leg_qpos,
         leg_dof=leg_dof)
     apply_added_mass(el, arrays["pa"], frac, False, m.body_mass, m.body_ipos, m.body_inertia,
