@@ -16,6 +16,13 @@ programs are made::
     recovery = "muscle"       # "muscle" (antagonistic pairs) or "spring" (paper Sec. 4.1 variant)
     timestep = "1 ms"         # MuJoCo step; the pneumatics adapt their own steps inside it
     [gait]                    # see frogsim.control.gait
+    [controllers.hip]         # optional closed-loop control (docs/control.md), e.g.
+    kind = "joint-angle"      # the hip_left / hip_left_recovery pair tracking an angle
+    joint = "hip_left"
+    setpoint = "20 deg"
+
+Muscles under a closed-loop controller take no gait commands; a joint-angle controller takes
+both muscles of its joint (:func:`joint_pairs`) and its setpoint must stay in the joint's range.
 """
 from __future__ import annotations
 

@@ -125,9 +125,10 @@ def control_joint() -> StudyData:
         f"({a_hi:.2f} against {a_lo:.2f} L std) on the sine, "
         f"{runs[hi]['step']['air_used_L_std'] / runs[lo]['step']['air_used_L_std']:.2f} times on the step. "
         f"With the same gains, raising p0 {'did not reduce' if s_hi >= s_lo else 'reduced'} the tracking error "
-        f"here; at p0 = {LEVELS_BAR[0]:g} bar the flexor's target p0 - dp/2 falls below the atmosphere at "
-        f"{runs[lo]['sine']['samples_pressure_target_clipped']} of the sine's samples (clipped), at "
-        f"{LEVELS_BAR[1]:g} bar at {runs[hi]['sine']['samples_pressure_target_clipped']}.")
+        f"here; a pressure target p0 +- dp/2 left [atmosphere, source] (clipped) at "
+        f"{runs[lo]['sine']['samples_pressure_target_clipped']} of the sine's controller samples at "
+        f"p0 = {LEVELS_BAR[0]:g} bar, at {runs[hi]['sine']['samples_pressure_target_clipped']} at "
+        f"{LEVELS_BAR[1]:g} bar.")
     summary = {"control_joint": {"scenario": "hip-angle-in-air", "joint": "hip_left",
                                  "co_contraction_levels_bar_gauge": list(LEVELS_BAR), "runs": runs,
                                  "conclusion": conclusion}}
