@@ -122,12 +122,15 @@ def test_with_the_outer_gains_zero_both_muscles_stay_within_band_and_one_step_of
 
 
 # --- the cascade converges to the angle statics and the band allow ------------------------------------------
-def test_the_controlled_angle_settles_where_statics_allow_for_the_band_and_friction():
+@pytest.mark.parametrize("environment", ["air", "water"])
+def test_the_controlled_angle_settles_where_statics_allow_for_the_band_and_friction(environment):
+    # held on its base, in air or in water: still water puts no torque on a joint at rest whose
+    # axis is vertical (buoyancy and weight are vertical), so the same statics hold in both
     kp, p0, band = 20.0 * BAR, 2.5 * BAR, 0.1 * BAR
     sp = math.radians(10.0)
     rs = frogsim.load_robot_scenario(hip_raw(
         {"setpoint": "10 deg", "co_contraction": "2.5 bar", "proportional_gain": "20 bar/rad",
-         "derivative_gain": "0.5 bar*s/rad", "band": "0.1 bar"}, "2 s"))
+         "derivative_gain": "0.5 bar*s/rad", "band": "0.1 bar"}, "2 s", environment=environment))
     r = frogsim.swim(rs)
     th_end = r.joint_angles[-1, 0]
     assert np.max(np.abs(r.joint_velocities[-100:, 0])) < 0.05
