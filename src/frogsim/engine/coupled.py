@@ -333,6 +333,9 @@ class CoupledStepper:
         if int(steps_per_action) < 1:
             raise ValueError(f"steps_per_action = {steps_per_action}: must be >= 1")
         mujoco = import_mujoco()
+        if any(c.kind != "program" for c in rs.pneumatic.controllers.values()):
+            raise ValueError("CoupledStepper sets every valve itself: remove the scenario's closed-loop "
+                             "[controllers] (or run it with frogsim.swim)")
         cm = build_coupled(rs)
         a = cm.arrays
         n = len(cm.muscle_names)
