@@ -139,8 +139,9 @@ def build_model(scenario: Scenario) -> PneumaticModel:
         sched_u = sched_u.copy()
         for c in sc.controllers.values():
             if c.kind != "program":
-                i = names.index(c.muscle)
-                sched_u[:, 2 * i:2 * i + 2] = np.nan
+                for m in (c.muscle, c.antagonist) if c.kind == "joint-angle" else (c.muscle,):
+                    i = names.index(m)
+                    sched_u[:, 2 * i:2 * i + 2] = np.nan
     mp = _muscle_part(sc.valves, tuple(mt for _, _, mt in muscles)).copy()
     mp[:, L.M_FIXEDV] = fixed
     y0, atol = _state_part(sc.air, sc.source, sc.exhaust, tuple(m.initial_pressure_gauge for _, m, _ in muscles),
