@@ -28,6 +28,7 @@ from frogsim.circuit import layout as CL
 from frogsim.circuit.model import build_model, schedule_from_events
 from frogsim.control.sampled import sampled_laws
 from frogsim.engine.coupled_kernel import apply_added_mass, step_kernel
+from frogsim.engine.coupled_loop import mujoco_c, run_steps
 # R_* and T_PEAK*: the record's and the state's columns, read by callers of run_coupled
 from frogsim.engine.coupled_layout import (  # noqa: F401
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
@@ -265,38 +266,60 @@ def _failure(cm: CoupledModel) -> str:
     return f"failure code {code}"
 
 
-def run_coupled(cm: CoupledModel, progress=None) -> dict:
+def run_coupled(cm: CoupledModel, progress=None, compiled: bool = True) -> dict:
     """Run the loop to the end of the scenario; returns {"rec", "wall_s", "stats", ...}.
 
     Raises SimulationError with the quantity and the time when the run goes unstable.
+    ``compiled`` runs the loop in compiled code, in stretches of n_steps / 20 steps
+    (:mod:`frogsim.engine.coupled_loop`); False runs it from Python, one step per iteration (the
+    reference the compiled loop is tested against; also the fallback when MuJoCo's C library
+    cannot be used). Both make the same calls in the same order: the same run bit for bit.
     """
     mujoco = import_mujoco()
     m, d = cm.mjm, cm.mjd
     a = cm.arrays
     args = kernel_args(cm)
-    step1, step2 = mujoco.mj_step1, mujoco.mj_step2
-    kernel = step_kernel
+    lib = mujoco_c(mujoco) if compiled else None
     n_steps, every = cm.n_steps, cm.rec_every
     chunk = max(1, n_steps // 20)
     warnings = []            # MuJoCo's own warnings, kept instead of written to MUJOCO_LOG.TXT
     previous = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(lambda msg: warnings.append(str(msg).strip()))
+
+    def unstable(k):
+        t = k * cm.dt
+        said = f" (MuJoCo: {warnings[0]})" if warnings else ""
+        return SimulationError(f"scenario {cm.name!r}: unstable at t = {t:.4f} s: "
+                               f"{_failure(cm)}{said}; try a smaller robot.timestep "
+                               f"(now {cm.dt * 1e3:g} ms)")
+
     t0 = time.perf_counter()
     try:
-        for k in range(n_steps + 1):
-            step1(m, d)
-            stepping = 1 if k < n_steps else 0
-            row = k // every if k % every == 0 else (-1 if stepping else k // every + 1)
-            if kernel(k, stepping, row, *args):
-                t = k * cm.dt
-                said = f" (MuJoCo: {warnings[0]})" if warnings else ""
-                raise SimulationError(f"scenario {cm.name!r}: unstable at t = {t:.4f} s: "
-                                      f"{_failure(cm)}{said}; try a smaller robot.timestep "
-                                      f"(now {cm.dt * 1e3:g} ms)")
-            if stepping:
-                step2(m, d)
-            if progress is not None and k % chunk == 0:
-                progress(k / n_steps)
+        if lib is not None:
+            # stretches ending at the steps where the Python loop reports progress (k % chunk == 0)
+            k = 0
+            while k <= n_steps:
+                k1 = min(n_steps, (k // chunk) * chunk + chunk if k % chunk else k) + 1
+                k_end, status = run_steps(lib[0], lib[1], m._address, d._address, k, k1,
+                                          n_steps, every, False, False, args)
+                if status:
+                    raise unstable(k_end)
+                if progress is not None and (k1 - 1) % chunk == 0:
+                    progress((k1 - 1) / n_steps)
+                k = k1
+        else:
+            step1, step2 = mujoco.mj_step1, mujoco.mj_step2
+            kernel = step_kernel
+            for k in range(n_steps + 1):
+                step1(m, d)
+                stepping = 1 if k < n_steps else 0
+                row = k // every if k % every == 0 else (-1 if stepping else k // every + 1)
+                if kernel(k, stepping, row, *args):
+                    raise unstable(k)
+                if stepping:
+                    step2(m, d)
+                if progress is not None and k % chunk == 0:
+                    progress(k / n_steps)
     finally:
         mujoco.set_mju_user_warning(previous)
     wall = time.perf_counter() - t0
@@ -324,9 +347,13 @@ class CoupledStepper:
     them), the pneumatic state and the kernel's memory as they were after the build, so that
     every episode from a reset is the same run bit for bit. :func:`run_coupled` is not affected
     (this class works on a model of its own).
+
+    Each :meth:`step` runs its steps_per_action MuJoCo steps in one compiled call
+    (:func:`frogsim.engine.coupled_loop.run_steps`); ``compiled=False`` runs them from Python
+    (the same run bit for bit; the reference the compiled loop is tested against).
     """
 
-    def __init__(self, rs, steps_per_action: int = 10):
+    def __init__(self, rs, steps_per_action: int = 10, compiled: bool = True):
         if int(steps_per_action) < 1:
             raise ValueError(f"steps_per_action = {steps_per_action}: must be >= 1")
         mujoco = import_mujoco()
@@ -356,6 +383,7 @@ class CoupledStepper:
         self._d0 = mujoco.MjData(m)
         mujoco.mj_copyData(self._d0, m, cm.mjd)
         self._copy = mujoco.mj_copyData
+        self._lib = mujoco_c(mujoco) if compiled else None
         self._step1, self._step2 = mujoco.mj_step1, mujoco.mj_step2
         self.trunk = int(a["sc"][S_TRUNK])
         self.reset()
@@ -415,6 +443,15 @@ class CoupledStepper:
         a["st"][T_PALM_TARGET] = float(palm)
         args = kernel_args(cm)
         m, d = cm.mjm, cm.mjd
+        if self._lib is not None:
+            k_end, status = run_steps(self._lib[0], self._lib[1], m._address, d._address, self.k,
+                                      self.k + K, self.k + K + 1, 0, self._fresh, True, args)
+            self._fresh = status == 0
+            self.k = k_end
+            if status:
+                raise SimulationError(f"scenario {cm.name!r}: unstable at t = {self.t:.4f} s: "
+                                      f"{_failure(cm)}")
+            return int(changed.size)
         step1, step2, kernel = self._step1, self._step2, step_kernel
         for _ in range(K):
             if not self._fresh:
