@@ -61,6 +61,8 @@ class CoupledModel:
     n_steps: int
     rec_every: int
     columns: dict = field(default_factory=dict)
+    # (mjm, mjd, their arrays the kernel takes): made once, as the views cost microseconds each time
+    _views: tuple = field(default=(None, None, ()), repr=False, compare=False)
 
     @property
     def dt(self) -> float:
@@ -227,10 +229,12 @@ _KERNEL_ARRAYS = ("sc", "st", "rec", "el", "strip_s", "strip_k", "pa", "vprev", 
 def kernel_args(cm: CoupledModel) -> tuple:
     """The arrays step_kernel takes after (k, stepping, row): the tables, then MuJoCo's views."""
     m, d = cm.mjm, cm.mjd
-    return tuple(cm.arrays[k] for k in _KERNEL_ARRAYS) + (
-        d.ten_length, d.ten_velocity, d.xpos, d.xmat, d.xipos, d.cvel, d.subtree_com,
-        m.body_rootid, m.body_parentid, m.body_mass, m.body_ipos, m.body_inertia,
-        m.body_subtreemass, d.ctrl, d.xfrc_applied, d.qpos, d.qvel)
+    if cm._views[0] is not m or cm._views[1] is not d:
+        cm._views = (m, d, (
+            d.ten_length, d.ten_velocity, d.xpos, d.xmat, d.xipos, d.cvel, d.subtree_com,
+            m.body_rootid, m.body_parentid, m.body_mass, m.body_ipos, m.body_inertia,
+            m.body_subtreemass, d.ctrl, d.xfrc_applied, d.qpos, d.qvel))
+    return tuple(cm.arrays[k] for k in _KERNEL_ARRAYS) + cm._views[2]
 
 
 def forces_now(cm: CoupledModel) -> np.ndarray:
