@@ -125,3 +125,20 @@ def test_coupled_stepper_failure_message_is_the_same(full_robot):
         assert st.k == 30
     assert msgs[0] == msgs[1]
     assert "unstable at t = 0.0300 s" in msgs[1] and "knee_right" in msgs[1] and "inf" in msgs[1]
+
+
+def test_without_the_c_library_the_python_loop_runs_after_one_warning(monkeypatch):
+    import frogsim.engine.coupled_loop as loop
+    monkeypatch.setattr(loop, "_LIB", "no MuJoCo shared library next to the bindings")
+    monkeypatch.setattr(loop, "_WARNED", False)
+    rs = frogsim.load_robot_scenario("leg-in-air")
+    with pytest.warns(RuntimeWarning, match="no MuJoCo shared library.*running the loop from Python"):
+        cm, out = _run(rs, True)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                       # once per process, not per run
+        cm2, out2 = _run(rs, True)
+    monkeypatch.undo()
+    cm3, out3 = _run(rs, True)
+    np.testing.assert_array_equal(out["rec"], out3["rec"])
+    np.testing.assert_array_equal(out2["rec"], out3["rec"])
