@@ -8,7 +8,11 @@ runs, for each MuJoCo step of length dt,
     mj_step1 (positions, velocities, tendon lengths)  ->  step_kernel (one Numba call)  ->  mj_step2
 
 with :func:`frogsim.engine.coupled_kernel.step_kernel` doing the muscles, palms, water and
-pneumatics (its docstring says how). The index layouts of the arrays are in
+pneumatics (its docstring says how). The loop itself runs in compiled code
+(:func:`frogsim.engine.coupled_loop.run_steps`: MuJoCo's C functions and the kernel called from
+one Numba function, a stretch of n_steps / 20 steps per call, back in Python between stretches for
+the progress callback and at a failure); ``run_coupled(cm, compiled=False)`` runs the same calls
+from Python, one step at a time, and gives the same run bit for bit. The index layouts of the arrays are in
 :mod:`frogsim.engine.coupled_layout`; the record's columns R_* are part of what
 :func:`run_coupled` returns and are named here too.
 
