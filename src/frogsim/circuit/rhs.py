@@ -84,13 +84,13 @@ def common_piece(t, mp, mot_t, mot_n):
             lo = mid
         else:
             hi = mid
-    ok = True
     for i in range(n):
         nk = mot_n[i]
         # knots sorted: t_lo <= t < t_lo+1 inside (t_0, t_last) makes lo the one answer
-        ok &= (mp[i, M_FIXEDV] <= 0.0) & (lo + 1 < nk) & (t > mot_t[i, 0]) & (t < mot_t[i, nk - 1])
-        ok &= (mot_t[i, lo] <= t) & (t < mot_t[i, lo + 1])
-    return lo if ok else -1
+        if not (mp[i, M_FIXEDV] <= 0.0 and lo + 1 < nk and t > mot_t[i, 0] and t < mot_t[i, nk - 1]
+                and mot_t[i, lo] <= t and t < mot_t[i, lo + 1]):
+            return -1
+    return lo
 
 
 @jit
