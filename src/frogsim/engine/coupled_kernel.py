@@ -359,7 +359,7 @@ def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, 
     for i in range(n):
         q0 += y[CL.Y_MUSCLE0 + 2 * n + i]
     ps0 = y[CL.Y_PS]
-    no_output = (np.empty(0), np.empty((0, y.size)), np.empty((0, u.size + 1)))
+    no_output = (y[:0], mot_t[:0], mot_t[:0])         # no output rows: empty views, no allocation
     status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n),
                      (sched_t, sched_u, laws, sc[S_CTRL_DT]), (sc[S_RTOL], atol, sc[S_MAXSTEP]),
                      no_output, stats)
