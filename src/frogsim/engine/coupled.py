@@ -12,8 +12,8 @@ pneumatics (its docstring says how). The loop itself runs in compiled code
 (:func:`frogsim.engine.coupled_loop.run_steps`: MuJoCo's C functions and the kernel called from
 one Numba function, a stretch of n_steps / 20 steps per call, back in Python between stretches for
 the progress callback and at a failure); ``run_coupled(cm, compiled=False)`` runs the same calls
-from Python, one step at a time, and gives the same run bit for bit. The index layouts of the arrays are in
-:mod:`frogsim.engine.coupled_layout`; the record's columns R_* are part of what
+from Python, one step at a time, and gives the same run bit for bit. The index layouts of the
+arrays are in :mod:`frogsim.engine.coupled_layout`; the record's columns R_* are part of what
 :func:`run_coupled` returns and are named here too.
 
 Every step checks the state: a non-finite position or velocity, a leg joint faster than
@@ -307,7 +307,8 @@ def run_coupled(cm: CoupledModel, progress=None, compiled: bool = True) -> dict:
             # stretches ending at the steps where the Python loop reports progress (k % chunk == 0)
             k = 0
             while k <= n_steps:
-                k1 = min(n_steps, (k // chunk) * chunk + chunk if k % chunk else k) + 1
+                last = k if k % chunk == 0 else (k // chunk + 1) * chunk
+                k1 = min(n_steps, last) + 1
                 k_end, status = run_steps(lib[0], lib[1], m._address, d._address, k, k1,
                                           n_steps, every, False, False, args)
                 if status:
