@@ -44,6 +44,12 @@ def motion_length(t, i, mot_t, mot_L, mot_d, mot_n):
             lo = mid
         else:
             hi = mid
+    return _hermite(t, i, lo, hi, mot_t, mot_L, mot_d)
+
+
+@jit
+def _hermite(t, i, lo, hi, mot_t, mot_L, mot_d):
+    """Muscle i's (L, dL/dt) on its path's piece between knots lo and hi = lo + 1."""
     h = mot_t[i, hi] - mot_t[i, lo]
     s = (t - mot_t[i, lo]) / h
     y0 = mot_L[i, lo]
@@ -55,6 +61,36 @@ def motion_length(t, i, mot_t, mot_L, mot_d, mot_n):
     L = (2 * s3 - 3 * s2 + 1) * y0 + (s3 - 2 * s2 + s) * d0 + (-2 * s3 + 3 * s2) * y1 + (s3 - s2) * d1
     dLds = (6 * s2 - 6 * s) * y0 + (3 * s2 - 4 * s + 1) * d0 + (-6 * s2 + 6 * s) * y1 + (3 * s2 - 2 * s) * d1
     return L, dLds / h
+
+
+@jit
+def common_piece(t, mp, mot_t, mot_n):
+    """The knot index lo such that every muscle's length path has t strictly inside its knots
+    and on its piece [t_lo, t_lo+1) (what :func:`motion_length`'s search finds for each), or -1
+    if there is none (a muscle of fixed volume, t outside a path, or paths cut differently).
+
+    The coupled engine gives all muscles paths with the same knot times, so one search serves
+    them all, and the volume loop of :func:`rhs` then reads every muscle's path at the same
+    column (a loop the compiler vectorizes; with a search per muscle it cannot).
+    """
+    n = mp.shape[0]
+    if n == 0 or mot_n[0] < 2 or not (t > mot_t[0, 0] and t < mot_t[0, mot_n[0] - 1]):
+        return -1
+    lo = 0
+    hi = mot_n[0] - 1
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if mot_t[0, mid] <= t:
+            lo = mid
+        else:
+            hi = mid
+    for i in range(n):
+        nk = mot_n[i]
+        # knots sorted: t_lo <= t < t_lo+1 inside (t_0, t_last) makes lo the one answer
+        if not (mp[i, M_FIXEDV] <= 0.0 and lo + 1 < nk and t > mot_t[i, 0] and t < mot_t[i, nk - 1]
+                and mot_t[i, lo] <= t and t < mot_t[i, lo + 1]):
+            return -1
+    return lo
 
 
 @jit
@@ -156,11 +192,23 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     out_e = 0.0
     mode = int(g[G_SUPPLY_MODE])
     # work holds muscle temperatures [0, n), volumes [n, 2n) and volume rates [2n, 3n)
-    for i in range(n):
-        V, dV = muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n)
-        work[n + i] = V
-        work[2 * n + i] = dV
-        work[i] = y[Y_MUSCLE0 + 2 * i + 1] * V / (y[Y_MUSCLE0 + 2 * i] * R)
+    lo = common_piece(t, mp, mot_t, mot_n)
+    if lo >= 0:
+        # the same numbers as the loop below (motion_length's piece, muscle_volume_state's sums)
+        for i in range(n):
+            L, dL = _hermite(t, i, lo, lo + 1, mot_t, mot_L, mot_d)
+            b0 = mp[i, M_B0]
+            nt = mp[i, M_N]
+            V = muscle_volume(L, b0, nt) + mp[i, M_DEAD]
+            work[n + i] = V
+            work[2 * n + i] = muscle_volume_slope(L, b0, nt) * dL
+            work[i] = y[Y_MUSCLE0 + 2 * i + 1] * V / (y[Y_MUSCLE0 + 2 * i] * R)
+    else:
+        for i in range(n):
+            V, dV = muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n)
+            work[n + i] = V
+            work[2 * n + i] = dV
+            work[i] = y[Y_MUSCLE0 + 2 * i + 1] * V / (y[Y_MUSCLE0 + 2 * i] * R)
     p_up = p_s
     if mode == SUPPLY_PHYSICAL:
         p_up = manifold_pressure(p_s, T_s, y, u, g, mp, n, work)

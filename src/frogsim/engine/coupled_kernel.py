@@ -222,7 +222,9 @@ def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, 
         drag_h = Fx * hx + Fy * hy + Fz * hz
         # added mass (module docstring): explicit part at the added-mass centre
         m1, m2, m3, i1, i2, i3, miso = _part_added_mass(el, e, pa, frac)
-        n1, n2, n3, j1, j2, j3, _ = _part_added_mass(el, e, pa, frac_new)
+        n1, n2, n3, j1, j2, j3 = m1, m2, m3, i1, i2, i3          # a part of fixed shape
+        if fan >= 0:
+            n1, n2, n3, j1, j2, j3, _ = _part_added_mass(el, e, pa, frac_new)
         ax_, ay_, az_ = el[e, E_XA], el[e, E_XA + 1], el[e, E_XA + 2]
         qx = ox + e1x * ax_ + e2x * ay_ + e3x * az_
         qy = oy + e1y * ax_ + e2y * ay_ + e3y * az_
@@ -357,7 +359,7 @@ def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, 
     for i in range(n):
         q0 += y[CL.Y_MUSCLE0 + 2 * n + i]
     ps0 = y[CL.Y_PS]
-    no_output = (np.empty(0), np.empty((0, y.size)), np.empty((0, u.size + 1)))
+    no_output = (y[:0], mot_t[:0], mot_t[:0])         # no output rows: empty views, no allocation
     observe_joints(laws, cs, qpos, qvel, leg_qpos, leg_dof)     # what joint-angle laws read
     status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n),
                      (sched_t, sched_u, laws, sc[S_CTRL_DT]), (sc[S_RTOL], atol, sc[S_MAXSTEP]),
@@ -370,9 +372,13 @@ def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, 
         q1 += y[CL.Y_MUSCLE0 + 2 * n + i]
     if ps0 > patm:
         st[T_EXERGY] += (q1 - q0) * g[CL.G_R] * g[CL.G_TAMB] * math.log(ps0 / patm)
-    # -- 6. palms' added mass for the next step -------------------------------------------------------
+    # -- 6. palms' added mass for the next step (after the first step, only when a palm moved: the
+    # model holds the values for the present openings already) ------------------------------------------
+    moved = first
     for p in range(npal):
+        moved |= frac_new[p] != frac[p]
         frac[p] = frac_new[p]
-    apply_added_mass(el, pa, frac, np.bool_(True), body_mass, body_ipos, body_inertia, body_subtreemass,
-                     body_parentid)
+    if moved:
+        apply_added_mass(el, pa, frac, np.bool_(True), body_mass, body_ipos, body_inertia,
+                         body_subtreemass, body_parentid)
     return 0
