@@ -82,8 +82,9 @@ SQRT_EPS = 1.4901161193847656e-08
 
 @jit
 def _lu(a, piv):
-    """In-place LU factorisation with partial pivoting of the small dense matrix a (n x n);
-    returns False if a pivot is zero (a is singular)."""
+    """In-place LU factorisation with partial pivoting of the small dense matrix a (n x n), the
+    row swaps in piv (row indices, stored as floats); returns False if a pivot is zero (a is
+    singular)."""
     n = a.shape[0]
     for k in range(n):
         p = k
@@ -92,7 +93,7 @@ def _lu(a, piv):
             if abs(a[i, k]) > big:
                 big = abs(a[i, k])
                 p = i
-        piv[k] = p
+        piv[k] = float(p)
         if big == 0.0:
             return False
         if p != k:
@@ -115,7 +116,7 @@ def _lu_solve(a, piv, b):
     """Solve a x = b in place (b becomes x) with the factors of :func:`_lu`."""
     n = a.shape[0]
     for k in range(n):
-        p = piv[k]
+        p = int(piv[k])
         if p != k:
             tmp = b[k]
             b[k] = b[p]
@@ -327,26 +328,33 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     ns = sched_t.size
     n = mp.shape[0]
     n_out = out_t.size
-    f = np.empty(ny)
-    k2 = np.empty(ny)
-    k3 = np.empty(ny)
-    k4 = np.empty(ny)
-    k5 = np.empty(ny)
-    k6 = np.empty(ny)
-    k7 = np.empty(ny)
-    yt = np.empty(ny)
-    yn = np.empty(ny)
-    rc1 = np.empty(ny)
-    rc2 = np.empty(ny)
-    rc3 = np.empty(ny)
-    rc4 = np.empty(ny)
-    ys = np.empty(ny)
-    u_prev = np.empty(nu)
-    nphys = Y_MUSCLE0 + 2 * mp.shape[0]
-    wk = (np.empty((ny, ny)), np.empty(ny, np.int64), np.empty(ny), np.empty(ny), np.empty(ny),
-          np.empty(ny), np.empty(ny), np.empty(ny), np.empty(ny))
-    aux = np.empty(2 * n + 1)
-    work = np.empty(3 * n)
+    # one scratch allocation per call, cut into the stages' vectors (views, no copies): the
+    # coupled engine calls this once per MuJoCo step
+    scratch = np.empty(23 * ny + ny * ny + nu + 5 * n + 1)
+    f = scratch[0:ny]
+    k2 = scratch[ny:2 * ny]
+    k3 = scratch[2 * ny:3 * ny]
+    k4 = scratch[3 * ny:4 * ny]
+    k5 = scratch[4 * ny:5 * ny]
+    k6 = scratch[5 * ny:6 * ny]
+    k7 = scratch[6 * ny:7 * ny]
+    yt = scratch[7 * ny:8 * ny]
+    yn = scratch[8 * ny:9 * ny]
+    rc1 = scratch[9 * ny:10 * ny]
+    rc2 = scratch[10 * ny:11 * ny]
+    rc3 = scratch[11 * ny:12 * ny]
+    rc4 = scratch[12 * ny:13 * ny]
+    ys = scratch[13 * ny:14 * ny]
+    # Rosenbrock: (W, pivots, ft, k1, k2, k3, yt, f1, tder)
+    wk = (scratch[23 * ny:23 * ny + ny * ny].reshape((ny, ny)), scratch[14 * ny:15 * ny],
+          scratch[15 * ny:16 * ny], scratch[16 * ny:17 * ny], scratch[17 * ny:18 * ny],
+          scratch[18 * ny:19 * ny], scratch[19 * ny:20 * ny], scratch[20 * ny:21 * ny],
+          scratch[21 * ny:22 * ny])
+    o = 23 * ny + ny * ny
+    u_prev = scratch[o:o + nu]
+    aux = scratch[o + nu:o + nu + 2 * n + 1]
+    work = scratch[o + nu + 2 * n + 1:o + nu + 5 * n + 1]
+    nphys = Y_MUSCLE0 + 2 * n
     t = ds[D_T]
     h = ds[D_H]
     err_old = ds[D_ERR]
