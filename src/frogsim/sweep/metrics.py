@@ -23,37 +23,37 @@ BAR = 1e5
 class Chunk:
     """Outputs of B runs sharing one time grid, stacked column by column on demand.
 
+    Made from :class:`frogsim.engine.batch.Outputs` (the raw outputs of a batch, or of Results:
+    :meth:`Outputs.of_results`), so a sweep and a Result are measured by the same code.
     ``t`` (T,) is the grid; ``state(j)`` and ``valve(j)`` give state column j and valve column j
     of every run as (B, T); ``t_open`` (B, n) are the first opening times of each charge valve;
     ``patm`` and ``rho_ref`` (B,) the atmospheric pressure and reference density of each run.
     Only the columns a metric asks for are copied.
     """
 
-    def __init__(self, results):
-        self.results = results
-        self.t = results[0].t
-        self.n = results[0].n
-        self.t_open = np.array([[r.charge_open_times(m)[0] if len(r.charge_open_times(m)) else np.nan
-                                 for m in r.names] for r in results])
-        g = np.stack([r.model.g for r in results])
-        self.patm = g[:, L.G_PATM]
-        self.rho_ref = g[:, L.G_RHOREF]
+    def __init__(self, out):
+        self.out = out
+        self.t = out.t
+        self.n = len(out.names)
+        self.t_open = out.t_open
+        self.patm = out.patm
+        self.rho_ref = out.rho_ref
         self._cache = {}
 
     def state(self, j):
         key = ("y", j)
         if key not in self._cache:
-            self._cache[key] = np.stack([r.y[:, j] for r in self.results])
+            self._cache[key] = np.stack([y[:, j] for y in self.out.y])
         return self._cache[key]
 
     def valve(self, j):
         key = ("u", j)
         if key not in self._cache:
-            self._cache[key] = np.stack([r.u[:, j] for r in self.results])
+            self._cache[key] = np.stack([u[:, j] for u in self.out.u])
         return self._cache[key]
 
     def final_state(self, j):
-        return np.array([r.y[-1, j] for r in self.results])
+        return np.array([y[-1, j] for y in self.out.y])
 
     def pressure(self, i):
         return self.state(L.Y_MUSCLE0 + 2 * i + 1)
@@ -135,18 +135,32 @@ def _pumped(c: Chunk, i: int):
     return c.final_state(L.pump_index(c.n)) / c.rho_ref * 1e3
 
 
-def evaluate(results, metrics: list[str], muscle: str | None = None) -> dict[str, np.ndarray]:
-    """Metric values for Results sharing one time grid: name -> array (one value per result)."""
+def _check_names(metrics) -> None:
     unknown = [m for m in metrics if m not in METRICS]
     if unknown:
         raise KeyError(f"unknown metric {unknown[0]!r}; metrics: {', '.join(METRICS)}")
+
+
+def evaluate(results, metrics: list[str], muscle: str | None = None) -> dict[str, np.ndarray]:
+    """Metric values for Results sharing one time grid: name -> array (one value per result)."""
+    from frogsim.engine.batch import Outputs
+    _check_names(metrics)
     if not results:
         return {m: np.empty(0) for m in metrics}
     t0 = results[0].t
     if any(r.t.shape != t0.shape or not np.array_equal(r.t, t0) for r in results[1:]):
         raise ValueError("evaluate needs results on one time grid; group them by duration and output interval")
-    i = results[0].index(muscle) if muscle else 0
-    chunk = Chunk(results)
+    results[0].index(muscle) if muscle else 0          # KeyError naming the muscles
+    return evaluate_outputs(Outputs.of_results(results), metrics, muscle)
+
+
+def evaluate_outputs(out, metrics: list[str], muscle: str | None = None) -> dict[str, np.ndarray]:
+    """Metric values of raw outputs on one time grid (:class:`frogsim.engine.batch.Outputs`)."""
+    _check_names(metrics)
+    if muscle and muscle not in out.names:
+        raise KeyError(f"no muscle {muscle!r}; muscles: {', '.join(out.names)}")
+    i = out.names.index(muscle) if muscle else 0
+    chunk = Chunk(out)
     return {m: np.asarray(METRICS[m].compute(chunk, i), float) for m in metrics}
 
 
@@ -155,14 +169,26 @@ def evaluate_models(models, metrics: list[str], muscle: str | None = None, threa
     """Run models and return only their metrics: name -> array, in the order of ``models``.
 
     Each thread takes ``chunk`` points at a time, runs them (the same compiled engine as
-    ``frogsim.simulate``) and reduces them to metric values while their time series are still in
-    cache, so memory stays at a few chunks' worth whatever the number of points.
+    ``frogsim.simulate``, without the GIL) and reduces their raw outputs to metric values while
+    they are still in cache (no Result objects), so memory stays at a few chunks' worth whatever
+    the number of points, and one thread's compiled runs overlap the other's reduction. Raises
+    SimulationError naming the first point (of its chunk) whose integration failed.
     """
-    from frogsim.engine.batch import run_models
-    unknown = [m for m in metrics if m not in METRICS]
-    if unknown:
-        raise KeyError(f"unknown metric {unknown[0]!r}; metrics: {', '.join(METRICS)}")
-    parts = map_pieces(lambda piece: evaluate(run_models(piece, threads=1), metrics, muscle), models, chunk, threads)
+    from frogsim.engine.batch import run_outputs
+    from frogsim.errors import SimulationError
+    _check_names(metrics)
+
+    def work(piece):
+        groups, failures = run_outputs(piece)
+        if failures:
+            raise SimulationError(failures[min(failures)])
+        vals = {m: np.empty(len(piece)) for m in metrics}
+        for rows, out in groups:
+            v = evaluate_outputs(out, metrics, muscle)
+            for m in metrics:
+                vals[m][rows] = v[m]
+        return vals
+    parts = map_pieces(work, models, chunk, threads)
     return {m: np.concatenate([p[m] for p in parts]) if parts else np.empty(0) for m in metrics}
 
 
