@@ -85,6 +85,7 @@ def main(argv=None) -> int:
 
     t0 = time.perf_counter()
     run_models(build_models(base, points[:2]))
+    evaluate_models(build_models(base, points[:2]), METRICS, "hip", threads=1)
     print(f"  warm-up (engine load or compilation, once per machine): {time.perf_counter() - t0:.2f} s")
 
     t0 = time.perf_counter()

@@ -150,11 +150,22 @@ def _globals_stage(sc):
     return _globals_part(sc.air, sc.source, sc.exhaust, sc.pump, sc.supply, sc.valves)
 
 
-def _laws_stage(sc, g, motion):
-    """(the table of sampled laws, the valve schedule's states with the valves of closed-loop
-    muscles left to their controllers)."""
-    names, (_, _, _, _, _, sched_u, _, _, volumes, _), _ = motion
-    laws = _laws(sc, g, names, volumes)
+def _volumes_stage(sc, motion):
+    """(muscle names, each muscle's volume at the start [m^3])."""
+    names, parts, _ = motion
+    return names, parts[8]
+
+
+def _laws_stage(sc, g, volumes):
+    """The table of sampled laws."""
+    return _laws(sc, g, *volumes)
+
+
+def _schedule_stage(sc, laws, motion):
+    """The valve schedule's states, with the valves of closed-loop muscles left to their
+    controllers."""
+    names, parts, _ = motion
+    sched_u = parts[5]
     if laws.ndim == 2 and laws.shape[0] and (laws[:, 0] != 1.0).any():     # 1-D: open loop
         # the valves of a muscle under a closed-loop controller are the controller's: the schedule
         # leaves them alone (NaN: "not set here", see frogsim.engine.integrator.advance)
@@ -163,13 +174,13 @@ def _laws_stage(sc, g, motion):
             if c.kind != "program":
                 i = names.index(c.muscle)
                 sched_u[:, 2 * i:2 * i + 2] = np.nan
-    return laws, sched_u
+    return sched_u
 
 
-def _state_stage(sc, motion):
-    names, parts, _ = motion
+def _state_stage(sc, volumes):
+    names, vols = volumes
     return _state_part(sc.air, sc.source, sc.exhaust, tuple(sc.muscles[n].initial_pressure_gauge for n in names),
-                       parts[8], sc.solver.rtol)
+                       vols, sc.solver.rtol)
 
 
 def _output_stage(sc):
@@ -179,9 +190,11 @@ def _output_stage(sc):
 #: The parts of a model: (name, top-level settings it reads, earlier parts it uses, maker).
 PARTS = (
     ("motion", ("muscles", "muscle_types", "controller", "valves", "base_dir"), (), _motion_stage),
+    ("volumes", (), ("motion",), _volumes_stage),
     ("g", ("air", "source", "exhaust", "pump", "supply", "valves"), (), _globals_stage),
-    ("laws", ("valves", "controllers", "base_dir", "controller"), ("g", "motion"), _laws_stage),
-    ("state", ("air", "source", "exhaust", "muscles", "solver"), ("motion",), _state_stage),
+    ("laws", ("valves", "controllers", "base_dir", "controller"), ("g", "volumes"), _laws_stage),
+    ("sched_u", ("controllers",), ("laws", "motion"), _schedule_stage),
+    ("state", ("air", "source", "exhaust", "muscles", "solver"), ("volumes",), _state_stage),
     ("out_t", ("duration", "output_interval"), (), _output_stage),
 )
 
@@ -190,7 +203,7 @@ def assemble(scenario: Scenario, parts: dict) -> PneumaticModel:
     """The model of a scenario from its parts (:data:`PARTS`), every array a fresh copy."""
     names, motion, mp = parts["motion"]
     mot_t, mot_L, mot_d, mot_n, sched_t, _, u0, opens, _, _ = motion
-    laws, sched_u = parts["laws"]
+    laws, sched_u = parts["laws"], parts["sched_u"]
     y0, atol = parts["state"]
     return PneumaticModel(scenario=scenario, names=list(names), g=parts["g"].copy(), mp=mp.copy(),
                           mot_t=mot_t.copy(), mot_L=mot_L.copy(), mot_d=mot_d.copy(), mot_n=mot_n.copy(),

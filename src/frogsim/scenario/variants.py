@@ -63,6 +63,18 @@ def group(columns: list, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return inv.reshape(-1), first
 
 
+def _content(x):
+    """A key equal for two results exactly when they hold the same values (arrays byte for byte,
+    numbers by type and repr, so 0.0 and -0.0 differ); other objects by identity."""
+    if isinstance(x, np.ndarray):
+        return ("array", x.dtype.str, x.shape, x.tobytes())
+    if isinstance(x, (tuple, list)):
+        return (type(x).__name__,) + tuple(_content(v) for v in x)
+    if x is None or isinstance(x, _PLAIN):
+        return (type(x), repr(x))
+    return ("object", id(x))
+
+
 class Variants:
     """The variants ``base.replace(point)`` of a list of points that all set the same paths."""
 
@@ -130,6 +142,16 @@ class Variants:
             except ScenarioError:
                 out.append(None)
                 self.ok[rows[inv_rows == j]] = False
+        if len(out) > 1:            # results equal in content are one (the next steps read content only)
+            merged: dict = {}
+            keep, where = [], np.empty(len(out), np.int64)
+            for j, x in enumerate(out):
+                key = _content(x)
+                if key not in merged:
+                    merged[key] = len(keep)
+                    keep.append(x)
+                where[j] = merged[key]
+            out, inv_rows = keep, where[inv_rows]
         inv = np.full(self.size, -1, np.int64)
         inv[rows] = inv_rows
         return out, inv

@@ -43,20 +43,20 @@ class Chunk:
     def state(self, j):
         key = ("y", j)
         if key not in self._cache:
-            self._cache[key] = np.stack([y[:, j] for y in self.out.y])
+            self._cache[key] = self.out.state(j)
         return self._cache[key]
 
     def valve(self, j):
         key = ("u", j)
         if key not in self._cache:
-            self._cache[key] = np.stack([u[:, j] for u in self.out.u])
+            self._cache[key] = self.out.valve(j)
         return self._cache[key]
 
     def final_state(self, j):
-        return np.array([y[-1, j] for y in self.out.y])
+        return self.out.final_state(j)
 
     def pressure(self, i):
-        return self.state(L.Y_MUSCLE0 + 2 * i + 1)
+        return self.state(_pressure_col(i))
 
     def charge_valve(self, i):
         return self.valve(2 * i)
@@ -68,17 +68,43 @@ class Metric:
     unit: str
     description: str
     compute: Callable  # (chunk, muscle index) -> (B,)
+    columns: Callable | None = None   # (muscles n, muscle index) -> (state columns, valve columns) it reads
 
 
 METRICS: dict[str, Metric] = {}
 
 
-def register_metric(name: str, unit: str, description: str):
-    """Decorator adding a metric function (chunk, muscle index) -> array (B,) to the registry."""
+def register_metric(name: str, unit: str, description: str, columns: Callable | None = None):
+    """Decorator adding a metric function (chunk, muscle index) -> array (B,) to the registry.
+
+    ``columns(n, i)`` -> (state columns, valve columns) names the output columns it reads, so a
+    sweep keeps only those of each run (a column it reads but did not name raises KeyError); None:
+    every run keeps all its outputs for it."""
     def deco(fn):
-        METRICS[name] = Metric(name, unit, description, fn)
+        METRICS[name] = Metric(name, unit, description, fn, columns)
         return fn
     return deco
+
+
+def kept_columns(metrics: list[str], n: int, i: int) -> tuple[list, list]:
+    """(state columns, valve columns) the metrics read for muscle i of n."""
+    ys, us = set(), set()
+    for m in metrics:
+        cols = METRICS[m].columns
+        if cols is None:
+            return list(range(L.state_size(n))), list(range(2 * n + 1))
+        y, u = cols(n, i)
+        ys.update(y)
+        us.update(u)
+    return sorted(ys), sorted(us)
+
+
+def _pressure_col(i):
+    return L.Y_MUSCLE0 + 2 * i + 1
+
+
+def _rise_cols(n, i):
+    return (_pressure_col(i), L.Y_PS), (2 * i,)
 
 
 def _rise(c: Chunk, i: int):
@@ -90,47 +116,53 @@ def _rise(c: Chunk, i: int):
 
 @register_metric("rise_time", "s", "time from the charge valve opening until the muscle pressure first "
                  "reaches 90 % of the way from its opening pressure to the source pressure at the "
-                 "valve's close; NaN (a gap) where it does not get there while the valve is open")
+                 "valve's close; NaN (a gap) where it does not get there while the valve is open", _rise_cols)
 def _rise_time(c: Chunk, i: int):
     return _rise(c, i).seconds
 
 
 @register_metric("rise_reached", "1", "largest fraction of that rise (muscle pressure from its opening "
                  "value to the source pressure at the close) reached while the charge valve was open; "
-                 ">= 0.9 exactly where rise_time is a number")
+                 ">= 0.9 exactly where rise_time is a number", _rise_cols)
 def _rise_reached(c: Chunk, i: int):
     return _rise(c, i).reached
 
 
-@register_metric("final_pressure", "bar (gauge)", "muscle pressure when the first pressurise phase ends")
+@register_metric("final_pressure", "bar (gauge)", "muscle pressure when the first pressurise phase ends",
+                 lambda n, i: ((_pressure_col(i),), (2 * i,)))
 def _final_pressure(c: Chunk, i: int):
     return (value_at_close(c.t, c.pressure(i), c.charge_valve(i), c.t_open[:, i]) - c.patm) / BAR
 
 
-@register_metric("aeration_volume", "L (standard)", "air charged into the muscle in its first pressurise phase")
+@register_metric("aeration_volume", "L (standard)", "air charged into the muscle in its first pressurise phase",
+                 lambda n, i: ((L.charged_index(i, n),), (2 * i,)))
 def _aeration(c: Chunk, i: int):
     q = c.state(L.charged_index(i, c.n))
     return charged_in_phase(c.t, q, c.charge_valve(i), c.t_open[:, i]) / c.rho_ref * 1e3
 
 
-@register_metric("source_drop", "bar", "largest fall of the source pressure below its initial value")
+@register_metric("source_drop", "bar", "largest fall of the source pressure below its initial value",
+                 lambda n, i: ((L.Y_PS,), ()))
 def _source_drop(c: Chunk, i: int):
     ps = c.state(L.Y_PS)
     return (ps[:, 0] - ps.min(axis=1)) / BAR
 
 
-@register_metric("source_final", "bar (gauge)", "source pressure at the end of the run")
+@register_metric("source_final", "bar (gauge)", "source pressure at the end of the run",
+                 lambda n, i: ((L.Y_PS,), ()))
 def _source_final(c: Chunk, i: int):
     return (c.final_state(L.Y_PS) - c.patm) / BAR
 
 
-@register_metric("air_used", "L (standard)", "air charged into all muscles over the run")
+@register_metric("air_used", "L (standard)", "air charged into all muscles over the run",
+                 lambda n, i: (tuple(L.charged_index(j, n) for j in range(n)), ()))
 def _air_used(c: Chunk, i: int):
     q = sum(c.final_state(L.charged_index(j, c.n)) for j in range(c.n))
     return q / c.rho_ref * 1e3
 
 
-@register_metric("pumped", "L (standard)", "air the pump returned to the source over the run")
+@register_metric("pumped", "L (standard)", "air the pump returned to the source over the run",
+                 lambda n, i: ((L.pump_index(n),), ()))
 def _pumped(c: Chunk, i: int):
     return c.final_state(L.pump_index(c.n)) / c.rho_ref * 1e3
 
@@ -179,7 +211,11 @@ def evaluate_models(models, metrics: list[str], muscle: str | None = None, threa
     _check_names(metrics)
 
     def work(piece):
-        groups, failures = run_outputs(piece)
+        columns = None
+        if hasattr(piece, "names"):          # a ModelBatch: keep only the columns the metrics read
+            names = piece.names()
+            columns = kept_columns(metrics, len(names), names.index(muscle) if muscle in names else 0)
+        groups, failures = run_outputs(piece, columns)
         if failures:
             raise SimulationError(failures[min(failures)])
         vals = {m: np.empty(len(piece)) for m in metrics}
