@@ -156,9 +156,12 @@ def test_the_same_law_compiled_and_in_python_gives_the_same_run():
 
     python = frogsim.simulate(sc, controller=law)
     assert len(calls) == 1001                           # every sample, 0 to 1 s
-    np.testing.assert_array_equal(compiled.u, python.u)
-    np.testing.assert_array_equal(compiled.y, python.y)
+    np.testing.assert_array_equal(compiled.u, python.u)         # the same valve sequence, exactly
     assert compiled.switchings == python.switchings
+    # the compiled driver reads its samples from the steps' continuous extension, the Python one
+    # stops on every sample: two integrations of the same ODE at rtol 1e-7 with other steps, so
+    # the states agree to the global error (a few hundred rtol), not bit for bit
+    np.testing.assert_allclose(compiled.y, python.y, rtol=2e-5, atol=0.0)
     assert compiled.switchings["hip"][0] > 3
 
 

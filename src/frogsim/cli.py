@@ -4,7 +4,7 @@
     frogsim reproduce [STUDY ...] --out DIR reproduce the paper's studies (the pneumatic ones by
                                             default; name leg-in-air for the robot's in-air study)
     frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
-    frogsim control [STUDY ...] --out DIR   the closed-loop control studies (control-pressure)
+    frogsim control [STUDY ...] --out DIR   the closed-loop control studies (control-pressure, control-joint)
     frogsim simulate SCENARIO --out DIR     run one scenario (TOML path or shipped name)
     frogsim swim SCENARIO [--cycles N] --out DIR  run the robot in MuJoCo (swim, leg-in-air): CSV,
                                             figure, summary.json, MJCF, animation
@@ -436,7 +436,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--overwrite", action="store_true",
                    help="replace studies this folder already holds (or another command's files)")
     s.set_defaults(func=cmd_design)
-    s = sub.add_parser("control", help="run the closed-loop control studies (control-pressure): a PNG and a "
+    s = sub.add_parser("control", help="run the closed-loop control studies (control-pressure, control-joint): a PNG and a "
                                        "CSV per study, DIR/summary.json with written conclusions")
     s.add_argument("studies", nargs="*", metavar="STUDY", help="studies to run (default: all control studies)")
     s.add_argument("--out", default="control", metavar="DIR", help="output folder (default: control)")

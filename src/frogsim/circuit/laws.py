@@ -25,6 +25,7 @@ KIND_PUMP_BAND = 1.0
 KIND_BANG_BANG = 2.0
 KIND_PWM = 3.0
 KIND_SLIDING = 4.0
+KIND_JOINT = 6.0         # one muscle of an antagonistic pair under a joint-angle cascade (5: external)
 
 # --- setpoint generators -----------------------------------------------------------------------------
 SP_CONSTANT = 0.0
@@ -73,7 +74,19 @@ L_SP_B = 36      # sine: amplitude [Pa]
 L_SP_C = 37      # sine: frequency [Hz]
 L_SP_D = 38      # sine: start time [s]
 L_SP_N = 39      # steps / table: number of knots
-L_SIZE = 40
+L_JOINT1 = 40    # joint-angle: 1 + index of the joint whose angle the law reads (0: none)
+L_SIGN = 41      # joint-angle: +1 the extensor (target p0 + dp/2), -1 the flexor (p0 - dp/2)
+L_P0 = 42        # joint-angle: co-contraction level p0 [Pa abs]
+L_KP = 43        # joint-angle: proportional gain [Pa/rad]
+L_KD = 44        # joint-angle: derivative gain [Pa s/rad]
+L_KI = 45        # joint-angle: integral gain [Pa/(rad s)]
+L_STREAM = 46    # first noise stream of the pressure sensor (0: stream 1)
+L_A_NOISE = 47   # angle sensor: noise standard deviation [rad]
+L_A_SEED = 48    # angle sensor: noise seed
+L_A_BITS = 49    # angle sensor: encoder bits (0: no quantisation)
+L_A_FS = 50      # angle sensor: full scale [rad] (the range is 0..full scale)
+L_A_LAG = 51     # angle sensor: first-order lag time constant [s] (0: none)
+L_SIZE = 52
 L_SP0 = L_SIZE   # knots (t_j, p_j) from here on
 
 
@@ -107,7 +120,9 @@ def setpoint_columns(sp, patm: float, knots) -> tuple[dict, list]:
 
 
 def controller_rows(sc, g, mp_valves: dict, names: list, volumes: dict, knots: dict) -> list:
-    """One row per closed-loop controller of the scenario (``program`` controllers have none).
+    """One row per closed-loop controller of the scenario (``program`` controllers have none);
+    a joint-angle controller has two, its extensor's then its flexor's (each drives one muscle's
+    valves from the same angle law, :func:`frogsim.control.sampled.joint_angle_mode`).
 
     ``mp_valves``: the valves' ISO 6358 constants; ``volumes``: each muscle's nominal volume [m^3]
     (the controller's model of it); ``knots``: setpoint table knots by controller name.
@@ -118,7 +133,8 @@ def controller_rows(sc, g, mp_valves: dict, names: list, volumes: dict, knots: d
         if c.kind == "program":
             continue
         row = np.zeros(L_SIZE)
-        row[L_KIND] = {"bang-bang": KIND_BANG_BANG, "pwm": KIND_PWM, "sliding-mode": KIND_SLIDING}[c.kind]
+        row[L_KIND] = {"bang-bang": KIND_BANG_BANG, "pwm": KIND_PWM, "sliding-mode": KIND_SLIDING,
+                       "joint-angle": KIND_JOINT}[c.kind]
         row[L_MUSCLE] = names.index(c.muscle)
         row[L_DEAD_C] = sc.valves.charge.dead_time
         row[L_DEAD_D] = sc.valves.discharge.dead_time
@@ -142,10 +158,28 @@ def controller_rows(sc, g, mp_valves: dict, names: list, volumes: dict, knots: d
         row[L_BRANCH] = mp_valves["branch_limit"]
         pts = []
         if c.setpoint is not None:
-            cols, pts = setpoint_columns(c.setpoint, patm, knots.get(cname, ()))
+            # a joint-angle setpoint is an angle [rad]: no atmosphere added
+            cols, pts = setpoint_columns(c.setpoint, 0.0 if c.kind == "joint-angle" else patm,
+                                         knots.get(cname, ()))
             for col, val in cols.items():
                 row[col] = val
-        rows.append(np.concatenate([row, np.array([v for pt in pts for v in pt], float)]))
+        knot_cols = np.array([v for pt in pts for v in pt], float)
+        if c.kind != "joint-angle":
+            rows.append(np.concatenate([row, knot_cols]))
+            continue
+        row[L_JOINT1] = 1 + list(sc.joints).index(c.joint)
+        row[L_P0] = patm + c.co_contraction
+        row[L_KP], row[L_KD], row[L_KI] = c.proportional_gain, c.derivative_gain, c.integral_gain
+        a = c.angle_sensor
+        row[L_A_NOISE], row[L_A_SEED], row[L_A_BITS], row[L_A_FS], row[L_A_LAG] = (
+            a.noise, a.seed, a.bits, a.full_scale, a.lag)
+        flex = row.copy()
+        row[L_SIGN], row[L_STREAM] = 1.0, 1.0
+        flex[L_SIGN], flex[L_STREAM] = -1.0, 3.0        # the flexor's pressure sensor: its own noise
+        flex[L_MUSCLE] = names.index(c.antagonist)
+        flex[L_GAIN] = g[G_K] * g[G_R] * g[G_TAMB] / volumes[c.antagonist]
+        rows.append(np.concatenate([row, knot_cols]))
+        rows.append(np.concatenate([flex, knot_cols]))
     return rows
 
 

@@ -172,8 +172,9 @@ def _schedule_stage(sc, laws, motion):
         sched_u = sched_u.copy()
         for c in sc.controllers.values():
             if c.kind != "program":
-                i = names.index(c.muscle)
-                sched_u[:, 2 * i:2 * i + 2] = np.nan
+                for m in (c.muscle, c.antagonist) if c.kind == "joint-angle" else (c.muscle,):
+                    i = names.index(m)
+                    sched_u[:, 2 * i:2 * i + 2] = np.nan
     return sched_u
 
 
@@ -192,7 +193,7 @@ PARTS = (
     ("motion", ("muscles", "muscle_types", "controller", "valves", "base_dir"), (), _motion_stage),
     ("volumes", (), ("motion",), _volumes_stage),
     ("g", ("air", "source", "exhaust", "pump", "supply", "valves"), (), _globals_stage),
-    ("laws", ("valves", "controllers", "base_dir", "controller"), ("g", "volumes"), _laws_stage),
+    ("laws", ("valves", "controllers", "base_dir", "controller", "joints"), ("g", "volumes"), _laws_stage),
     ("sched_u", ("controllers",), ("laws", "motion"), _schedule_stage),
     ("state", ("air", "source", "exhaust", "muscles", "solver"), ("volumes",), _state_stage),
     ("out_t", ("duration", "output_interval"), (), _output_stage),

@@ -43,7 +43,9 @@ from frogsim.circuit.laws import (  # noqa: F401  (the table's layout, re-export
     L_CRL, L_DB, L_DC, L_DEAD_C, L_DEAD_D, L_DM, L_DRL, L_DUTY, L_FS, L_GAIN, L_HIGH, L_HORIZON, L_INPUT,
     L_KIND, L_LAG, L_LOW, L_MINPULSE_N, L_MUSCLE, L_NOISE, L_PATM, L_PBAND, L_PENALTY, L_PERIOD_N,
     L_REST, L_RHOREF, L_SEED, L_SIZE, L_SP0, L_SP_A, L_SP_B, L_SP_C, L_SP_D, L_SP_KIND, L_SP_N,
-    L_TAMB, L_TREF, SP_CONSTANT, SP_SINE, SP_STEPS, SP_TABLE)  # noqa: F401
+    L_TAMB, L_TREF, SP_CONSTANT, SP_SINE, SP_STEPS, SP_TABLE,
+    KIND_JOINT, L_A_BITS, L_A_FS, L_A_LAG, L_A_NOISE, L_A_SEED, L_JOINT1, L_KD, L_KI, L_KP, L_P0,
+    L_SIGN, L_STREAM)  # noqa: F401
 from frogsim.circuit.laws import laws_table
 from frogsim.circuit.layout import Y_MUSCLE0, Y_PE, Y_PS
 from frogsim.physics.flow import iso6358_mass_flow
@@ -78,8 +80,19 @@ B_QC_N = 10
 B_QD_HEAD = 11   # discharge queue
 B_QD_N = 12
 B_SENSED = 13    # the pressure the law read at the last sample [Pa abs]
-B_SP = 14        # the setpoint at the last sample [Pa abs]
-B_Q0 = 15        # queues: charge (due, state) x Q, then discharge (due, state) x Q
+B_SP = 14        # the setpoint at the last sample [Pa abs; joint-angle: rad]
+# joint-angle laws (frogsim.circuit.laws.KIND_JOINT) and external rows with a joint
+B_ANGLE = 15     # observation: the joint angle [rad] (written by the coupled engine, observe_joints)
+B_OMEGA = 16     # observation: the joint's angular velocity [rad/s]
+B_A_FILT = 17    # angle sensor lag: filtered angle [rad], filtered velocity [rad/s]
+B_W_FILT = 18
+B_A_FILT_ON = 19
+B_A_SENSED = 20  # the angle and velocity the law read at the last sample
+B_W_SENSED = 21
+B_INT = 22       # integral of the angle error [rad s]
+B_TARGET = 23    # this muscle's pressure target at the last sample [Pa abs]
+B_CLIPS = 24     # samples at which the pair's targets p0 +- dp/2 were clipped to [atmosphere, source]
+B_Q0 = 25        # queues: charge (due, state) x Q, then discharge (due, state) x Q
 TOL = 1e-9       # [s] a due time this close to a sample is that sample
 
 
@@ -156,11 +169,31 @@ def _uniform(seed, k, stream):
 
 
 @jit
-def sensor_noise(seed, k):
-    """Standard normal noise of sample k (Box-Muller on two counter-based uniforms)."""
-    u1 = _uniform(seed, k, 1)
-    u2 = _uniform(seed, k, 2)
+def normal_noise(seed, k, stream):
+    """Standard normal noise of sample k (Box-Muller on the counter-based uniforms of streams
+    ``stream`` and ``stream + 1``)."""
+    u1 = _uniform(seed, k, stream)
+    u2 = _uniform(seed, k, stream + 1)
     return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+@jit
+def sensor_noise(seed, k):
+    """Standard normal noise of sample k (streams 1 and 2: the pressure sensor's)."""
+    return normal_noise(seed, k, 1)
+
+
+@jit
+def sensor_chain(x, k, noise, seed, stream, bits, fs):
+    """The sensor model's noise and ADC on a (lagged) reading x at sample k: noise of standard
+    deviation ``noise`` (counter-based, streams ``stream`` and ``stream + 1``), then ``bits``
+    over 0..fs (rounded to fs / (2^bits - 1), clipped to the range)."""
+    if noise > 0.0:
+        x += noise * normal_noise(int(seed), k, stream)
+    if bits > 0.0:
+        lsb = fs / (2.0 ** bits - 1.0)
+        x = min(max(math.floor(x / lsb + 0.5) * lsb, 0.0), fs)
+    return x
 
 
 @jit
@@ -178,14 +211,35 @@ def sense(laws, c, p, cs, b, k, dt):
         else:
             cs[b + B_FILT] += (1.0 - math.exp(-dt / lag)) * (x - cs[b + B_FILT])
         x = cs[b + B_FILT]
-    if laws[c, L_NOISE] > 0.0:
-        x += laws[c, L_NOISE] * sensor_noise(int(laws[c, L_SEED]), k)
-    bits = laws[c, L_BITS]
-    if bits > 0.0:
-        fs = laws[c, L_FS]
-        lsb = fs / (2.0 ** bits - 1.0)
-        x = min(max(math.floor(x / lsb + 0.5) * lsb, 0.0), fs)
+    stream = max(1, int(laws[c, L_STREAM]))
+    x = sensor_chain(x, k, laws[c, L_NOISE], laws[c, L_SEED], stream, laws[c, L_BITS], laws[c, L_FS])
     return x + patm
+
+
+@jit
+def sense_joint(laws, c, cs, b, k, dt):
+    """The joint angle [rad] and velocity [rad/s] law c reads at sample k from the observation
+    in cs (:func:`observe_joints`): both through the angle sensor's first-order lag, then the
+    angle through its noise (streams 5, 6) and encoder (bits over 0..full scale). Kept in
+    cs[b + B_A_SENSED], cs[b + B_W_SENSED]."""
+    th = cs[b + B_ANGLE]
+    w = cs[b + B_OMEGA]
+    lag = laws[c, L_A_LAG]
+    if lag > 0.0:
+        if cs[b + B_A_FILT_ON] < 0.5:
+            cs[b + B_A_FILT] = th
+            cs[b + B_W_FILT] = w
+            cs[b + B_A_FILT_ON] = 1.0
+        else:
+            a = 1.0 - math.exp(-dt / lag)
+            cs[b + B_A_FILT] += a * (th - cs[b + B_A_FILT])
+            cs[b + B_W_FILT] += a * (w - cs[b + B_W_FILT])
+        th = cs[b + B_A_FILT]
+        w = cs[b + B_W_FILT]
+    th = sensor_chain(th, k, laws[c, L_A_NOISE], laws[c, L_A_SEED], 5, laws[c, L_A_BITS], laws[c, L_A_FS])
+    cs[b + B_A_SENSED] = th
+    cs[b + B_W_SENSED] = w
+    return th, w
 
 
 # --- the laws ---------------------------------------------------------------------------------------------
@@ -283,6 +337,55 @@ def sliding_mode(laws, c, cs, b, y, p, sp, dsp):
     return best
 
 
+@jit
+def joint_angle_mode(laws, c, cs, b, y, p, ts, th, w):
+    """One muscle of an antagonistic pair under the joint-angle cascade (docs/control.md).
+
+    Outer loop, PID on the joint angle read th [rad] (velocity w [rad/s]) against the angle
+    setpoint sp(t): dp = Kp e + Kd (dsp/dt - w) + Ki integral(e dt), e = sp - th. The pair's
+    pressure targets are p0 + dp/2 (extensor, L_SIGN = +1: its pressure raises the angle) and
+    p0 - dp/2 (flexor), each clipped to [atmosphere, source pressure]; a sample at which either is
+    clipped counts in cs[b + B_CLIPS] and adds nothing to the integral (anti-windup; both rows
+    decide the same, as they see the same inputs). Inner loop: this muscle's sensed pressure p
+    follows its target through :func:`bang_bang` with the row's band."""
+    sp, dsp = setpoint(laws, c, ts)
+    cs[b + B_SP] = sp
+    e = sp - th
+    dt = cs[CS_DT]
+    integral = cs[b + B_INT] + e * dt
+    dp = laws[c, L_KP] * e + laws[c, L_KD] * (dsp - w) + laws[c, L_KI] * integral
+    p0 = laws[c, L_P0]
+    lo = laws[c, L_PATM]
+    hi = y[Y_PS]
+    up = p0 + 0.5 * dp
+    down = p0 - 0.5 * dp
+    clipped = up > hi or up < lo or down > hi or down < lo
+    if clipped:
+        cs[b + B_CLIPS] += 1.0
+    else:
+        cs[b + B_INT] = integral
+    target = up if laws[c, L_SIGN] > 0.0 else down
+    target = min(max(target, lo), hi)
+    cs[b + B_TARGET] = target
+    return bang_bang(p, target, laws[c, L_BAND])
+
+
+@jit
+def observe_joints(laws, cs, qpos, qvel, leg_qpos, leg_dof):
+    """Write each joint-angle row's observation into its memory: the angle qpos[leg_qpos[j]] and
+    velocity qvel[leg_dof[j]] of its joint j (the coupled engine calls this before advancing the
+    pneumatics over a step, so a sample in that step reads the state at the step's start)."""
+    if laws.ndim == 1:
+        return
+    for c in range(laws.shape[0]):
+        j = int(laws[c, L_JOINT1]) - 1
+        if j < 0 or not _is_valve_law(laws[c, L_KIND]):
+            continue
+        b = _block(cs, c)
+        cs[b + B_ANGLE] = qpos[leg_qpos[j]]
+        cs[b + B_OMEGA] = qvel[leg_dof[j]]
+
+
 # --- commands, their dead time and the driver's protocol ------------------------------------------------
 @jit
 def _block(cs, c):
@@ -330,12 +433,15 @@ def command_valves(laws, c, cs, mode, ts):
 
 @jit
 def _is_valve_law(kind):
-    return kind == KIND_BANG_BANG or kind == KIND_PWM or kind == KIND_SLIDING or kind == KIND_EXTERNAL
+    return (kind == KIND_BANG_BANG or kind == KIND_PWM or kind == KIND_SLIDING or kind == KIND_EXTERNAL
+            or kind == KIND_JOINT)
 
 
 @jit
 def apply_due(laws, t, u, cs):
     """Write into u every queued valve command due at or before t; True if a valve changed."""
+    if laws.ndim == 1:                     # open loop: no valve laws, no command queue
+        return False
     changed = False
     Q = int(cs[CS_Q])
     for c in range(laws.shape[0]):
@@ -382,6 +488,43 @@ def next_control_time(laws, cs, ctrl_dt):
 
 
 @jit
+def next_sample_time(laws, cs):
+    """The time [s] of the controllers' next sample (inf when the run has no sampled rule)."""
+    if laws.ndim == 1:
+        return (cs[CS_SAMPLE] + 1.0) * cs[CS_DT] if laws.size else math.inf
+    if laws.shape[0] == 0:
+        return math.inf
+    return (cs[CS_SAMPLE] + 1.0) * cs[CS_DT]
+
+
+@jit
+def next_due_time(laws, cs):
+    """The earliest due time [s] of the valve commands waiting in the queues (inf if none): the
+    times at which a valve's state will change, known since the sample that decided it. A due
+    time within TOL of a sample time k dt (a dead time that is a whole number of periods, summed
+    in floating point) is that sample time when the sample is earlier: the command acts there, as
+    :func:`apply_due` (tolerance TOL) applies it at that sample."""
+    t = math.inf
+    if laws.ndim == 1:
+        return t
+    Q = int(cs[CS_Q])
+    for c in range(laws.shape[0]):
+        if not _is_valve_law(laws[c, L_KIND]):
+            continue
+        b = _block(cs, c)
+        if cs[b + B_QC_N] > 0:
+            t = min(t, cs[b + B_Q0 + 2 * int(cs[b + B_QC_HEAD])])
+        if cs[b + B_QD_N] > 0:
+            t = min(t, cs[b + B_Q0 + 2 * Q + 2 * int(cs[b + B_QD_HEAD])])
+    if t < math.inf:
+        dt = cs[CS_DT]
+        ts = math.floor(t / dt + 0.5) * dt
+        if ts < t and t - ts <= TOL:
+            t = ts
+    return t
+
+
+@jit
 def sample_controllers(laws, t, y, u, cs):
     """At a stop t: write the valve commands that have come due into u; if t is the next sample,
     take it: evaluate every law on the state y and write or queue its commands (the pump's switch
@@ -421,7 +564,13 @@ def sample_controllers(laws, t, y, u, cs):
         p = sense(laws, c, y[Y_MUSCLE0 + 2 * i + 1], cs, b, k, dt)
         cs[b + B_SENSED] = p
         if kind == KIND_EXTERNAL:
+            if laws[c, L_JOINT1] > 0.0:
+                sense_joint(laws, c, cs, b, k, dt)
             continue                # commanded from Python (command_valves)
+        if kind == KIND_JOINT:
+            th, w = sense_joint(laws, c, cs, b, k, dt)
+            command_valves(laws, c, cs, joint_angle_mode(laws, c, cs, b, y, p, ts, th, w), ts)
+            continue
         sp, dsp = setpoint(laws, c, ts)
         cs[b + B_SP] = sp
         if kind == KIND_BANG_BANG:

@@ -269,7 +269,8 @@ def run_models(models, threads: int | None = None) -> list[Result]:
             raise SimulationError(_failure(b, m.scenario.name, t_r, status))
         results.append(Result(t=m.out_t, y=oy, u=ou, model=m,
                               stats={"steps": int(stats[0]), "rejected": int(stats[1]),
-                                     "rhs_evaluations": int(stats[2])},
+                                     "rhs_evaluations": int(stats[2]),
+                                     "stiff_steps": int(stats[3])},
                               switchings=valve_switchings(m, cs)))
     return results
 

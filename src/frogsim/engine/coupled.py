@@ -94,7 +94,10 @@ def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joint
     st = np.zeros(T_SIZE)
     st[T_FIRST] = 1.0
     st[T_PEAK] = -np.inf
-    laws = sampled_laws(g)
+    # the pump's band and the scenario's closed-loop controllers (joint-angle laws read the joint
+    # angles that step_kernel writes into cs before each step; the sample at t = 0 reads the
+    # initial observation, zero: the robot starts at rest at its flexed stops)
+    laws = pm.laws if pm is not None else sampled_laws(g)
     ds, cs = start(0.0, 1e-4, y, u, (sched_t, sched_u, laws, sc[S_CTRL_DT]))
     dt = sc[S_DT]
     n_steps = int(round(duration / dt))
@@ -107,7 +110,7 @@ def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joint
         pal_target=pal_target, frac=frac, frac_new=frac.copy(), mu=mu, mp=mp, g=g, y=y, u=u,
         ds=ds, cs=cs, mot_t=np.zeros((n, 4)), mot_L=np.zeros((n, 4)), mot_d=np.zeros((n, 4)),
         mot_n=np.full(n, 4, np.int64), sched_t=sched_t, sched_u=sched_u, laws=laws, atol=atol,
-        stats=np.zeros(3, np.int64), vprev=np.zeros((el.shape[0], 3)), tension=np.zeros(n),
+        stats=np.zeros(4, np.int64), vprev=np.zeros((el.shape[0], 3)), tension=np.zeros(n),
         rec=np.full((n_steps // rec_every + 2, cols["size"]), np.nan), leg_qpos=leg_qpos,
         leg_dof=leg_dof)
     apply_added_mass(el, arrays["pa"], frac, False, m.body_mass, m.body_ipos, m.body_inertia,
@@ -330,6 +333,9 @@ class CoupledStepper:
         if int(steps_per_action) < 1:
             raise ValueError(f"steps_per_action = {steps_per_action}: must be >= 1")
         mujoco = import_mujoco()
+        if any(c.kind != "program" for c in rs.pneumatic.controllers.values()):
+            raise ValueError("CoupledStepper sets every valve itself: remove the scenario's closed-loop "
+                             "[controllers] (or run it with frogsim.swim)")
         cm = build_coupled(rs)
         a = cm.arrays
         n = len(cm.muscle_names)

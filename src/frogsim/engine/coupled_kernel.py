@@ -44,7 +44,7 @@ import numpy as np
 
 from frogsim._jit import jit
 from frogsim.circuit import layout as CL
-from frogsim.control.sampled import CS_PUMP
+from frogsim.control.sampled import CS_PUMP, observe_joints
 from frogsim.engine.coupled_layout import (
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
     R_EXERGY, R_FIXED, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME, R_V,
@@ -358,6 +358,7 @@ def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, 
         q0 += y[CL.Y_MUSCLE0 + 2 * n + i]
     ps0 = y[CL.Y_PS]
     no_output = (np.empty(0), np.empty((0, y.size)), np.empty((0, u.size + 1)))
+    observe_joints(laws, cs, qpos, qvel, leg_qpos, leg_dof)     # what joint-angle laws read
     status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n),
                      (sched_t, sched_u, laws, sc[S_CTRL_DT]), (sc[S_RTOL], atol, sc[S_MAXSTEP]),
                      no_output, stats)

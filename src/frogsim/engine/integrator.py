@@ -23,7 +23,8 @@ from frogsim._jit import jit
 
 from frogsim.circuit.layout import Y_MUSCLE0
 from frogsim.circuit.rhs import rhs
-from frogsim.control.sampled import CS_PUMP, next_control_time, sample_controllers, start_controllers
+from frogsim.control.sampled import (CS_PUMP, apply_due, next_due_time, next_sample_time, sample_controllers,
+                                    start_controllers)
 
 STATUS_OK = 0
 STATUS_STEP_UNDERFLOW = 1
@@ -43,7 +44,12 @@ D_ERR = 2        # PI step control: error norm of the last accepted step
 D_SI = 3         # index of the next valve-schedule entry
 D_OUT = 4        # next output row
 D_PAUSE = 5      # > 0: pause once this many steps are accepted in all (stats[0]); 0: never
-D_SIZE = 6
+D_STIFF = 6      # 1: steps by the Rosenbrock method (the circuit found stiff), 0: Dormand-Prince
+D_NSTIFF = 7     # stiffness test: accepted Dormand-Prince steps at the stability limit so far
+D_NONSTIFF = 8   # ... and steps below it since the last one at it
+D_HSWITCH = 9    # the Dormand-Prince step [s] when the method switched to Rosenbrock
+D_NBACK = 10     # Rosenbrock steps in a row proposing less than D_HSWITCH
+D_SIZE = 11
 EPS = 1e-12      # [s] stop times closer than this are one stop (they come from different sums)
 
 # Dormand-Prince 5(4) tableau
@@ -62,6 +68,185 @@ D1, D3, D4, D5, D6, D7 = (-12715105075.0 / 11282082432.0, 87487479700.0 / 327004
 SAFETY = 0.9
 BETA = 0.04                  # PI step control (Hairer's DOPRI5 default)
 EXPO = 0.2 - 0.75 * BETA
+# stiffness switch (Hairer's DOPRI5 test): h |lambda| estimated from the last two stages
+STIFF_HLAMBDA = 3.25         # the Dormand-Prince stability boundary on the negative real axis
+STIFF_AFTER = 6              # steps at the boundary before the switch to Rosenbrock
+NONSTIFF_RESET = 6           # steps below it that clear the count
+BACK_AFTER = 3               # Rosenbrock steps below the switch step before switching back
+# Shampine and Reichelt's modified Rosenbrock triple (ode23s; SIAM J. Sci. Comput. 18, 1997)
+RB_D = 1.0 / (2.0 + math.sqrt(2.0))
+RB_E32 = 6.0 + math.sqrt(2.0)
+SQRT_EPS = 1.4901161193847656e-08
+
+
+@jit
+def _lu(a, piv):
+    """In-place LU factorisation with partial pivoting of the small dense matrix a (n x n);
+    returns False if a pivot is zero (a is singular)."""
+    n = a.shape[0]
+    for k in range(n):
+        p = k
+        big = abs(a[k, k])
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > big:
+                big = abs(a[i, k])
+                p = i
+        piv[k] = p
+        if big == 0.0:
+            return False
+        if p != k:
+            for j in range(n):
+                tmp = a[k, j]
+                a[k, j] = a[p, j]
+                a[p, j] = tmp
+        inv = 1.0 / a[k, k]
+        for i in range(k + 1, n):
+            a[i, k] *= inv
+            m = a[i, k]
+            if m != 0.0:
+                for j in range(k + 1, n):
+                    a[i, j] -= m * a[k, j]
+    return True
+
+
+@jit
+def _lu_solve(a, piv, b):
+    """Solve a x = b in place (b becomes x) with the factors of :func:`_lu`."""
+    n = a.shape[0]
+    for k in range(n):
+        p = piv[k]
+        if p != k:
+            tmp = b[k]
+            b[k] = b[p]
+            b[p] = tmp
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= a[i, j] * b[j]
+        b[i] = acc
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= a[i, j] * b[j]
+        b[i] = acc / a[i, i]
+
+
+@jit
+def _rosenbrock_step(t, h, t_new, y, f0, u, pump_on, model, atol, rtol, nphys, wk, yn, fn,
+                     rc1, rc2, rc3, rc4, aux, work, stats):
+    """One step of the modified Rosenbrock triple of Shampine and Reichelt (1997, Sec. 3; MATLAB's
+    ode23s) from (t, y), dy/dt = f0: L-stable, order 2 with a 3rd-order error estimate, for the
+    stiff stretches of a run (a muscle resting against the source or the exhaust through an open
+    valve, time constant ~2 ms, where an explicit method is held to its stability limit):
+
+        W = I - h d J,  d = 1/(2 + sqrt 2),  e32 = 6 + sqrt 2,  T = df/dt
+        k1 = W^-1 (f0 + h d T)
+        f1 = f(t + h/2, y + h/2 k1);   k2 = W^-1 (f1 - k1) + k1
+        y1 = y + h k2;   f2 = f(t + h, y1)
+        k3 = W^-1 (f2 - e32 (k2 - f1) - 2 (k1 - f0) + h d T);   error = h/6 (k1 - 2 k2 + k3)
+
+    J = df/dy by forward differences over the first ``nphys`` states (the masses and pressures:
+    the right-hand side does not read the cumulative masses after them), T by a forward difference
+    in t. Dense output (Sec. 3 of the paper): y(t + s h) = y + h [s(1-s) k1 + s(s-2d) k2] / (1-2d),
+    written in the Dormand-Prince interpolant's form (rc1 = h k2, rc2 = h (k1 - k2)/(1-2d),
+    rc3 = rc4 = 0). Writes y1 into yn and f(t_new, y1) into fn; returns the error norm (inf if W
+    is singular). ``wk`` = (J, piv, ft, k1, k2, k3, yt, f1, tder)."""
+    J, piv, ft, k1, k2, k3, yt, f1, tder = wk
+    g, mp, mot_t, mot_L, mot_d, mot_n = model
+    ny = y.size
+    for j in range(ny):
+        yt[j] = y[j]
+    for c in range(ny):
+        if c < nphys:
+            dc = SQRT_EPS * max(abs(y[c]), atol[c] / rtol)
+            yt[c] = y[c] + dc
+            rhs(t, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, ft, aux, work)
+            yt[c] = y[c]
+            inv = 1.0 / dc
+            for r in range(ny):
+                J[r, c] = -h * RB_D * (ft[r] - f0[r]) * inv
+        else:
+            for r in range(ny):
+                J[r, c] = 0.0
+        J[c, c] += 1.0
+    dt = SQRT_EPS * max(abs(t), h)
+    rhs(t + dt, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, ft, aux, work)
+    for j in range(ny):
+        tder[j] = h * RB_D * (ft[j] - f0[j]) / dt
+    stats[2] += nphys + 3
+    if not _lu(J, piv):                   # J now holds W = I - h d J, factorised
+        return math.inf
+    for j in range(ny):
+        k1[j] = f0[j] + tder[j]
+    _lu_solve(J, piv, k1)
+    for j in range(ny):
+        yt[j] = y[j] + 0.5 * h * k1[j]
+    rhs(t + 0.5 * h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f1, aux, work)
+    for j in range(ny):
+        k2[j] = f1[j] - k1[j]
+    _lu_solve(J, piv, k2)
+    for j in range(ny):
+        k2[j] += k1[j]
+        yn[j] = y[j] + h * k2[j]
+    rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, fn, aux, work)
+    for j in range(ny):
+        k3[j] = fn[j] - RB_E32 * (k2[j] - f1[j]) - 2.0 * (k1[j] - f0[j]) + tder[j]
+    _lu_solve(J, piv, k3)
+    err = 0.0
+    a = 1.0 / (1.0 - 2.0 * RB_D)
+    for j in range(ny):
+        e = h / 6.0 * (k1[j] - 2.0 * k2[j] + k3[j])
+        sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
+        err += (e / sc) ** 2
+        rc1[j] = yn[j] - y[j]
+        rc2[j] = h * a * (k1[j] - k2[j])
+        rc3[j] = 0.0
+        rc4[j] = 0.0
+    return math.sqrt(err / ny)
+
+
+@jit
+def _dense(y, rc1, rc2, rc3, rc4, th, out):
+    """The continuous extension at th in [0, 1] of the step: out = y(t + th h)."""
+    th1 = 1.0 - th
+    for j in range(y.size):
+        out[j] = y[j] + th * (rc1[j] + th1 * (rc2[j] + th * (rc3[j] + th1 * rc4[j])))
+
+
+@jit
+def _stiffness_test(ds, h, y, yn, y6, k6, k7, atol, rtol):
+    """Hairer's stiffness test for DOPRI5 (Hairer and Wanner, Solving ODEs II, Sec. IV.2), on an
+    accepted step: h |lambda| ~ h ||k7 - k6|| / ||yn - y6|| (the last two stages are at the same
+    time, so their difference quotient estimates the dominant eigenvalue), in the error norm's
+    weights. STIFF_AFTER steps at the stability boundary (STIFF_HLAMBDA) without NONSTIFF_RESET
+    steps below it in between switch the run to the Rosenbrock method."""
+    num = 0.0
+    den = 0.0
+    for j in range(y.size):
+        sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
+        num += ((k7[j] - k6[j]) / sc) ** 2
+        den += ((yn[j] - y6[j]) / sc) ** 2
+    if den > 0.0 and h * math.sqrt(num / den) > STIFF_HLAMBDA:
+        ds[D_NSTIFF] += 1.0
+        ds[D_NONSTIFF] = 0.0
+        if ds[D_NSTIFF] >= STIFF_AFTER:
+            ds[D_STIFF] = 1.0
+            ds[D_HSWITCH] = h
+            ds[D_NBACK] = 0.0
+    else:
+        ds[D_NONSTIFF] += 1.0
+        if ds[D_NONSTIFF] >= NONSTIFF_RESET:
+            ds[D_NSTIFF] = 0.0
+
+
+@jit
+def _explicit_again(ds):
+    """Back to Dormand-Prince with a fresh stiffness count (after a command change: a transient
+    follows; or when the Rosenbrock steps have become accuracy-limited)."""
+    ds[D_STIFF] = 0.0
+    ds[D_NSTIFF] = 0.0
+    ds[D_NONSTIFF] = 0.0
+    ds[D_NBACK] = 0.0
 
 
 @jit
@@ -91,14 +276,24 @@ def start(t0, h0, y, u, commands):
 def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     """Advance the circuit's state y from ds[D_T] to t_end: the one stepping loop of frogsim.
 
-    The span is cut at every valve-schedule time and at every time the controllers ask for
-    (:func:`frogsim.control.sampled.next_control_time`: the controller samples when a sampled rule
-    is active), times closer than EPS to each other or to t_end counting as one. Each piece is
-    integrated by adaptive Dormand-Prince steps with the valve states u and the pump's switch
-    held, the last step shortened to end on the piece's end exactly; the step size carries over
-    from piece to piece. At a piece's end the schedule entries due are written into u, the
-    controllers are sampled (:func:`frogsim.control.sampled.sample_controllers`), and if a command
-    changed the right-hand side is evaluated again (the FSAL derivative no longer holds).
+    The span is cut at every valve-schedule time and at every due time of a queued valve command
+    (:func:`frogsim.control.sampled.next_due_time`), times closer than EPS to each other or to
+    t_end counting as one. Each piece is integrated by adaptive Dormand-Prince steps with the
+    valve states u and the pump's switch held, the last step shortened to end on the piece's end
+    exactly; the step size carries over from piece to piece. At a piece's end the schedule
+    entries and the queued commands due are written into u, and if a command changed the
+    right-hand side is evaluated again (the FSAL derivative no longer holds).
+
+    Controller samples are not stops. After each accepted step the samples t_k inside it
+    (:func:`frogsim.control.sampled.next_sample_time`) are taken in order from the step's
+    continuous extension (:func:`frogsim.control.sampled.sample_controllers`). A sample whose
+    command acts at once (the pump's switch, a valve without dead time), or whose valve command
+    comes due before the step's end, ends the step there: the state at that time is the
+    continuous extension's (as an event-locating solver restarts from its interpolant) and the
+    rest of the step is dropped. Steps are therefore as long as accuracy allows while the
+    controllers hold their commands, and commands still change only at t_k (plus dead time).
+    The Python-controller driver (:func:`frogsim.engine.pneumatic.run_python_controller`) calls
+    this with t_end on every sample, so there each sample is a step's end.
 
     dy/dt is evaluated at entry: the caller may have changed the model since the last call (the
     coupled engine extends the muscles' length paths every step). Time reached, step size, PI
@@ -110,7 +305,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     paths; ``commands`` = (sched_t, sched_u, laws, ctrl_dt); ``solver`` = (rtol, atol, max_step);
     ``out`` = (out_t, out_y, out_u): the rows from ds[D_OUT] on whose times fall inside the span
     are filled by dense output (state, valve states and the pump's switch); ``stats``
-    accumulates [accepted steps, rejected steps, rhs evaluations].
+    accumulates [accepted steps, rejected steps, rhs evaluations, accepted Rosenbrock steps].
 
     With ds[D_PAUSE] > 0 the call returns STATUS_PAUSED once stats[0] has reached it, after an
     accepted step inside a piece or at a piece's end (after its commands); calling again goes on
@@ -142,6 +337,11 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     rc2 = np.empty(ny)
     rc3 = np.empty(ny)
     rc4 = np.empty(ny)
+    ys = np.empty(ny)
+    u_prev = np.empty(nu)
+    nphys = Y_MUSCLE0 + 2 * mp.shape[0]
+    wk = (np.empty((ny, ny)), np.empty(ny, np.int64), np.empty(ny), np.empty(ny), np.empty(ny),
+          np.empty(ny), np.empty(ny), np.empty(ny), np.empty(ny))
     aux = np.empty(2 * n + 1)
     work = np.empty(3 * n)
     t = ds[D_T]
@@ -153,16 +353,15 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
     stats[2] += 1
     while t < t_end - EPS:
-        # -- the piece's end: t_end, the next schedule entry or the controllers' next stop ------
+        # -- the piece's end: t_end, the next schedule entry or the next queued valve command ----
         t_seg = t_end
         si = int(ds[D_SI])
         if si < ns and sched_t[si] < t_end - EPS:
             t_seg = max(sched_t[si], t)
-        t_control = next_control_time(laws, cs, ctrl_dt)
-        at_control = t_control <= t_seg + EPS
-        if at_control:
-            t_seg = min(t_seg, t_control) if t_control < t_end - EPS else t_end
-        # -- Dormand-Prince steps from t to exactly t_seg, commands held ------------------------
+        t_due = next_due_time(laws, cs)
+        if t_due < t_seg - EPS:
+            t_seg = max(t_due, t)
+        # -- Dormand-Prince steps from t to exactly t_seg ---------------------------------------
         while t < t_seg:
             if h > max_step:
                 h = max_step
@@ -171,34 +370,39 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
             if t + h_try >= t_seg:
                 h_try = t_seg - t
                 last = True
-            for j in range(ny):
-                yt[j] = y[j] + h_try * A21 * f[j]
-            rhs(t + C2 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)
-            for j in range(ny):
-                yt[j] = y[j] + h_try * (A31 * f[j] + A32 * k2[j])
-            rhs(t + C3 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux, work)
-            for j in range(ny):
-                yt[j] = y[j] + h_try * (A41 * f[j] + A42 * k2[j] + A43 * k3[j])
-            rhs(t + C4 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux, work)
-            for j in range(ny):
-                yt[j] = y[j] + h_try * (A51 * f[j] + A52 * k2[j] + A53 * k3[j] + A54 * k4[j])
-            rhs(t + C5 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux, work)
-            for j in range(ny):
-                yt[j] = y[j] + h_try * (A61 * f[j] + A62 * k2[j] + A63 * k3[j] + A64 * k4[j]
-                                        + A65 * k5[j])
-            rhs(t + h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux, work)
-            for j in range(ny):
-                yn[j] = y[j] + h_try * (B1 * f[j] + B3 * k3[j] + B4 * k4[j] + B5 * k5[j] + B6 * k6[j])
             t_new = t_seg if last else t + h_try
-            rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
-            stats[2] += 6
-            err = 0.0
-            for j in range(ny):
-                e = h_try * (E1 * f[j] + E3 * k3[j] + E4 * k4[j] + E5 * k5[j] + E6 * k6[j]
-                             + E7 * k7[j])
-                sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
-                err += (e / sc) ** 2
-            err = math.sqrt(err / ny)
+            stiff = ds[D_STIFF] > 0.5
+            if stiff:
+                err = _rosenbrock_step(t, h_try, t_new, y, f, u, pump_on, model, atol, rtol, nphys, wk, yn,
+                                       k7, rc1, rc2, rc3, rc4, aux, work, stats)
+            else:
+                for j in range(ny):
+                    yt[j] = y[j] + h_try * A21 * f[j]
+                rhs(t + C2 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)
+                for j in range(ny):
+                    yt[j] = y[j] + h_try * (A31 * f[j] + A32 * k2[j])
+                rhs(t + C3 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux, work)
+                for j in range(ny):
+                    yt[j] = y[j] + h_try * (A41 * f[j] + A42 * k2[j] + A43 * k3[j])
+                rhs(t + C4 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux, work)
+                for j in range(ny):
+                    yt[j] = y[j] + h_try * (A51 * f[j] + A52 * k2[j] + A53 * k3[j] + A54 * k4[j])
+                rhs(t + C5 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux, work)
+                for j in range(ny):
+                    yt[j] = y[j] + h_try * (A61 * f[j] + A62 * k2[j] + A63 * k3[j] + A64 * k4[j]
+                                            + A65 * k5[j])
+                rhs(t + h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux, work)
+                for j in range(ny):
+                    yn[j] = y[j] + h_try * (B1 * f[j] + B3 * k3[j] + B4 * k4[j] + B5 * k5[j] + B6 * k6[j])
+                rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
+                stats[2] += 6
+                err = 0.0
+                for j in range(ny):
+                    e = h_try * (E1 * f[j] + E3 * k3[j] + E4 * k4[j] + E5 * k5[j] + E6 * k6[j]
+                                 + E7 * k7[j])
+                    sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
+                    err += (e / sc) ** 2
+                err = math.sqrt(err / ny)
             if not math.isfinite(err):
                 # a non-finite trial: shrink hard and retry; give up only at step underflow
                 stats[1] += 1
@@ -208,9 +412,9 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                     break
                 continue
             if err <= 1.0:
-                # dense output on (t, t_new]: the 4th-order continuous extension, its
-                # coefficients computed once per step that holds output points
-                if out_i < n_out and out_t[out_i] <= t_new:
+                if not stiff:
+                    # the 4th-order continuous extension on (t, t_new], for the controllers'
+                    # samples and the output rows inside the step (no extra rhs evaluations)
                     for j in range(ny):
                         ydiff = yn[j] - y[j]
                         bspl = h_try * f[j] - ydiff
@@ -219,39 +423,91 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                         rc3[j] = ydiff - h_try * k7[j] - bspl
                         rc4[j] = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j]
                                           + D6 * k6[j] + D7 * k7[j])
+                    _stiffness_test(ds, h_try, y, yn, yt, k6, k7, atol, rtol)
+                # -- the controllers' samples inside the step, read from the dense output. A
+                # command that acts at once (the pump's switch, a valve without dead time) or a
+                # valve command that comes due before t_new ends the step there: the state at
+                # that time is the continuous extension's, the rest of the step is dropped.
+                for j in range(nu):
+                    u_prev[j] = u[j]
+                pump_prev = pump_on
+                t_cut = t_new
+                refresh = False
+                t_s = next_sample_time(laws, cs)
+                while t_s <= t_cut + EPS:
+                    if t_s >= t_new - EPS:
+                        t_s = t_new
+                        for j in range(ny):
+                            ys[j] = yn[j]
+                    else:
+                        _dense(y, rc1, rc2, rc3, rc4, (t_s - t) / h_try, ys)
+                    if sample_controllers(laws, t_s, ys, u, cs):
+                        refresh = True
+                        if t_s < t_new - EPS:
+                            t_cut = t_s
+                            break
+                    t_due = next_due_time(laws, cs)
+                    if t_due < t_cut - EPS:
+                        t_cut = max(t_due, t)
+                    t_s = next_sample_time(laws, cs)
+                if t_cut < t_new - EPS:
+                    # the step ends at t_cut (a sample that changed a command, or a due time)
+                    _dense(y, rc1, rc2, rc3, rc4, (t_cut - t) / h_try, yn)
+                    t_new = t_cut
+                    apply_due(laws, t_new, u, cs)
+                    refresh = True
+                pump_on = cs[CS_PUMP]
                 while out_i < n_out and out_t[out_i] <= t_new:
                     th = (out_t[out_i] - t) / h_try
-                    th1 = 1.0 - th
-                    row = out_y[out_i]
-                    for j in range(ny):
-                        row[j] = y[j] + th * (rc1[j] + th1 * (rc2[j] + th * (rc3[j] + th1 * rc4[j])))
+                    _dense(y, rc1, rc2, rc3, rc4, th, out_y[out_i])
                     for j in range(nu):
-                        out_u[out_i, j] = u[j]
-                    out_u[out_i, nu] = pump_on
+                        out_u[out_i, j] = u_prev[j]
+                    out_u[out_i, nu] = pump_prev
                     out_i += 1
                 for j in range(ny):
                     y[j] = yn[j]
                     f[j] = k7[j]
                 t = t_new
                 stats[0] += 1
+                if stiff:
+                    stats[3] += 1
                 for j in range(Y_MUSCLE0 + 2 * n):
                     if not y[j] > 0.0:          # every air mass and pressure; NaN fails too
                         status = STATUS_NONPHYSICAL
                 if status != STATUS_OK:
                     break
-                e = max(err, 1e-4)
-                fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
-                err_old = e
-                h_next = h_try * fac
-                h = max(h, h_next) if last else h_next
-                if not last and ds[D_PAUSE] > 0 and stats[0] >= ds[D_PAUSE]:
+                if refresh:
+                    # commands changed (or the step was cut): dy/dt at the new point under them,
+                    # and a transient ahead: the explicit method again
+                    _explicit_again(ds)
+                    rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
+                    stats[2] += 1
+                if stiff:
+                    h_next = h_try * min(5.0, max(0.2, SAFETY * max(err, 1e-10) ** (-1.0 / 3.0)))
+                    # back to Dormand-Prince where it would be held to smaller steps by accuracy
+                    # than by stability
+                    ds[D_NBACK] = ds[D_NBACK] + 1.0 if h_next < ds[D_HSWITCH] else 0.0
+                    if ds[D_NBACK] >= BACK_AFTER:
+                        _explicit_again(ds)
+                else:
+                    e = max(err, 1e-4)
+                    fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
+                    err_old = e
+                    h_next = h_try * fac
+                h = max(h, h_next) if (last and t >= t_seg) else h_next
+                if t < t_seg:
+                    # a sample in the step may have queued a command due before the piece's end
+                    t_due = next_due_time(laws, cs)
+                    if t_due < t_seg - EPS:
+                        t_seg = max(t_due, t)
+                if t < t_seg and ds[D_PAUSE] > 0 and stats[0] >= ds[D_PAUSE]:
                     # a pause inside a piece: everything the next call needs is in y, ds and cs
                     # (dy/dt is a pure function of them), so pausing changes no step
                     status = STATUS_PAUSED
                     break
             else:
                 stats[1] += 1
-                h = h_try * max(0.2, SAFETY * err ** -EXPO)
+                h = h_try * max(0.2, SAFETY * err ** (-1.0 / 3.0 if stiff else -EXPO))
                 if h < 1e-14 * max(1.0, abs(t)):
                     status = STATUS_STEP_UNDERFLOW
                     break
@@ -260,7 +516,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                 break
         if status != STATUS_OK:
             break
-        # -- at t_seg: the schedule's commands due, the controllers' sample ---------------------
+        # -- at t_seg: the schedule's commands due and the queued valve commands due ------------
         t = t_seg
         changed = False
         while si < ns and sched_t[si] <= t + EPS:
@@ -272,13 +528,13 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                 u[j] = sched_u[si, j]
             si += 1
         ds[D_SI] = si
-        if at_control and sample_controllers(laws, t, y, u, cs):
+        if apply_due(laws, t, u, cs):
             changed = True
-        pump_on = cs[CS_PUMP]
         if ds[D_PAUSE] > 0 and stats[0] >= ds[D_PAUSE] and t < t_end - EPS:
             status = STATUS_PAUSED            # between pieces: the next call starts the next one
             break
         if changed:
+            _explicit_again(ds)
             rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
             stats[2] += 1
     ds[D_T] = t
@@ -299,7 +555,7 @@ def begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
     n_out = out_t.size
     out_y = np.empty((n_out, ny))
     out_u = np.empty((n_out, nu + 1))
-    stats = np.zeros(3, dtype=np.int64)
+    stats = np.zeros(4, dtype=np.int64)
     y = y0.copy()
     u = u0.copy()
     commands = (sched_t, sched_u, laws, ctrl_dt)

@@ -5,8 +5,9 @@ output finite and positive, every muscle volume positive (else SimulationError n
 quantity, its value and the time). The driver pauses every STEPS_PER_CALL accepted steps
 (:data:`frogsim.engine.integrator.STATUS_PAUSED`), which changes no step: between calls the wall
 clock is read, a run that has taken more than a few seconds shows a progress bar on stderr, and a
-run past ``solver.max_wall_time`` stops with a hint at the cause (a stiff circuit: a tiny chamber
-behind a large valve forces microsecond steps). Every run is bit for bit the same as in the
+run past ``solver.max_wall_time`` stops with a hint at the cause (steps held to
+``solver.max_step``, or a stiff circuit: a tiny chamber behind a large valve, whose transients need
+steps of its time constant). Every run is bit for bit the same as in the
 batched engine (:mod:`frogsim.engine.batch`), however many calls it took.
 """
 from __future__ import annotations
@@ -100,12 +101,25 @@ def _check_status(model: PneumaticModel, status: int, t_reached: float, y_end) -
                               f"{STATUS_TEXT.get(status, status)} ({_describe_state(model, y_end)})")
 
 
+def slow_run_hint(model: PneumaticModel, t_reached: float, steps: int) -> str:
+    """Why a run is slow, in words: its steps held to ``solver.max_step`` (mean step at least half
+    of it), else the stiffest chamber (:func:`stiffness_hint`)."""
+    max_step = model.scenario.solver.max_step
+    mean = t_reached / max(steps, 1)
+    if mean >= 0.5 * max_step:
+        return (f"the mean step {mean:.2g} s is held to solver.max_step = {max_step:.3g} s; raise "
+                f"solver.max_step or solver.max_wall_time, or shorten the duration")
+    return stiffness_hint(model)
+
+
 def stiffness_hint(model: PneumaticModel) -> str:
     """The chamber whose fill/empty time constant tau = V / (k p_ref C) is smallest, in words.
 
     With choked flow through a valve of sonic conductance C (ISO 6358: q = C p rho_ref), a chamber
     of volume V changes its pressure at a relative rate k p_ref C / V; an explicit solver needs
-    steps no longer than about that time constant.
+    steps no longer than about that time constant while it is changing (the driver switches to an
+    L-stable Rosenbrock method where the chamber only rests, see
+    :mod:`frogsim.engine.integrator`).
     """
     sc = model.scenario
     k = sc.air.heat_capacity_ratio
@@ -124,8 +138,8 @@ def stiffness_hint(model: PneumaticModel) -> str:
     v, c, what, paths = min(cands, key=lambda e: e[0] / (k * p_ref * e[1]))
     tau = v / (k * p_ref * c)
     return (f"{what} {v:.3g} m^3 behind a sonic conductance of {c:.3g} m^3/(s Pa) fills or empties with "
-            f"a time constant of about {tau:.2g} s, which makes the circuit stiff (the solver's steps "
-            f"stay about that short); raise solver.max_wall_time, shorten the duration or check {paths}")
+            f"a time constant of about {tau:.2g} s, which makes the circuit stiff (its transients "
+            f"need steps about that short); raise solver.max_wall_time, shorten the duration or check {paths}")
 
 
 def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
@@ -165,7 +179,7 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
             if elapsed > limit:
                 raise SimulationError(f"scenario {sc.name!r}: stopped at t = {ds[D_T]:.6g} s of {T:g} s after "
                                       f"{elapsed:.0f} s of wall time (solver.max_wall_time = {limit:g} s) and "
-                                      f"{int(stats[0])} steps: {stiffness_hint(model)}")
+                                      f"{int(stats[0])} steps: {slow_run_hint(model, ds[D_T], int(stats[0]))}")
             if bar is None and progress is not False and elapsed > min(PROGRESS_AFTER_S, limit / 2):
                 from tqdm import tqdm
                 bar = tqdm(total=T, file=sys.stderr, leave=False, desc=f"{sc.name[:30]} (simulated s)",
@@ -183,7 +197,8 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
 def _finish(model, status, ds, y_end, out_y, out_u, stats, cs) -> Result:
     _check_status(model, status, ds[D_T], y_end)     # every accepted step was checked by the driver
     return Result(t=model.out_t, y=out_y, u=out_u, model=model,
-                  stats={"steps": int(stats[0]), "rejected": int(stats[1]), "rhs_evaluations": int(stats[2])},
+                  stats={"steps": int(stats[0]), "rejected": int(stats[1]), "rhs_evaluations": int(stats[2]),
+                         "stiff_steps": int(stats[3])},
                   switchings=valve_switchings(model, cs))
 
 
@@ -230,7 +245,8 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
     [Pa abs]. It returns {muscle: "charge" | "hold" | "vent"} (or +1, 0, -1) for any of the
     muscles without a program (under a ``[controllers]`` section); a muscle left out keeps its
     mode. The commands go through the same dead-time queue as the compiled laws', so the same
-    law written in Python gives the same valve sequence, and the same run, bit for bit. Slow but
+    law written in Python gives the same valve sequence (the states agree to the solver tolerance:
+    this driver stops on every sample, the compiled one reads samples from dense output). Slow but
     flexible: see docs/control.md for the cost.
     """
     sc = model.scenario

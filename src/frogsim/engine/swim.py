@@ -300,6 +300,86 @@ class SwimResult:
             "solver": {**self.stats, "wall_time_s": self.wall_s,
                        "real_time_factor": float(t[-1]) / self.wall_s if self.wall_s > 0 else None},
         }
+        if self._control_rows():
+            out["control"] = self.control_metrics()
+        return out
+
+    # -- closed-loop control ----------------------------------------------------------------------
+    def _control_rows(self) -> dict:
+        """{muscle: its row in the run's table of laws} of the muscles under closed-loop control."""
+        from frogsim.control.sampled import L_KIND, L_MUSCLE, KIND_PUMP_BAND
+        laws = self.model.arrays["laws"]
+        if laws.ndim == 1:
+            return {}
+        return {self.muscle_names[int(laws[c, L_MUSCLE])]: c for c in range(laws.shape[0])
+                if laws[c, L_KIND] != KIND_PUMP_BAND}
+
+    def setpoint(self, controller: str) -> np.ndarray:
+        """A closed-loop controller's setpoint at the output times: [rad] for a joint-angle
+        controller, [Pa abs] for a pressure controller."""
+        from frogsim.control.sampled import setpoint
+        ctl = self.rs.pneumatic.controllers.get(controller)
+        rows = self._control_rows()
+        if ctl is None or ctl.muscle not in rows:
+            raise KeyError(f"no closed-loop controller {controller!r}")
+        laws, c = self.model.arrays["laws"], rows[ctl.muscle]
+        return np.array([setpoint(laws, c, float(t))[0] for t in self.t])
+
+    def control_metrics(self) -> dict:
+        """Per closed-loop controller (docs/control.md): tracking error RMS and max from its
+        ``settle`` time on, on the output grid (a joint-angle controller: the true joint angle
+        against the angle setpoint [deg]; a pressure controller: the true pressure [bar]), valve
+        switchings per valve and per second of run, air charged into its muscles [L standard],
+        and for a joint-angle controller the controller samples at which the pair's pressure
+        targets were clipped to [atmosphere, source]. Under "robot": the whole robot's air, air
+        per metre and cost of transport (None, with the reason, when it did not move forward)."""
+        from frogsim.control.sampled import B_CLIPS, CS_BLOCK, CS_SIZE, switch_counts
+        a = self.model.arrays
+        laws, cs = a["laws"], a["cs"]
+        rows = self._control_rows()
+        counts = switch_counts(laws, cs)
+        T = float(self.t[-1] - self.t[0]) if self.t.size > 1 else 0.0
+        rho = self.reference_density
+        out = {}
+        for name, ctl in self.rs.pneumatic.controllers.items():
+            if ctl.kind == "program":
+                continue
+            muscles = [ctl.muscle] + ([ctl.antagonist] if ctl.kind == "joint-angle" else [])
+            entry = {"kind": ctl.kind, "muscles": muscles, "settle_s": ctl.settle}
+            after = self.t >= ctl.settle
+            if ctl.kind == "joint-angle":
+                j = self.joint_names.index(ctl.joint)
+                e = np.degrees(self.setpoint(name) - self.joint_angles[:, j])[after]
+                entry["joint"] = ctl.joint
+                entry["tracking_error_rms_deg"] = float(np.sqrt(np.mean(e ** 2))) if e.size else None
+                entry["tracking_error_max_deg"] = float(np.max(np.abs(e))) if e.size else None
+                b = int(CS_SIZE + rows[ctl.muscle] * cs[CS_BLOCK])
+                entry["samples_pressure_target_clipped"] = int(cs[b + B_CLIPS])
+            else:
+                i = self.muscle_names.index(ctl.muscle)
+                e = (self.setpoint(name) - self.pressures[:, i])[after]
+                entry["tracking_error_rms_bar"] = float(np.sqrt(np.mean(e ** 2)) / 1e5) if e.size else None
+                entry["tracking_error_max_bar"] = float(np.max(np.abs(e)) / 1e5) if e.size else None
+            sw = {mu: dict(zip(("charge", "discharge"), counts.get(rows[mu], (0, 0)))) for mu in muscles}
+            entry["switchings"] = sw
+            total = sum(v["charge"] + v["discharge"] for v in sw.values())
+            entry["switchings_per_s"] = total / T if T > 0 else None
+            charged = sum(float(self.charged[-1, self.muscle_names.index(mu)]
+                                - self.charged[0, self.muscle_names.index(mu)]) for mu in muscles)
+            entry["air_used_L_std"] = charged / rho * 1e3
+            out[name] = entry
+        charged = float(self.rec[-1, C.R_CHARGED] - self.rec[0, C.R_CHARGED])
+        air = charged / rho * 1e3
+        dist = float(self.forward[-1])
+        moved = dist > 0.0
+        why = None if moved else (f"not reached: no forward distance ({dist:.3g} m; base "
+                                  f"{self.rs.options.base!r})")
+        exergy = float(self.rec[-1, C.R_EXERGY])
+        g = self.rs.robot.water.gravity
+        out["robot"] = {"air_used_L_std": air,
+                        "air_per_metre_L_std_per_m": air / dist if moved else None,
+                        "cost_of_transport": exergy / (self.rs.layout.total_mass * g * dist) if moved else None,
+                        "distance_m": dist, "note": why}
         return out
 
     # -- table ----------------------------------------------------------------------------------
@@ -373,9 +453,13 @@ def as_robot_scenario(scenario, cycles: int | None = None):
     return load_robot_scenario(scenario, cycles=cycles)
 
 
-def swim(scenario, cycles: int | None = None, progress=None) -> SwimResult:
+def swim(scenario, cycles: int | None = None, progress=None, controller=None) -> SwimResult:
     """Run a robot scenario (a shipped name such as "swim" or "leg-in-air", a TOML path, a dict
     or a RobotScenario) for ``cycles`` gait cycles (default: the scenario's) and return its result.
+
+    ``controller``: a Python function ``fn(t, obs) -> {muscle: "charge" | "hold" | "vent"}``
+    called at every controller sample instead of the compiled laws of the scenario's
+    ``[controllers]`` (:func:`frogsim.engine.coupled_python.run_coupled_python`).
 
     Raises ScenarioError on bad input (before anything runs) and SimulationError, naming the
     quantity and the time, if the run goes unstable.
@@ -383,5 +467,9 @@ def swim(scenario, cycles: int | None = None, progress=None) -> SwimResult:
     from frogsim.engine.coupled import build_coupled, run_coupled
     rs = as_robot_scenario(scenario, cycles)
     cm = build_coupled(rs)
-    out = run_coupled(cm, progress=progress)
+    if controller is not None:
+        from frogsim.engine.coupled_python import run_coupled_python
+        out = run_coupled_python(cm, controller, progress=progress)
+    else:
+        out = run_coupled(cm, progress=progress)
     return SwimResult(rec=out["rec"], model=cm, stats=out["stats"], wall_s=out["wall_s"])

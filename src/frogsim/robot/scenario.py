@@ -16,14 +16,22 @@ programs are made::
     recovery = "muscle"       # "muscle" (antagonistic pairs) or "spring" (paper Sec. 4.1 variant)
     timestep = "1 ms"         # MuJoCo step; the pneumatics adapt their own steps inside it
     [gait]                    # see frogsim.control.gait
+    [controllers.hip]         # optional closed-loop control (docs/control.md), e.g.
+    kind = "joint-angle"      # the hip_left / hip_left_recovery pair tracking an angle
+    joint = "hip_left"
+    setpoint = "20 deg"
+
+Muscles under a closed-loop controller take no gait commands; a joint-angle controller takes
+both muscles of its joint (:func:`joint_pairs`) and its setpoint must stay in the joint's range.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
-from frogsim.scenario.fields import build, choice, flag, quantity
+from frogsim.scenario.fields import build, choice, flag, quantity, unwrap
 from frogsim.scenario.core import Scenario
-from frogsim.scenario.schema import Motion, Muscle
+from frogsim.scenario.schema import Motion, Muscle, Program
 from frogsim.control.gait import Gait, muscle_programs
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.load import merged_raw, scenario_from_raw
@@ -79,6 +87,54 @@ def muscle_names(recovery: str) -> dict:
     return out
 
 
+def joint_pairs(names: dict) -> dict:
+    """Joint name ("hip_left") -> (extensor, flexor) muscle names, in the coupled engine's joint
+    order (left hip, knee, ankle, then right); the flexor is None with spring recovery."""
+    out = {}
+    for side in SIDES:
+        for j in JOINTS:
+            ext = f"{j}_{side}"
+            flex = f"{j}_{side}_recovery"
+            out[ext] = (ext, flex if flex in names else None)
+    return out
+
+
+def controlled_muscles(raw_controllers, pairs: dict) -> set:
+    """The muscles a scenario's closed-loop ``[controllers]`` take from the gait (read before the
+    controllers are validated; a misnamed joint or muscle is refused afterwards)."""
+    out = set()
+    if not isinstance(raw_controllers, dict):
+        return out
+    for c in raw_controllers.values():
+        if not isinstance(c, dict):
+            continue
+        kind = unwrap(c.get("kind"))
+        if kind == "joint-angle":
+            out.update(m for m in pairs.get(unwrap(c.get("joint")), ()) if m)
+        elif kind not in (None, "program") and isinstance(unwrap(c.get("muscle")), str):
+            out.add(unwrap(c.get("muscle")))
+    return out
+
+
+def check_joint_setpoints(sc: Scenario, robot: RobotParams) -> None:
+    """A joint-angle setpoint must stay inside its joint's range (0 at the flexed stop to the
+    joint's range at full extension)."""
+    from frogsim.scenario.rules import setpoint_knots
+    for cname, c in sc.controllers.items():
+        if c.kind != "joint-angle":
+            continue
+        sp = c.setpoint
+        knots = setpoint_knots(sp, sc.base_dir, f"controllers.{cname}.setpoint") if sp.kind == "table" else ()
+        lo, hi = sp.bounds(knots)
+        top = robot.joints[c.joint.split("_")[0]].range
+        if lo < 0.0 or hi > top:
+            bad = lo if lo < 0.0 else hi
+            raise ScenarioError(f"controllers.{cname}.setpoint", f"{math.degrees(bad):.4g} deg "
+                                f"({'lowest' if lo < 0.0 else 'highest'} value)",
+                                f"must lie in the joint's range, 0 to {math.degrees(top):.4g} deg "
+                                f"(joints.{c.joint.split('_')[0]}.range)")
+
+
 def load_robot_scenario(source, cycles: int | None = None) -> RobotScenario:
     """Load and validate a robot scenario (a TOML path, a shipped name such as "swim", or a dict).
 
@@ -97,11 +153,15 @@ def load_robot_scenario(source, cycles: int | None = None) -> RobotScenario:
     types = raw.get("muscle_types")
     robot = robot_params_from_raw(raw, types if isinstance(types, dict) else {})
     names = muscle_names(options.recovery)
+    pairs = joint_pairs(names)
     programs = muscle_programs(gait, {n: (j, g) for n, (j, _, g) in names.items()})
-    muscles = {name: Muscle(type=robot.joints[joint].muscle_type, program=programs[name],
+    free = controlled_muscles(raw.get("controllers"), pairs)
+    muscles = {name: Muscle(type=robot.joints[joint].muscle_type,
+                            program=Program() if name in free else programs[name],
                             motion=Motion("constant"))
                for name, (joint, _, _) in names.items()}
-    pneumatic = scenario_from_raw(raw, base_dir, duration=gait.duration, muscles=muscles)
+    pneumatic = scenario_from_raw(raw, base_dir, duration=gait.duration, muscles=muscles, joints=pairs)
+    check_joint_setpoints(pneumatic, robot)
     lay = layout(robot, pneumatic.muscle_types)
     return RobotScenario(name=pneumatic.name, pneumatic=pneumatic, robot=robot, options=options,
                          gait=gait, layout=lay, muscles=names, raw=raw)

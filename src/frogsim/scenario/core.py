@@ -49,6 +49,7 @@ class Scenario:
     muscles: dict[str, Muscle] = field(default_factory=dict)
     programs: dict[str, Program] = field(default_factory=dict)
     controllers: dict[str, ValveController] = field(default_factory=dict)
+    joints: dict = field(default_factory=dict)      # robot: joint -> (extensor, flexor or None)
     base_dir: str = "."
     raw: dict = field(default_factory=dict, repr=False, compare=False)
 

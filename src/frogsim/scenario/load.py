@@ -185,13 +185,15 @@ def load_scenario(source) -> Scenario:
 
 
 def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None = None,
-                      muscles: dict | None = None) -> Scenario:
+                      muscles: dict | None = None, joints: dict | None = None) -> Scenario:
     """Validate an already merged raw dict (see :func:`merged_raw`) into a Scenario.
 
     Every value is parsed from its text once, here; then the cross-field rules run
     (:func:`frogsim.scenario.rules.check`, the same as for every variant). ``duration`` [s] and
     ``muscles`` (name -> :class:`Muscle`) given typed take the place of the file's (the robot
-    makes its muscles and programs from its gait).
+    makes its muscles and programs from its gait). ``joints``: the robot's joints in order, each
+    with its (extensor, flexor) muscles (flexor None without one); joint-angle controllers get
+    their two muscles from it.
     """
     name = raw.get("name", "scenario")
     if not isinstance(name, str):
@@ -236,10 +238,15 @@ def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None 
     if not isinstance(controllers_raw, dict):
         raise ScenarioError("controllers", controllers_raw, "expected a table of named controllers")
     controllers = {c: ValveController.from_raw(v, f"controllers.{c}") for c, v in controllers_raw.items()}
+    joints = dict(joints or {})
+    for c, ctl in controllers.items():
+        if ctl.kind == "joint-angle" and ctl.joint in joints:
+            ext, flex = joints[ctl.joint]
+            controllers[c] = dataclasses.replace(ctl, muscle=ext, antagonist=flex or "")
     scenario = Scenario(name=name, parameters=raw["parameters"], duration=duration,
                         output_interval=interval, controller=controller, solver=solver,
                         muscle_types=muscle_types, muscles=muscles, programs=programs,
-                        controllers=controllers,
+                        controllers=controllers, joints=joints,
                         base_dir=base_dir, raw=raw, **sections)
     check(scenario)
     return scenario

@@ -113,7 +113,8 @@ def _check_motions(sc) -> None:
 
 
 def setpoint_knots(sp, base_dir: str, path: str) -> tuple:
-    """The rows ((t [s], p [Pa gauge]), ...) of a table setpoint's CSV file (times increasing)."""
+    """The rows ((t [s], p [Pa gauge]), ...) of a table setpoint's CSV file (times increasing);
+    an angle setpoint's ((t [s], angle [rad]), ...) from degrees."""
     import csv
     import io
     import math
@@ -131,7 +132,7 @@ def setpoint_knots(sp, base_dir: str, path: str) -> tuple:
     out = []
     for k, r in enumerate(rows[1:], start=2):
         try:
-            t, p = float(r[it]), float(r[ip]) * 1e5
+            t, p = float(r[it]), float(r[ip]) * sp.SCALE
         except (ValueError, IndexError):
             raise ScenarioError(where, sp.file, f"line {k}: expected numbers in {sp.time_column} and "
                                                 f"{sp.column}") from None
@@ -158,6 +159,9 @@ def check_controllers(sc: Scenario) -> None:
         p_top = max(p_top, sc.pump.off_above_gauge)
     for cname, c in sc.controllers.items():
         path = f"controllers.{cname}"
+        if c.kind == "joint-angle":
+            _check_joint_controller(sc, cname, c, driven, p_top)
+            continue
         if c.muscle not in sc.muscles:
             raise ScenarioError(f"{path}.muscle", c.muscle,
                                 f"must name a muscle of this scenario ({', '.join(sc.muscles)})")
@@ -211,6 +215,41 @@ def check_controllers(sc: Scenario) -> None:
                                 "[controllers] section)")
 
 
+def _check_joint_controller(sc: Scenario, cname: str, c, driven: dict, p_top: float) -> None:
+    """A joint-angle controller: a joint of the robot with an antagonistic pair, both muscles free
+    of programs and of other controllers, a setpoint, a co-contraction the source can reach. The
+    setpoint's range against the joint's is checked by the robot's loader, which knows it."""
+    path = f"controllers.{cname}"
+    if not sc.joints:
+        raise ScenarioError(f"{path}.kind", c.kind, "a joint-angle controller needs a robot scenario "
+                                                    "([robot] and [gait]; frogsim.load_robot_scenario)")
+    if c.joint not in sc.joints:
+        raise ScenarioError(f"{path}.joint", c.joint, f"must name a joint of the robot ({', '.join(sc.joints)})")
+    if not c.antagonist:
+        raise ScenarioError(f"{path}.joint", c.joint, "has no antagonistic pair (robot.recovery = \"spring\"): "
+                                                      "a joint-angle controller needs robot.recovery = \"muscle\"")
+    for m in (c.muscle, c.antagonist):
+        if m not in sc.muscles:
+            raise ScenarioError(f"{path}.joint", c.joint, f"its muscle {m!r} is not in this scenario")
+        if m in driven:
+            raise ScenarioError(f"{path}.joint", c.joint, f"its muscle {m!r} is already under "
+                                                          f"controllers.{driven[m]}")
+        driven[m] = cname
+        if sc.muscles[m].program.steps:
+            raise ScenarioError(f"muscles.{m}.program", "(a program)",
+                                f"refused: the muscle is under the closed-loop {path} (joint-angle)")
+    if c.setpoint is None:
+        raise ScenarioError(f"{path}.setpoint", MISSING, "required for kind 'joint-angle'")
+    sp = c.setpoint
+    for key in SETPOINT_FIELDS[sp.kind]:
+        if key not in ("start", "time_column", "column") and getattr(sp, key) in (None, ()):
+            raise ScenarioError(f"{path}.setpoint.{key}", MISSING, f"required for setpoint kind {sp.kind!r}")
+    if c.co_contraction > p_top:
+        raise _err(f"{path}.co_contraction", c, "co_contraction",
+                   f"must not exceed the source pressure ({p_top / 1e5:g} bar gauge): the charge valve "
+                   "cannot reach it")
+
+
 #: The cross-field rules in the order they are checked: (top-level settings it reads, rule).
 RULES = (
     (("output_interval", "duration"), _check_output_grid),
@@ -219,6 +258,7 @@ RULES = (
     (("valves",), _check_valves),
     (("muscle_types",), _check_muscle_types),
     (("muscles", "muscle_types"), _check_muscles),
-    (("valves", "controller", "source", "pump", "controllers", "muscles", "air", "base_dir"), check_controllers),
+    (("valves", "controller", "source", "pump", "controllers", "muscles", "air", "base_dir", "joints"),
+     check_controllers),
     (("controller", "muscles", "muscle_types", "base_dir"), _check_motions),
 )

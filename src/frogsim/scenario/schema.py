@@ -9,6 +9,7 @@ import math
 import dataclasses
 import functools
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, quantity, unknown_key_error,
                                      unwrap)
@@ -377,7 +378,7 @@ class Solver:
 
 
 # --- closed-loop controllers ([controllers.NAME]) ---------------------------------------------------------
-CONTROLLER_KINDS = ("program", "pwm", "bang-bang", "sliding-mode")
+CONTROLLER_KINDS = ("program", "pwm", "bang-bang", "sliding-mode", "joint-angle")
 SETPOINT_KINDS = ("constant", "steps", "sine", "table")
 #: settings each controller kind reads (besides kind and muscle)
 CONTROLLER_FIELDS = {
@@ -385,6 +386,8 @@ CONTROLLER_FIELDS = {
     "bang-bang": ("setpoint", "band", "sensor", "settle"),
     "pwm": ("setpoint", "frequency", "duty", "proportional_band", "minimum_pulse", "rest", "sensor", "settle"),
     "sliding-mode": ("setpoint", "horizon", "penalty", "sensor", "settle"),
+    "joint-angle": ("joint", "setpoint", "co_contraction", "proportional_gain", "derivative_gain",
+                    "integral_gain", "band", "sensor", "angle_sensor", "settle"),
 }
 SETPOINT_FIELDS = {"constant": ("value",), "steps": ("steps",), "sine": ("mean", "amplitude", "frequency", "start"),
                    "table": ("file", "time_column", "column")}
@@ -403,6 +406,7 @@ class Setpoint:
       table     { kind = "table", file = "sp.csv", time_column = "time_s", column = "pressure_bar" }
                 (a CSV of times [s] and gauge pressures [bar], linear between rows, constant outside)
     """
+    SCALE: ClassVar[float] = BAR        # a table's column (bar gauge) in SI
     kind: str = choice(SETPOINT_KINDS, default="constant")
     value: float | None = quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar", default=None)
     mean: float | None = quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar", default=None)
@@ -473,6 +477,30 @@ class Sensor:
 
 
 @dataclass(frozen=True)
+class AngleSetpoint(Setpoint):
+    """A joint-angle setpoint, written as :class:`Setpoint` with angles (degrees or radians):
+    "20 deg", steps, a sine (mean, amplitude) or a table (CSV column ``angle_deg``, degrees)."""
+    SCALE: ClassVar[float] = math.pi / 180.0
+    value: float | None = quantity("angle", ge=-math.pi, le=math.pi, display="deg", default=None)
+    mean: float | None = quantity("angle", ge=-math.pi, le=math.pi, display="deg", default=None)
+    amplitude: float | None = quantity("angle", ge=0.0, le=math.pi, display="deg", default=None)
+    column: str = "angle_deg"
+
+
+@dataclass(frozen=True)
+class AngleSensor:
+    """The joint-angle sensor of a joint-angle controller (an encoder): first-order lag, then
+    Gaussian noise (seeded), then ``bits`` of resolution over 0..full_scale (0 bits: none). The
+    velocity the law reads goes through the same lag (no noise, no quantisation)."""
+    noise: float = quantity("angle", ge=0.0, le=math.pi, display="deg", default=0.0,
+                            doc="standard deviation of the noise")
+    seed: int = integer(ge=0, le=2**31 - 1, default=0)
+    bits: int = integer(ge=0, le=24, default=0)
+    full_scale: float = quantity("angle", gt=0.0, le=2.0 * math.pi, display="deg", default=0.5 * math.pi)
+    lag: float = quantity("time", ge=0.0, le=1.0, display="ms", default=0.0)
+
+
+@dataclass(frozen=True)
 class ValveController:
     """A closed-loop controller of one muscle's two valves (see docs/control.md).
 
@@ -500,6 +528,20 @@ class ValveController:
     settle: float = quantity("time", ge=0.0, display="s", default=0.2,
                              doc="tracking metrics count from this time on")
     sensor: Sensor = field(default_factory=Sensor)
+    # joint-angle: a cascade on an antagonistic pair (docs/control.md); ``muscle`` is the extensor
+    # (its pressure raises the joint angle) and ``antagonist`` the flexor, both derived from the
+    # joint by the robot scenario's loader
+    joint: str = ""
+    antagonist: str = ""
+    co_contraction: float = quantity("pressure", ge=0.0, le=GAUGE_MAX, display="bar", default=2.0 * BAR,
+                                     doc="joint-angle: p0, the pair's common gauge pressure (stiffness)")
+    proportional_gain: float = quantity("pressure_per_angle", ge=0.0, display="bar/rad", default=10.0 * BAR,
+                                        doc="joint-angle: pressure difference per radian of angle error")
+    derivative_gain: float = quantity("pressure_time_per_angle", ge=0.0, display="bar*s/rad", default=0.0,
+                                      doc="joint-angle: pressure difference per rad/s of rate error")
+    integral_gain: float = quantity("pressure_per_angle_time", ge=0.0, display="bar/(rad*s)", default=0.0,
+                                    doc="joint-angle: pressure difference per rad*s of integrated error")
+    angle_sensor: AngleSensor = field(default_factory=AngleSensor)
 
     def unused(self, name: str) -> str:
         if name in ("kind",) or name in CONTROLLER_FIELDS[self.kind]:
@@ -512,23 +554,28 @@ class ValveController:
             raise ScenarioError(path, raw, f"expected a table with kind = one of {', '.join(CONTROLLER_KINDS)}")
         fields = {f.name: f.metadata for f in dataclasses.fields(cls)}
         kind = parse_field(raw["kind"], fields["kind"], f"{path}.kind")
-        allowed = set(CONTROLLER_FIELDS[kind]) | {"kind", "muscle"}
+        # a joint-angle controller names its joint; its two muscles come from the joint
+        named = "joint" if kind == "joint-angle" else "muscle"
+        allowed = set(CONTROLLER_FIELDS[kind]) | {"kind", named}
         for key in raw:
             if key not in allowed:
                 raise unknown_key_error(path, key, allowed)
-        if "muscle" not in raw:
-            raise ScenarioError(f"{path}.muscle", MISSING, "required setting is missing")
-        muscle = unwrap(raw["muscle"])
-        if not isinstance(muscle, str) or not muscle:
-            raise ScenarioError(f"{path}.muscle", muscle, "expected the name of a muscle")
-        kw = {"kind": kind, "muscle": muscle}
+        if named not in raw:
+            raise ScenarioError(f"{path}.{named}", MISSING, "required setting is missing")
+        what = unwrap(raw[named])
+        if not isinstance(what, str) or not what:
+            raise ScenarioError(f"{path}.{named}", what, f"expected the name of a {named}")
+        kw = {"kind": kind, named: what}
         for key, val in raw.items():
-            if key in ("kind", "muscle"):
+            if key in ("kind", named):
                 continue
             if key == "setpoint":
-                kw[key] = Setpoint.from_raw(val, f"{path}.setpoint")
+                sp_cls = AngleSetpoint if kind == "joint-angle" else Setpoint
+                kw[key] = sp_cls.from_raw(val, f"{path}.setpoint")
             elif key == "sensor":
                 kw[key] = build(Sensor, unwrap(val), f"{path}.sensor")
+            elif key == "angle_sensor":
+                kw[key] = build(AngleSensor, unwrap(val), f"{path}.angle_sensor")
             else:
                 kw[key] = parse_field(val, fields[key], f"{path}.{key}")
         return cls(**kw)

@@ -7,3 +7,4 @@ from frogsim.studies import paper  # noqa: F401,E402  (registers the paper's stu
 from frogsim.studies import design  # noqa: F401,E402  (registers the design studies)
 from frogsim.studies import robot  # noqa: F401,E402  (registers the robot's in-air study)
 from frogsim.studies import control  # noqa: F401,E402  (registers the closed-loop control study)
+from frogsim.studies import control_joint  # noqa: F401,E402  (registers the joint-angle control study)

@@ -1,0 +1,143 @@
+"""The robot with its closed-loop muscles driven by a Python function, sample by sample.
+
+    result = frogsim.swim(scenario, controller=fn)      # fn(t, obs) -> {muscle: "charge" | "hold" | "vent"}
+
+The compiled laws of the scenario's ``[controllers]`` are not used: their rows become external
+ones (:data:`frogsim.control.sampled.KIND_EXTERNAL`) that keep their sensor models (pressure and,
+for a joint-angle controller, the angle sensor), and the function decides instead. Its commands
+go through the same dead-time queue (:func:`frogsim.control.sampled.command_valves`), so the same
+law written in Python gives the same valve sequence as the compiled one. The loop is the coupled
+engine's (:func:`frogsim.engine.coupled_kernel.step_kernel` per MuJoCo step); the function is
+called after each step whose end is a controller sample, so the controller period must be a
+whole number of MuJoCo steps.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from frogsim.circuit import layout as CL
+from frogsim.control.sampled import (B_A_SENSED, B_SENSED, B_W_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE,
+                                     KIND_EXTERNAL, KIND_PUMP_BAND, L_JOINT1, L_KIND, L_MUSCLE, MODE_CHARGE,
+                                     MODE_HOLD, MODE_VENT, apply_due, command_valves)
+from frogsim.engine.coupled import _failure, kernel_args
+from frogsim.engine.coupled_kernel import step_kernel
+from frogsim.engine.coupled_layout import R_TIME, S_CTRL_DT, S_TRUNK
+from frogsim.engine.integrator import start
+from frogsim.errors import SimulationError
+from frogsim.robot import import_mujoco
+
+_MODES = {"charge": MODE_CHARGE, "hold": MODE_HOLD, "vent": MODE_VENT,
+          1: MODE_CHARGE, 0: MODE_HOLD, -1: MODE_VENT}
+
+
+def external_laws(laws: np.ndarray) -> np.ndarray:
+    """The table of laws with every closed-loop row turned external (sensors kept)."""
+    if laws.ndim == 1:
+        raise ValueError("the scenario has no closed-loop [controllers]: nothing for a Python "
+                         "controller to drive")
+    out = laws.copy()
+    for c in range(out.shape[0]):
+        if out[c, L_KIND] != KIND_PUMP_BAND:
+            out[c, L_KIND] = KIND_EXTERNAL
+    return out
+
+
+def body_velocity(m, d, tb: int) -> tuple:
+    """(forward, sideways, yaw rate) of the hull: [m/s] along and across its heading, [rad/s]."""
+    root = m.body_rootid[tb]
+    w = d.cvel[tb, :3]
+    v = d.cvel[tb, 3:] + np.cross(w, d.xpos[tb] - d.subtree_com[root])
+    hx, hy = d.xmat[tb, 0], d.xmat[tb, 3]
+    return (float(v[0] * hx + v[1] * hy), float(-v[0] * hy + v[1] * hx), float(w[2]))
+
+
+def run_coupled_python(cm, fn, progress=None) -> dict:
+    """Run a built coupled model (:func:`frogsim.engine.coupled.build_coupled`) with ``fn``
+    deciding the valves of the muscles under ``[controllers]``; returns what
+    :func:`frogsim.engine.coupled.run_coupled` returns.
+
+    ``fn(t, obs)`` is called at every controller sample t (from 0) with ``obs``: {muscle: its
+    pressure [Pa abs] as its controller's sensor reads it, "source": p_s, "exhaust": p_e [Pa abs],
+    "angle": {joint: [rad]}, "velocity": {joint: [rad/s]}, "body_velocity": (forward [m/s],
+    sideways [m/s], yaw rate [rad/s])}. The joint angles and velocities are the state at the
+    start of the MuJoCo step that ends at t, as the compiled joint-angle law reads them; a joint
+    under a joint-angle controller is read through that controller's angle sensor. It returns
+    {muscle: "charge" | "hold" | "vent"} (or +1, 0, -1); a muscle left out keeps its mode.
+    """
+    mujoco = import_mujoco()
+    m, d = cm.mjm, cm.mjd
+    a = cm.arrays
+    dt_ctrl = float(a["sc"][S_CTRL_DT])
+    ratio = dt_ctrl / cm.dt
+    if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+        raise SimulationError(f"scenario {cm.name!r}: a Python controller needs the controller "
+                              f"period ({dt_ctrl * 1e3:g} ms) to be a whole number of MuJoCo steps "
+                              f"(robot.timestep = {cm.dt * 1e3:g} ms)")
+    laws = external_laws(a["laws"])
+    a["laws"] = laws
+    a["u"][:] = cm.pneumatic.u0
+    ds, cs = start(0.0, 1e-4, a["y"], a["u"], (a["sched_t"], a["sched_u"], laws, dt_ctrl))
+    a["ds"], a["cs"] = ds, cs
+    rows = {cm.muscle_names[int(laws[c, L_MUSCLE])]: c for c in range(laws.shape[0])
+            if laws[c, L_KIND] == KIND_EXTERNAL}
+    block = cs[CS_BLOCK]
+    sensed_joint = {}
+    for c in rows.values():
+        j = int(laws[c, L_JOINT1]) - 1
+        if j >= 0:
+            sensed_joint[cm.joint_names[j]] = int(CS_SIZE + c * block)
+    leg_qpos, leg_dof = a["leg_qpos"], a["leg_dof"]
+    y, u = a["y"], a["u"]
+    tb = int(a["sc"][S_TRUNK])
+
+    def decide():
+        t_k = cs[CS_SAMPLE] * dt_ctrl
+        obs = {n: float(cs[int(CS_SIZE + c * block) + B_SENSED]) for n, c in rows.items()}
+        obs["source"], obs["exhaust"] = float(y[CL.Y_PS]), float(y[CL.Y_PE])
+        angle = {n: float(d.qpos[leg_qpos[j]]) for j, n in enumerate(cm.joint_names)}
+        vel = {n: float(d.qvel[leg_dof[j]]) for j, n in enumerate(cm.joint_names)}
+        for n, b in sensed_joint.items():
+            angle[n], vel[n] = float(cs[b + B_A_SENSED]), float(cs[b + B_W_SENSED])
+        obs["angle"], obs["velocity"] = angle, vel
+        obs["body_velocity"] = body_velocity(m, d, tb)
+        cmds = fn(t_k, obs) or {}
+        for name, mode in cmds.items():
+            if name not in rows:
+                raise SimulationError(f"controller function: muscle {name!r} is not under closed-loop "
+                                      f"control (free: {', '.join(rows) or 'none'})")
+            if mode not in _MODES:
+                raise SimulationError(f"controller function: mode {mode!r} for {name!r} must be "
+                                      "'charge', 'hold' or 'vent'")
+            command_valves(laws, rows[name], cs, _MODES[mode], t_k)
+        apply_due(laws, t_k, u, cs)             # commands without dead time act at once
+
+    args = kernel_args(cm)
+    step1, step2 = mujoco.mj_step1, mujoco.mj_step2
+    n_steps, every = cm.n_steps, cm.rec_every
+    chunk = max(1, n_steps // 20)
+    t0 = time.perf_counter()
+    for k in range(n_steps + 1):
+        step1(m, d)
+        if k == 0:
+            decide()                            # the sample at t = 0 (taken by start)
+        stepping = 1 if k < n_steps else 0
+        row = k // every if k % every == 0 else (-1 if stepping else k // every + 1)
+        before = cs[CS_SAMPLE]
+        if step_kernel(k, stepping, row, *args):
+            raise SimulationError(f"scenario {cm.name!r}: unstable at t = {k * cm.dt:.4f} s: "
+                                  f"{_failure(cm)}")
+        if stepping:
+            if cs[CS_SAMPLE] != before:
+                decide()
+            step2(m, d)
+        if progress is not None and k % chunk == 0:
+            progress(k / n_steps)
+    wall = time.perf_counter() - t0
+    rec = a["rec"]
+    rec = rec[~np.isnan(rec[:, R_TIME])]
+    return {"rec": rec, "wall_s": wall, "stats": {"mujoco_steps": n_steps,
+                                                  "pneumatic_steps": int(a["stats"][0]),
+                                                  "pneumatic_rejected": int(a["stats"][1]),
+                                                  "rhs_evaluations": int(a["stats"][2])}}
