@@ -50,17 +50,18 @@ class ModelBatch(Sequence):
     ``build_model(base.replace(point))`` array for array; a slice is a ModelBatch of those points.
     """
 
-    def __init__(self, variants: Variants, parts: dict, rows: np.ndarray):
+    def __init__(self, variants: Variants, parts: dict, rows: np.ndarray, shared: dict | None = None):
         self.variants = variants
         self.parts = parts            # part name -> (distinct values, index of each point's)
         self.rows = rows
+        self._shared = {} if shared is None else shared     # made once per batch, shared by its slices
 
     def __len__(self) -> int:
         return int(self.rows.size)
 
     def __getitem__(self, k):
         if isinstance(k, slice):
-            return ModelBatch(self.variants, self.parts, self.rows[k])
+            return ModelBatch(self.variants, self.parts, self.rows[k], self._shared)
         r = int(self.rows[k])
         return assemble(self.variants.scenario(r), self._parts(r))
 
@@ -81,9 +82,9 @@ class ModelBatch(Sequence):
         """The distinct parts' arrays stacked, per kind of part and per class of shapes
         (:func:`_stack_parts`); made once per batch."""
         with _LOCK:
-            if "stacks" not in self.__dict__.setdefault("_cache", {}):
-                self._cache["stacks"] = _stack_parts(self.parts)
-            return self._cache["stacks"]
+            if "stacks" not in self._shared:
+                self._shared["stacks"] = _stack_parts(self.parts)
+            return self._shared["stacks"]
 
     def run_columns(self, ycols, ucols) -> tuple[list, dict]:
         """Run every point (compiled, one call per time grid and class of array shapes, without the
