@@ -124,6 +124,36 @@ def test_pwm_mean_charged_flow_grows_with_duty_and_matches_the_choked_closed_for
     assert pwm_run(0.9).charged_mass("hip")[-1] / 0.5 < flows[-1]
 
 
+def test_pwm_duty_schedule_gives_each_period_its_duty_and_the_choked_charge():
+    # steps 0.05 -> 0.2 at 0.3 s on a 10 Hz carrier: periods starting at 0, 0.1, 0.2 s get 5 % (5 ms
+    # pulses), those at 0.3, 0.4 s 20 % (20 ms); choked throughout (as in the constant-duty test)
+    d = closed_loop({"kind": "pwm", "frequency": "10 Hz", "rest": "vent", "duty_schedule": {
+        "kind": "steps", "steps": [{"at": "0 s", "value": 0.05}, {"at": "0.3 s", "value": "20 %"}]}}, 0.5,
+        supply={"mode": "none"}, source={"volume": "400 L"}, exhaust={"volume": "400 L"}, output_interval="0.5 ms")
+    r = frogsim.simulate(frogsim.load_scenario(d))
+    p_s = P_ATM + 6.0 * BAR
+    choked = C_MHJ9 * RHO_REF * p_s
+    q = r.charged_mass("hip")
+    i3 = int(np.searchsorted(r.t, 0.3 - 1e-9))
+    assert q[i3] == pytest.approx(choked * 3 * 5e-3, rel=2e-3)          # three 5 ms pulses
+    assert q[-1] - q[i3] == pytest.approx(choked * 2 * 20e-3, rel=2e-3)  # two 20 ms pulses
+    opened = np.sum(r.u[1:, 0] > 0) * 0.5e-3
+    assert opened == pytest.approx(3 * 5e-3 + 2 * 20e-3, abs=1e-9)
+
+
+def test_pwm_duty_schedule_refusals():
+    def load(ctl):
+        return frogsim.load_scenario(closed_loop({"kind": "pwm", "frequency": "10 Hz", **ctl}, 0.5))
+    with pytest.raises(frogsim.ScenarioError, match=r"duty_schedule = .*0\.2\.\.1\.2.*0\.\.1"):
+        load({"duty_schedule": {"kind": "sine", "mean": 0.7, "amplitude": 0.5, "frequency": "1 Hz"}})
+    with pytest.raises(frogsim.ScenarioError, match=r"\.duty = .*one of"):
+        load({"duty": 0.3, "duty_schedule": {"kind": "constant", "value": 0.2}})
+    with pytest.raises(frogsim.ScenarioError, match=r"\.duty = .*duty_schedule"):
+        load({"duty": {"kind": "steps", "steps": [{"at": "0 s", "value": 0.1}]}})
+    with pytest.raises(frogsim.ScenarioError, match=r"duty_schedule.steps"):
+        load({"duty_schedule": {"kind": "steps", "steps": [{"at": "0 s", "value": 1.5}]}})
+
+
 def test_pwm_pulses_are_whole_controller_samples_and_the_minimum_pulse_drops_short_ones():
     r = pwm_run(0.1)
     opened = np.sum(r.u[1:, 0] > 0) * 0.5e-3

@@ -13,7 +13,7 @@ from frogsim.circuit import layout as L
 from frogsim.control.sampled import (CS_PUMP, CS_SAMPLE, KIND_PUMP_BAND, L_HIGH, L_INPUT, L_KIND,
                                      L_LOW, next_control_time, pump_band, sample_controllers,
                                      sampled_laws, start_controllers)
-from frogsim.engine.integrator import D_OUT, D_T, STATUS_OK, advance, start
+from frogsim.engine.integrator import D_OUT, D_T, STATS_SIZE, STATUS_OK, advance, start
 
 BAR = 1e5
 
@@ -65,7 +65,7 @@ def test_a_run_advanced_in_many_calls_matches_one_call(paper_cycle_raw):
     circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
     solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
     no_output = (np.zeros(0), np.zeros((0, y.size)), np.zeros((0, u.size + 1)))
-    stats = np.zeros(3, np.int64)
+    stats = np.zeros(STATS_SIZE, np.int64)
     switched = 0
     for k in range(1, 201):
         t_end = k * 0.01

@@ -28,6 +28,8 @@ KIND_SLIDING = 4.0
 KIND_JOINT = 6.0         # one muscle of an antagonistic pair under a joint-angle cascade (5: external)
 
 # --- setpoint generators -----------------------------------------------------------------------------
+DUTY_CLOSED = -1.0
+DUTY_SCHEDULED = -2.0
 SP_CONSTANT = 0.0
 SP_STEPS = 1.0
 SP_SINE = 2.0
@@ -43,7 +45,8 @@ L_DEAD_C = 5     # charge valve dead time [s]
 L_DEAD_D = 6     # discharge valve dead time [s]
 L_BAND = 7       # bang-bang: width of the hold band [Pa]
 L_PERIOD_N = 8   # pwm: period [controller samples]
-L_DUTY = 9       # pwm: open-loop duty [-]; < 0: closed loop (duty from the pressure error)
+L_DUTY = 9       # pwm: open-loop duty [-]; DUTY_CLOSED: closed loop (duty from the pressure error);
+                 # DUTY_SCHEDULED: open loop, the duty from the schedule in the setpoint columns
 L_PBAND = 10     # pwm closed loop: proportional band [Pa] (error giving 100 % duty)
 L_MINPULSE_N = 11  # pwm: minimum pulse [controller samples]
 L_REST = 12      # pwm open loop: 1 vent, 0 hold between the charge pulses
@@ -141,7 +144,8 @@ def controller_rows(sc, g, mp_valves: dict, names: list, volumes: dict, knots: d
         row[L_BAND] = c.band
         dt = 1.0 / sc.controller.rate
         row[L_PERIOD_N] = max(1, round(1.0 / (c.frequency * dt)))
-        row[L_DUTY] = c.duty if c.duty is not None else -1.0
+        row[L_DUTY] = (c.duty if c.duty is not None else
+                       DUTY_SCHEDULED if getattr(c, "duty_schedule", None) is not None else DUTY_CLOSED)
         row[L_PBAND] = c.proportional_band
         row[L_MINPULSE_N] = math.ceil(c.minimum_pulse / dt - 1e-9)
         row[L_REST] = 1.0 if c.rest == "vent" else 0.0
@@ -157,6 +161,11 @@ def controller_rows(sc, g, mp_valves: dict, names: list, volumes: dict, knots: d
         row[L_RHOREF], row[L_TREF], row[L_TAMB] = g[G_RHOREF], g[G_TREF], g[G_TAMB]
         row[L_BRANCH] = mp_valves["branch_limit"]
         pts = []
+        if getattr(c, "duty_schedule", None) is not None:
+            # open-loop PWM: the setpoint columns carry the duty schedule (fractions, no offset)
+            cols, pts = setpoint_columns(c.duty_schedule, 0.0, knots.get(cname, ()))
+            for col, val in cols.items():
+                row[col] = val
         if c.setpoint is not None:
             # a joint-angle setpoint is an angle [rad]: no atmosphere added
             cols, pts = setpoint_columns(c.setpoint, 0.0 if c.kind == "joint-angle" else patm,

@@ -224,6 +224,9 @@ def _laws(sc: Scenario, g: np.ndarray, names: tuple, volumes: tuple) -> np.ndarr
     knots = {c: setpoint_knots(ctl.setpoint, sc.base_dir, f"controllers.{c}.setpoint")
              for c, ctl in sc.controllers.items()
              if ctl.kind != "program" and ctl.setpoint is not None and ctl.setpoint.kind == "table"}
+    knots.update({c: setpoint_knots(ctl.duty_schedule, sc.base_dir, f"controllers.{c}.duty_schedule")
+                  for c, ctl in sc.controllers.items()
+                  if ctl.kind == "pwm" and ctl.duty_schedule is not None and ctl.duty_schedule.kind == "table"})
     rows = controller_rows(sc, g, valves, names, dict(zip(names, volumes)), knots)
     return laws_table(g, rows)
 

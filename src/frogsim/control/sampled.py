@@ -46,7 +46,7 @@ from frogsim.circuit.laws import (  # noqa: F401  (the table's layout, re-export
     L_TAMB, L_TREF, SP_CONSTANT, SP_SINE, SP_STEPS, SP_TABLE,
     KIND_JOINT, L_A_BITS, L_A_FS, L_A_LAG, L_A_NOISE, L_A_SEED, L_JOINT1, L_KD, L_KI, L_KP, L_P0,
     L_SIGN, L_STREAM)  # noqa: F401
-from frogsim.circuit.laws import laws_table
+from frogsim.circuit.laws import DUTY_SCHEDULED, laws_table
 from frogsim.circuit.layout import Y_MUSCLE0, Y_PE, Y_PS
 from frogsim.physics.flow import iso6358_mass_flow
 
@@ -256,16 +256,20 @@ def bang_bang(p, sp, band):
 @jit
 def pwm_mode(laws, c, cs, b, p, sp):
     """PWM on the controller grid: each period of N samples starts with a pulse of n samples,
-    n = round(duty N) (open loop) or round(min(|e|/proportional_band, 1) N) with e = sp - p
+    n = round(duty N) (open loop: the constant duty, or the schedule's duty sp at the period's first
+    sample) or round(min(|e|/proportional_band, 1) N) with e = sp - p
     (closed loop: a charge pulse for e > 0, a vent pulse for e < 0, hold after it); pulses shorter
     than the minimum are dropped, a gap after the pulse shorter than it is filled."""
     N = int(laws[c, L_PERIOD_N])
     phase = int(cs[b + B_PHASE])
     duty = laws[c, L_DUTY]
+    open_loop = duty >= 0.0 or duty == DUTY_SCHEDULED
     if phase == 0:
         sign = 1.0
         if duty >= 0.0:
             d = duty
+        elif duty == DUTY_SCHEDULED:
+            d = sp              # the schedule's duty at this sample (checked 0..1 by the loader)
         else:
             d = (sp - p) / laws[c, L_PBAND]
             if d < 0.0:
@@ -283,7 +287,7 @@ def pwm_mode(laws, c, cs, b, p, sp):
     pulse = cs[b + B_PULSE]
     if phase < abs(pulse):
         return MODE_CHARGE if pulse > 0 else MODE_VENT
-    if duty >= 0.0 and laws[c, L_REST] > 0.5:
+    if open_loop and laws[c, L_REST] > 0.5:
         return MODE_VENT
     return MODE_HOLD
 

@@ -35,7 +35,7 @@ from frogsim.engine.coupled_layout import (  # noqa: F401
     R_V, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
     S_TRUNK, S_VMAX, S_WMAX, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK,
     T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE, U_TENDON, record_columns)
-from frogsim.engine.integrator import D_SI, STATUS_TEXT, start
+from frogsim.engine.integrator import D_SI, STATS_SIZE, STATUS_TEXT, start
 from frogsim.errors import SimulationError
 from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL
 from frogsim.robot import import_mujoco
@@ -110,7 +110,7 @@ def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joint
         pal_target=pal_target, frac=frac, frac_new=frac.copy(), mu=mu, mp=mp, g=g, y=y, u=u,
         ds=ds, cs=cs, mot_t=np.zeros((n, 4)), mot_L=np.zeros((n, 4)), mot_d=np.zeros((n, 4)),
         mot_n=np.full(n, 4, np.int64), sched_t=sched_t, sched_u=sched_u, laws=laws, atol=atol,
-        stats=np.zeros(4, np.int64), vprev=np.zeros((el.shape[0], 3)), tension=np.zeros(n),
+        stats=np.zeros(STATS_SIZE, np.int64), vprev=np.zeros((el.shape[0], 3)), tension=np.zeros(n),
         rec=np.full((n_steps // rec_every + 2, cols["size"]), np.nan), leg_qpos=leg_qpos,
         leg_dof=leg_dof)
     apply_added_mass(el, arrays["pa"], frac, False, m.body_mass, m.body_ipos, m.body_inertia,

@@ -50,6 +50,7 @@ D_NONSTIFF = 8   # ... and steps below it since the last one at it
 D_HSWITCH = 9    # the Dormand-Prince step [s] when the method switched to Rosenbrock
 D_NBACK = 10     # Rosenbrock steps in a row proposing less than D_HSWITCH
 D_SIZE = 11
+STATS_SIZE = 4   # stats[:]: accepted steps, rejected steps, rhs evaluations, accepted Rosenbrock steps
 EPS = 1e-12      # [s] stop times closer than this are one stop (they come from different sums)
 
 # Dormand-Prince 5(4) tableau
@@ -315,6 +316,8 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
 
     Returns a STATUS_* code; on failure ds[D_T] and y are the last accepted step's.
     """
+    if stats.size < STATS_SIZE or ds.size < D_SIZE:
+        raise ValueError("advance: stats needs STATS_SIZE entries and ds D_SIZE (make them with begin or start)")
     g, mp, mot_t, mot_L, mot_d, mot_n = model
     sched_t, sched_u, laws, ctrl_dt = commands
     rtol, atol, max_step = solver
@@ -555,7 +558,7 @@ def begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
     n_out = out_t.size
     out_y = np.empty((n_out, ny))
     out_u = np.empty((n_out, nu + 1))
-    stats = np.zeros(4, dtype=np.int64)
+    stats = np.zeros(STATS_SIZE, dtype=np.int64)
     y = y0.copy()
     u = u0.copy()
     commands = (sched_t, sched_u, laws, ctrl_dt)

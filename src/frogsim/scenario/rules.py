@@ -112,6 +112,19 @@ def _check_motions(sc) -> None:
     build_motions(sc)      # overlapping strokes, joint-angle files
 
 
+def _check_duty_schedule(ds, base_dir: str, path: str) -> None:
+    """A duty schedule's settings are there and every duty it takes lies in 0..1."""
+    for key in SETPOINT_FIELDS[ds.kind]:
+        if key not in ("start", "time_column", "column") and getattr(ds, key) in (None, ()):
+            raise ScenarioError(f"{path}.{key}", MISSING, f"required for kind {ds.kind!r}")
+    knots = setpoint_knots(ds, base_dir, path) if ds.kind == "table" else ()
+    lo, hi = ds.bounds(knots)
+    if lo < 0.0 or hi > 1.0:
+        shown = f"{lo:g}..{hi:g} (lowest..highest duty)"
+        raise ScenarioError(path, shown, "a duty lies in 0..1 (0 %..100 %): for a sine mean - amplitude >= 0 "
+                                         "and mean + amplitude <= 1")
+
+
 def setpoint_knots(sp, base_dir: str, path: str) -> tuple:
     """The rows ((t [s], p [Pa gauge]), ...) of a table setpoint's CSV file (times increasing);
     an angle setpoint's ((t [s], angle [rad]), ...) from degrees."""
@@ -179,9 +192,13 @@ def check_controllers(sc: Scenario) -> None:
                                 f"refused: the muscle is under the closed-loop {path} ({c.kind}), "
                                 "which drives its valves; remove its program")
         if c.kind == "pwm":
-            if (c.duty is None) == (c.setpoint is None):
-                raise ScenarioError(f"{path}.duty", MISSING if c.duty is None else c.duty,
-                                    "a pwm controller takes either a duty (open loop) or a setpoint, one of them")
+            given = [k for k in ("duty", "duty_schedule", "setpoint") if getattr(c, k) is not None]
+            if len(given) != 1:
+                raise ScenarioError(f"{path}.duty", MISSING if not given else f"{' and '.join(given)} given",
+                                    "a pwm controller takes one of: a duty or a duty_schedule (open loop), or "
+                                    "a setpoint")
+            if c.duty_schedule is not None:
+                _check_duty_schedule(c.duty_schedule, sc.base_dir, f"{path}.duty_schedule")
             period = 1.0 / c.frequency
             if period < 2.0 * dead:
                 raise _err(f"{path}.frequency", c, "frequency",

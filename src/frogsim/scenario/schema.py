@@ -384,7 +384,8 @@ SETPOINT_KINDS = ("constant", "steps", "sine", "table")
 CONTROLLER_FIELDS = {
     "program": (),
     "bang-bang": ("setpoint", "band", "sensor", "settle"),
-    "pwm": ("setpoint", "frequency", "duty", "proportional_band", "minimum_pulse", "rest", "sensor", "settle"),
+    "pwm": ("setpoint", "frequency", "duty", "duty_schedule", "proportional_band", "minimum_pulse", "rest", "sensor",
+            "settle"),
     "sliding-mode": ("setpoint", "horizon", "penalty", "sensor", "settle"),
     "joint-angle": ("joint", "setpoint", "co_contraction", "proportional_gain", "derivative_gain",
                     "integral_gain", "band", "sensor", "angle_sensor", "settle"),
@@ -488,6 +489,19 @@ class AngleSetpoint(Setpoint):
 
 
 @dataclass(frozen=True)
+class DutySchedule(Setpoint):
+    """An open-loop PWM duty as a function of time, written as :class:`Setpoint` with duties
+    (fractions 0..1 or percentages): "steps", a "sine" (mean, amplitude) or a "table" (CSV column
+    ``duty``, fractions). The duty of each PWM period is the schedule's value at the period's
+    first sample."""
+    SCALE: ClassVar[float] = 1.0
+    value: float | None = quantity("dimensionless", ge=0.0, le=1.0, display="%", default=None)
+    mean: float | None = quantity("dimensionless", ge=0.0, le=1.0, display="%", default=None)
+    amplitude: float | None = quantity("dimensionless", ge=0.0, le=1.0, display="%", default=None)
+    column: str = "duty"
+
+
+@dataclass(frozen=True)
 class AngleSensor:
     """The joint-angle sensor of a joint-angle controller (an encoder): first-order lag, then
     Gaussian noise (seeded), then ``bits`` of resolution over 0..full_scale (0 bits: none). The
@@ -517,6 +531,7 @@ class ValveController:
     frequency: float = quantity("frequency", gt=0.0, le=1e4, display="Hz", default=20.0, doc="pwm: carrier")
     duty: float | None = quantity("dimensionless", ge=0.0, le=1.0, display="%", default=None,
                                   doc="pwm: open-loop duty (no setpoint)")
+    duty_schedule: DutySchedule | None = None     # pwm: open-loop duty as a function of time
     proportional_band: float = quantity("pressure", gt=0.0, le=GAUGE_MAX, display="bar", default=1.0 * BAR,
                                         doc="pwm with a setpoint: the error giving 100 % duty")
     minimum_pulse: float = quantity("time", ge=0.0, le=1.0, display="ms", default=0.0)
@@ -572,6 +587,11 @@ class ValveController:
             if key == "setpoint":
                 sp_cls = AngleSetpoint if kind == "joint-angle" else Setpoint
                 kw[key] = sp_cls.from_raw(val, f"{path}.setpoint")
+            elif key == "duty_schedule":
+                kw[key] = DutySchedule.from_raw(val, f"{path}.duty_schedule")
+            elif key == "duty" and isinstance(unwrap(val), dict):
+                raise ScenarioError(f"{path}.duty", "(a table)", "a constant duty (0..1 or a percentage); "
+                                    "for a duty that changes with time write duty_schedule = { kind = ... }")
             elif key == "sensor":
                 kw[key] = build(Sensor, unwrap(val), f"{path}.sensor")
             elif key == "angle_sensor":
