@@ -10,11 +10,16 @@ Case
     volume, source drop.
 
 Measured in one run
-    * frogsim: building the 10,000 models (typed variants of the base scenario, each model built by
-      build_model from parts cached on the settings they read, see frogsim.engine.batch), running
-      them on the thread pool, computing the metrics: total wall time (target <= 1.5 s on this
-      2-core machine; the engine's one-time compilation happens in a warm-up call and is reported
-      on its own);
+    * frogsim: building the 10,000 models (typed variants of the base scenario, each distinct part
+      made once, see frogsim.engine.batch), running them on the thread pool (compiled, one call per
+      chunk) and computing the metrics from the raw outputs: total wall time (target <= 1.5 s on
+      this 2-core machine; the engine's one-time compilation, and the full garbage collection the
+      imports are due, happen in a warm-up call and are reported on their own), with the process's
+      CPU time and the machine's load beside it (other work on the machine shows as wall time
+      well above CPU time / threads);
+    * the breakdown, stage by stage on one thread (the compiled runs; the metrics from their raw
+      outputs), then the whole of run + metrics on 1 and on 2 threads: what lies outside the
+      integrator, and the integrator's share of the target;
     * the same points one by one with a plain ``scipy.integrate.solve_ivp`` implementation of the
       same equations (benchmarks/bench_engine.py's independent reference, RK45 at the scenario's
       rtol) on a random subset, scaled to 10,000 points, and the speed-up;
@@ -25,6 +30,7 @@ Exit status: 0 when the time target is met and the subset agrees, 1 otherwise.
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import sys
 import time
@@ -35,7 +41,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import frogsim  # noqa: E402
 from frogsim.engine.batch import build_models, run_models  # noqa: E402
-from frogsim.sweep.metrics import evaluate_models  # noqa: E402
+from frogsim.engine.batch import run_outputs  # noqa: E402
+from frogsim.sweep.metrics import evaluate_models, evaluate_outputs, kept_columns  # noqa: E402
 
 TARGET_S = 1.5
 METRICS = ["rise_time", "final_pressure", "aeration_volume", "source_drop"]
@@ -72,11 +79,48 @@ def reference_rise_time(point: dict) -> tuple[float, float]:
     return float(t_hit - t_open), wall
 
 
+LOAD_BEFORE = os.getloadavg()[0]
+
+
+def breakdown(models, build_s: float, build_cpu: float) -> None:
+    """Stage by stage on one thread (wall and CPU time of the thread: CPU time is what the stage
+    costs, whatever else the machine runs), then run + metrics on 1 and 2 threads."""
+    cols = kept_columns(METRICS, 1, 0)
+    runs = metrics = runs_cpu = metrics_cpu = 0.0
+    for a in range(0, len(models), 64):
+        t0, c0 = time.perf_counter(), time.thread_time()
+        groups, _ = run_outputs(models[a:a + 64], cols)
+        t1, c1 = time.perf_counter(), time.thread_time()
+        for _, out in groups:
+            evaluate_outputs(out, METRICS, "hip")
+        metrics += time.perf_counter() - t1
+        metrics_cpu += time.thread_time() - c1
+        runs += t1 - t0
+        runs_cpu += c1 - c0
+    n = len(models)
+    print("  breakdown, one thread, stage by stage (wall / CPU):")
+    for what, wall, cpu in (("build models", build_s, build_cpu), ("compiled runs (integrator + copy)", runs, runs_cpu),
+                            ("metrics from the raw outputs", metrics, metrics_cpu)):
+        print(f"    {what:34s} {wall:7.3f} s / {cpu:7.3f} s   ({cpu / n * 1e6:6.1f} us CPU per point)")
+    walls = {}
+    for threads in (1, 2):
+        t0 = time.perf_counter()
+        evaluate_models(models, METRICS, "hip", threads=threads)
+        walls[threads] = time.perf_counter() - t0
+    print(f"    run + metrics: {walls[1]:.3f} s on 1 thread, {walls[2]:.3f} s on 2 threads "
+          f"(speed-up {walls[1] / walls[2]:.2f})")
+    outside = build_cpu + metrics_cpu
+    print(f"    outside the integrator: build + metrics = {outside:.3f} s CPU; for the {TARGET_S:g} s target the "
+          f"compiled runs may take {max(0.0, TARGET_S - outside) * 2 / n * 1e6:.0f} us per point on 2 cores "
+          f"(now {runs_cpu / n * 1e6:.0f} us CPU)")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--points", type=int, default=10000, help="number of sweep points (default 10000)")
     ap.add_argument("--threads", type=int, default=os.cpu_count(), help="engine threads (default: all cores)")
     ap.add_argument("--ref-points", type=int, default=8, help="points run with the solve_ivp reference (default 8)")
+    ap.add_argument("--no-breakdown", action="store_true", help="skip the stage-by-stage breakdown")
     args = ap.parse_args(argv)
     base = frogsim.load_scenario(BASE)
     points = grid_points(args.points)
@@ -85,19 +129,29 @@ def main(argv=None) -> int:
 
     t0 = time.perf_counter()
     run_models(build_models(base, points[:2]))
+    evaluate_models(build_models(base, points[:2]), METRICS, "hip", threads=1)
+    # the objects the imports made (numba, scipy, pandas) are due one full collection of Python's
+    # cyclic garbage collector (~0.08 s here); done now, it does not fall at random in the timed part
+    gc.collect()
     print(f"  warm-up (engine load or compilation, once per machine): {time.perf_counter() - t0:.2f} s")
 
+    c0 = time.process_time()
     t0 = time.perf_counter()
     models = build_models(base, points)
     t1 = time.perf_counter()
+    build_cpu = time.process_time() - c0
     values = evaluate_models(models, METRICS, "hip", threads=args.threads)
     t2 = time.perf_counter()
+    cpu = time.process_time() - c0
     total = t2 - t0
     print(f"  build models             {t1 - t0:7.2f} s")
     print(f"  run + metrics            {t2 - t1:7.2f} s   ({(t2 - t1) / len(points) * 1e6:.0f} us per point)")
     print(f"  total                    {total:7.2f} s   (target <= {TARGET_S:g} s)")
+    print(f"  CPU time of the process  {cpu:7.2f} s   (load average before: {LOAD_BEFORE:.1f} on {os.cpu_count()} CPUs)")
     finite = {m: int(np.isfinite(v).sum()) for m, v in values.items()}
     print(f"  finite metric values: {finite}")
+    if not args.no_breakdown:
+        breakdown(models, t1 - t0, build_cpu)
 
     rng = np.random.default_rng(0)
     subset = rng.choice(len(points), size=min(args.ref_points, len(points)), replace=False)

@@ -105,3 +105,48 @@ def test_metrics_refuse_mixed_time_grids(raw):
     b = frogsim.simulate(frogsim.load_scenario(frogsim.with_overrides(raw, {"duration": "1.5 s"})))
     with pytest.raises(ValueError, match="one time grid"):
         evaluate([a, b], ["rise_time"], "hip")
+
+
+def test_raw_output_metrics_equal_the_result_path_including_not_reached(base):
+    # Eq. (9) caps the charge at the branch limit (standard volume flow): at 5 L/min the 0.6 s phase
+    # charges at most 0.05 L (standard), far less than the 90 % rise needs, so the rise time is
+    # "not reached"; with the source at 0 bar gauge there is no rise at all
+    points = [{"supply.branch_limit": q * 1e-3 / 60, "source.initial_pressure_gauge": ps * 1e5,
+               "muscle_types.hip.stroke_contraction": e / 100}
+              for q in (5, 20, 90) for ps in (0, 3, 6) for e in (0, 15)]
+    models = build_models(base, points)
+    results = run_models(models)
+    lean = evaluate_models(models, list(METRICS), "hip", threads=2, chunk=4)     # raw outputs, compiled runs
+    ref = evaluate(results, list(METRICS), "hip")                                # Result objects
+    for m in METRICS:
+        assert np.array_equal(lean[m], ref[m], equal_nan=True), m
+    for k, (pt, r) in enumerate(zip(points, results)):
+        reason = r.rise_time_reason("hip")
+        assert np.isnan(lean["rise_time"][k]) == (reason is not None)
+        assert lean["rise_time"][k] == r.rise_time("hip") or reason is not None
+        if pt["source.initial_pressure_gauge"] == 0:
+            assert reason.startswith("no rise")
+        elif pt["supply.branch_limit"] == 5e-3 / 60:
+            assert reason.startswith("not reached before the charge valve closed")
+            assert lean["aeration_volume"][k] <= 5 / 60 * 0.6 * (1 + 1e-9)      # L (standard)
+            assert lean["rise_reached"][k] < 0.9
+        else:
+            assert reason is None or reason.startswith("not reached before the charge valve closed")
+        if reason is None:
+            assert 0 < lean["rise_time"][k] < 0.6 and lean["rise_reached"][k] >= 0.9     # inside the phase
+    assert np.isnan(lean["rise_time"]).sum() >= 12 and np.isfinite(lean["rise_time"]).sum() >= 2
+
+
+def test_closed_loop_batch_runs_equal_single_runs():
+    # a muscle under a bang-bang controller (a 2-D table of sampled laws) through the compiled batch
+    d = {"name": "loop", "parameters": "fan2017", "duration": "0.4 s",
+         "muscles": {"hip": {"type": "hip", "motion": {"kind": "constant"}}},
+         "controllers": {"loop": {"muscle": "hip", "kind": "bang-bang", "setpoint": "2 bar", "band": "0.2 bar"}}}
+    sc = frogsim.load_scenario(d)
+    points = [{"controllers.loop.setpoint.value": sp * 1e5, "source.initial_pressure_gauge": ps * 1e5}
+              for sp in (1.5, 2.5) for ps in (4, 6)]
+    models = build_models(sc, points)
+    lean = evaluate_models(models, list(METRICS), "hip", threads=2, chunk=3)
+    ref = evaluate([frogsim.simulate(sc.replace(pt)) for pt in points], list(METRICS), "hip")
+    for m in METRICS:
+        assert np.array_equal(lean[m], ref[m], equal_nan=True), m

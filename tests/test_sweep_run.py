@@ -209,14 +209,14 @@ def test_failed_point_is_isolated_and_reported(tmp_path, monkeypatch, capsys):
     import frogsim.engine.batch as batch
     from frogsim.circuit import layout as L
     from frogsim.errors import SimulationError
-    real = batch.run_models
+    real = batch.run_outputs
 
-    def run_models(models, threads=None):
+    def run_outputs(models, columns=None):
         for m in models:
             if abs(m.g[L.G_VS] - 3e-3) < 1e-12:          # the 3 L source fails
                 raise SimulationError(f"batch point 0 ({m.scenario.name!r}): integration stopped (test)")
-        return real(models, threads)
-    monkeypatch.setattr(batch, "run_models", run_models)
+        return real(models, columns)
+    monkeypatch.setattr(batch, "run_outputs", run_outputs)
     spec = GRID_FAIL
     path = write_case(tmp_path, spec)
     out = tmp_path / "r.nc"
@@ -228,7 +228,7 @@ def test_failed_point_is_isolated_and_reported(tmp_path, monkeypatch, capsys):
     assert np.isnan(f["rise_time"].values[1]) and np.isnan(f["final_pressure"].values[1])
     assert np.all(np.isfinite(f["final_pressure"].values[[0, 2]]))
     assert "integration stopped (test)" in json.loads(f.attrs["failures"])["1"]
-    monkeypatch.setattr(batch, "run_models", real)
+    monkeypatch.setattr(batch, "run_outputs", real)
     ok = run_sweep(path, progress=False)
     for name in ("rise_time", "final_pressure"):
         assert np.array_equal(ok[name].values[[0, 2]], f[name].values[[0, 2]], equal_nan=True)

@@ -13,6 +13,7 @@ from frogsim.scenario.core import Scenario
 from frogsim.scenario.rules import setpoint_knots
 from frogsim.scenario.motion import command_time, muscle_knots, output_times
 from frogsim.scenario.schema import VALVE_STATES
+from frogsim.scenario.view import Settings
 from frogsim.physics.air import critical_pressure_ratio
 from frogsim.physics.flow import main_pipe_branch_limit, tube_sonic_conductance
 from frogsim.physics.muscle import braid_parameters, muscle_volume
@@ -116,23 +117,55 @@ class PneumaticModel:
 def build_model(scenario: Scenario) -> PneumaticModel:
     """Flatten a Scenario into the arrays the engine loops over.
 
-    The arrays come in parts, each a pure function of the few settings it reads and cached on
-    them (frozen dataclasses hash by value): the globals ``g`` (air, chambers, pump, supply,
-    valves), the muscle rows ``mp`` (valves, muscle types), the motions and valve schedule (the
-    muscles with their types and programs, the controller rate, the valve dead times), the
-    initial state (chambers, muscles, tolerance). A variant that changes one setting rebuilds only
-    the parts that read it, and the model equals a fresh build bit for bit. Every part returns
-    fresh copies, so a model never shares arrays with another.
+    The arrays come in parts (:data:`PARTS`), each a pure function of the few top-level settings
+    it declares (it reads them through a :class:`frogsim.scenario.view.Settings`, which refuses
+    any other) and of earlier parts, and cached on them (frozen dataclasses hash by value): the
+    motions, valve schedule and muscle rows (the muscles with their types and programs, the
+    controller rate, the valves), the globals ``g`` (air, chambers, pump, supply, valves), the
+    sampled laws, the initial state (chambers, muscles, tolerance) and the output grid. A variant
+    that changes one setting rebuilds only the parts that read it, a batch of variants builds each
+    distinct part once (:mod:`frogsim.engine.batch`), and the model equals a fresh build bit for
+    bit. :func:`assemble` copies every array, so a model never shares arrays with another.
     """
-    sc = scenario
+    values, owner = scenario.__dict__, type(scenario)
+    parts: dict = {}
+    for name, names, deps, make in PARTS:
+        parts[name] = make(Settings(values, names, owner), *(parts[d] for d in deps))
+    return assemble(scenario, parts)
+
+
+def _motion_stage(sc):
+    """(muscle names, motion part (:func:`_motion_part`), muscle rows mp)."""
     names = tuple(sc.muscles)
     muscles = tuple((name, sc.muscles[name], sc.muscle_types[sc.muscles[name].type]) for name in names)
     files = tuple(_file_key(sc.base_dir, m) for _, m, _ in muscles)
     motion = _motion_part(muscles, sc.controller.rate, sc.valves.charge.dead_time,
                           sc.valves.discharge.dead_time, files, sc.base_dir)
-    mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0, opens, volumes, fixed = motion
-    g = _globals_part(sc.air, sc.source, sc.exhaust, sc.pump, sc.supply, sc.valves).copy()
-    laws = _laws(sc, g, names, volumes)
+    mp = _muscle_part(sc.valves, tuple(mt for _, _, mt in muscles)).copy()
+    mp[:, L.M_FIXEDV] = motion[9]
+    return names, motion, mp
+
+
+def _globals_stage(sc):
+    return _globals_part(sc.air, sc.source, sc.exhaust, sc.pump, sc.supply, sc.valves)
+
+
+def _volumes_stage(sc, motion):
+    """(muscle names, each muscle's volume at the start [m^3])."""
+    names, parts, _ = motion
+    return names, parts[8]
+
+
+def _laws_stage(sc, g, volumes):
+    """The table of sampled laws."""
+    return _laws(sc, g, *volumes)
+
+
+def _schedule_stage(sc, laws, motion):
+    """The valve schedule's states, with the valves of closed-loop muscles left to their
+    controllers."""
+    names, parts, _ = motion
+    sched_u = parts[5]
     if laws.ndim == 2 and laws.shape[0] and (laws[:, 0] != 1.0).any():     # 1-D: open loop
         # the valves of a muscle under a closed-loop controller are the controller's: the schedule
         # leaves them alone (NaN: "not set here", see frogsim.engine.integrator.advance)
@@ -142,17 +175,42 @@ def build_model(scenario: Scenario) -> PneumaticModel:
                 for m in (c.muscle, c.antagonist) if c.kind == "joint-angle" else (c.muscle,):
                     i = names.index(m)
                     sched_u[:, 2 * i:2 * i + 2] = np.nan
-    mp = _muscle_part(sc.valves, tuple(mt for _, _, mt in muscles)).copy()
-    mp[:, L.M_FIXEDV] = fixed
-    y0, atol = _state_part(sc.air, sc.source, sc.exhaust, tuple(m.initial_pressure_gauge for _, m, _ in muscles),
-                           volumes, sc.solver.rtol)
-    return PneumaticModel(scenario=sc, names=list(names),
-                          g=g,
-                          mp=mp,
+    return sched_u
+
+
+def _state_stage(sc, volumes):
+    names, vols = volumes
+    return _state_part(sc.air, sc.source, sc.exhaust, tuple(sc.muscles[n].initial_pressure_gauge for n in names),
+                       vols, sc.solver.rtol)
+
+
+def _output_stage(sc):
+    return _output_part(sc.duration, sc.output_interval)
+
+
+#: The parts of a model: (name, top-level settings it reads, earlier parts it uses, maker).
+PARTS = (
+    ("motion", ("muscles", "muscle_types", "controller", "valves", "base_dir"), (), _motion_stage),
+    ("volumes", (), ("motion",), _volumes_stage),
+    ("g", ("air", "source", "exhaust", "pump", "supply", "valves"), (), _globals_stage),
+    ("laws", ("valves", "controllers", "base_dir", "controller", "joints"), ("g", "volumes"), _laws_stage),
+    ("sched_u", ("controllers",), ("laws", "motion"), _schedule_stage),
+    ("state", ("air", "source", "exhaust", "muscles", "solver"), ("volumes",), _state_stage),
+    ("out_t", ("duration", "output_interval"), (), _output_stage),
+)
+
+
+def assemble(scenario: Scenario, parts: dict) -> PneumaticModel:
+    """The model of a scenario from its parts (:data:`PARTS`), every array a fresh copy."""
+    names, motion, mp = parts["motion"]
+    mot_t, mot_L, mot_d, mot_n, sched_t, _, u0, opens, _, _ = motion
+    laws, sched_u = parts["laws"], parts["sched_u"]
+    y0, atol = parts["state"]
+    return PneumaticModel(scenario=scenario, names=list(names), g=parts["g"].copy(), mp=mp.copy(),
                           mot_t=mot_t.copy(), mot_L=mot_L.copy(), mot_d=mot_d.copy(), mot_n=mot_n.copy(),
                           sched_t=sched_t.copy(), sched_u=sched_u.copy(), u0=u0.copy(),
                           charge_open_times=[o.copy() for o in opens], y0=y0.copy(), atol=atol.copy(),
-                          out_t=_output_part(sc.duration, sc.output_interval).copy(), laws=laws)
+                          out_t=parts["out_t"].copy(), laws=laws.copy())
 
 
 def _laws(sc: Scenario, g: np.ndarray, names: tuple, volumes: tuple) -> np.ndarray:

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from frogsim._jit import jit
+
 # status codes of a rise-time measurement
 REACHED = 0
 NOT_REACHED = 1          # the valve closed (or the run ended) before the level was reached
@@ -45,21 +47,86 @@ def pressurise_window(t, u_charge, t_open):
     valve still open (k_closed - 1, or the end of the run). Runs whose opening time is NaN or
     after the end of the run get k0 = k_closed = k_last = T - 1.
     """
-    T = t.size
-    t_open = np.asarray(t_open, float)
-    k0 = np.minimum(np.searchsorted(t, np.nan_to_num(t_open, nan=np.inf)), T - 1)
-    closed = (t[None, :] > t_open[:, None]) & (u_charge < 0.5)
-    has = closed.any(axis=1)
-    first = np.argmax(closed, axis=1)
-    k_closed = np.where(has, first, T - 1)
-    k_last = np.where(has, np.maximum(first - 1, k0), T - 1)
-    return k0, k_closed, k_last
+    k0, kc, kl, _ = _windows(np.asarray(t, float), _rows(u_charge), np.asarray(t_open, float))
+    return k0, kc, kl
 
 
 def valve_closes(t, u_charge, t_open):
     """True where the charge valve closes again inside the run (False: still open at its end)."""
-    closed = (t[None, :] > np.asarray(t_open, float)[:, None]) & (u_charge < 0.5)
-    return closed.any(axis=1)
+    return _windows(np.asarray(t, float), _rows(u_charge), np.asarray(t_open, float))[3]
+
+
+def _rows(x):
+    return np.ascontiguousarray(x, dtype=float)
+
+
+@jit
+def _window(t, u, t_open):
+    """(k0, k_closed, k_last, closes) of one run (:func:`pressurise_window`): u (T,) its valve."""
+    T = t.size
+    k0 = T - 1 if t_open != t_open else min(np.searchsorted(t, t_open), T - 1)
+    for k in range(T):
+        if t[k] > t_open and u[k] < 0.5:
+            return k0, k, max(k - 1, k0), True
+    return k0, T - 1, T - 1, False
+
+
+@jit
+def _windows(t, u, t_open):
+    B = u.shape[0]
+    k0, kc, kl = np.empty(B, np.int64), np.empty(B, np.int64), np.empty(B, np.int64)
+    closes = np.empty(B, np.bool_)
+    for b in range(B):
+        k0[b], kc[b], kl[b], closes[b] = _window(t, u[b], t_open[b])
+    return k0, kc, kl, closes
+
+
+@jit
+def _rise(t, p, p_source, u, t_open, fraction):
+    """The rise measurement of one run (module docstring): (seconds, p_start, p_target, level,
+    reached, status, closes)."""
+    k0, _, k1, closes = _window(t, u, t_open)
+    has_phase = np.isfinite(t_open) and t_open <= t[-1]
+    p0 = p[k0]
+    ptarget = p_source[k1]
+    rise = ptarget - p0
+    level = p0 + fraction * rise
+    best = -np.inf
+    hit = -1
+    for k in range(k0, k1 + 1):           # the samples with the valve open
+        if p[k] != p[k] or best != best:
+            best = np.nan
+        elif p[k] > best:
+            best = p[k]
+        if hit < 0 and p[k] >= level:
+            hit = k
+    reached = (best - p0) / rise if rise > 0 else np.nan
+    status = NOT_REACHED
+    if hit >= 0:
+        status = REACHED
+    if not rise > 0:
+        status = NO_RISE
+    if not has_phase:
+        status = NO_PHASE
+    j = max(hit, 0)
+    jm = max(j - 1, 0)
+    pa, pb = p[jm], p[j]
+    frac = (level - pa) / (pb - pa) if pb > pa else 1.0
+    t_hit = t[j] if j <= k0 else t[jm] + frac * (t[j] - t[jm])
+    seconds = max(t_hit - t_open, 0.0) if status == REACHED else np.nan
+    return seconds, p0, ptarget, level, reached, status, closes
+
+
+@jit
+def _rises(t, p, p_source, u, t_open, fraction):
+    B = p.shape[0]
+    out = np.empty((5, B))
+    status = np.empty(B, np.int64)
+    closes = np.empty(B, np.bool_)
+    for b in range(B):
+        (out[0, b], out[1, b], out[2, b], out[3, b], out[4, b],
+         status[b], closes[b]) = _rise(t, p[b], p_source[b], u[b], t_open[b], fraction)
+    return out, status, closes
 
 
 @dataclass
@@ -100,37 +167,11 @@ def rise_reason(status: int, reached: float, closes: bool = True, fraction: floa
 
 def rise_times(t, p, p_source, u_charge, t_open, fraction=0.9) -> RiseTimes:
     """Rise time to ``fraction`` of the way from the muscle's opening pressure to the source
-    pressure at the valve's close (module docstring): p, p_source (B, T) [Pa abs]."""
-    p = np.asarray(p, float)
-    p_source = np.asarray(p_source, float)
-    t_open = np.asarray(t_open, float)
-    B = p.shape[0]
-    rows = np.arange(B)
-    k0, _, k1 = pressurise_window(t, u_charge, t_open)
-    has_phase = np.isfinite(t_open) & (t_open <= t[-1])
-    p0 = p[rows, k0]
-    ptarget = p_source[rows, k1]
-    rise = ptarget - p0
-    level = p0 + fraction * rise
-    idx = np.arange(t.size)[None, :]
-    inside = (idx >= k0[:, None]) & (idx <= k1[:, None])
-    hit = inside & (p >= level[:, None])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        best = np.where(inside, p, -np.inf).max(axis=1)
-        reached = np.where(rise > 0, (best - p0) / rise, np.nan)
-    status = np.full(B, NOT_REACHED)
-    status[hit.any(axis=1)] = REACHED
-    status[~(rise > 0)] = NO_RISE
-    status[~has_phase] = NO_PHASE
-    j = np.argmax(hit, axis=1)
-    jm = np.maximum(j - 1, 0)
-    pa, pb = p[rows, jm], p[rows, j]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        frac = np.where(pb > pa, (level - pa) / (pb - pa), 1.0)
-        t_hit = np.where(j <= k0, t[j], t[jm] + frac * (t[j] - t[jm]))
-    seconds = np.where(status == REACHED, np.maximum(t_hit - t_open, 0.0), np.nan)
-    return RiseTimes(seconds, p0, ptarget, level, reached, status,
-                     valve_closes(t, u_charge, t_open), fraction)
+    pressure at the valve's close (module docstring): p, p_source (B, T) [Pa abs]. Each run is
+    measured by one compiled function (:func:`_rise`), the only definition."""
+    out, status, closes = _rises(np.asarray(t, float), _rows(p), _rows(p_source), _rows(u_charge),
+                                 np.asarray(t_open, float).reshape(-1), float(fraction))
+    return RiseTimes(out[0], out[1], out[2], out[3], out[4], status, closes, fraction)
 
 
 def rise_time(t, p, p_source, u_charge, t_open, fraction=0.9):

@@ -58,23 +58,10 @@ class Scenario:
 
         Raises ScenarioError naming the path, the value and what is allowed.
         """
-        tree = _Tree()
-        for path, value in changes.items():
-            if not isinstance(path, str) or not path or not all(path.split(".")):
-                raise ScenarioError(str(path), value, "expected a dotted path such as source.volume")
-            node = tree
-            keys = path.split(".")
-            for j, key in enumerate(keys[:-1]):
-                node = node.setdefault(key, _Tree())
-                if not isinstance(node, _Tree):
-                    raise ScenarioError(path, value, f"lies inside {'.'.join(keys[:j + 1])}, which is also set")
-            if isinstance(node.get(keys[-1]), _Tree):
-                raise ScenarioError(path, value, "is a table whose settings are also set")
-            node[keys[-1]] = value
-        tree["raw"] = _RAW_CLEARED
-        new = _apply(self, tree, "", self)
+        tree = _parse(changes)
+        new = _with(self, **_top_changes(self, tree))
         if "programs" in tree:
-            new = _relink_programs(new)
+            new = _with(new, muscles=_relinked(new.programs, new.muscles))
         rules.check(new)
         return new
 
@@ -156,7 +143,44 @@ class _Tree(dict):
     """Changes below one table: key -> value, or a _Tree for a table further down."""
 
 
-_RAW_CLEARED = object()
+
+def _parse(changes: dict) -> _Tree:
+    """The tree of changes (one _Tree per table) of dotted paths -> values; ScenarioError on a
+    malformed path or on a path that lies inside another one."""
+    tree = _Tree()
+    for path, value in changes.items():
+        if not isinstance(path, str) or not path or not all(path.split(".")):
+            raise ScenarioError(str(path), value, "expected a dotted path such as source.volume")
+        node = tree
+        keys = path.split(".")
+        for j, key in enumerate(keys[:-1]):
+            node = node.setdefault(key, _Tree())
+            if not isinstance(node, _Tree):
+                raise ScenarioError(path, value, f"lies inside {'.'.join(keys[:j + 1])}, which is also set")
+        if isinstance(node.get(keys[-1]), _Tree):
+            raise ScenarioError(path, value, "is a table whose settings are also set")
+        node[keys[-1]] = value
+    return tree
+
+
+def _top_changes(sc: Scenario, tree: _Tree) -> dict:
+    """{top-level setting: its new value} for a tree of changes of sc (its ``raw`` cleared): each
+    top-level entry is made from its own branch of the tree alone (:func:`_top_change`)."""
+    changes = {}
+    for name, value in tree.items():
+        changes.update(_top_change(sc, name, value))
+    changes["raw"] = {}
+    return changes
+
+
+def _top_change(sc: Scenario, name: str, value) -> dict:
+    """{name: new value} of one top-level setting of sc, from its branch of the tree of changes."""
+    fields = _field_map(type(sc))
+    if name not in fields:
+        raise unknown_key_error("", name, fields)
+    if isinstance(value, _Tree):
+        return {name: _apply_inside(sc, name, value, name, sc)}
+    return _leaf_change(sc, fields[name], value, name, sc)
 
 
 def _apply(obj, tree: _Tree, prefix: str, root: Scenario):
@@ -164,9 +188,6 @@ def _apply(obj, tree: _Tree, prefix: str, root: Scenario):
     changes = {}
     fields = _field_map(type(obj))
     for name, value in tree.items():
-        if value is _RAW_CLEARED:
-            changes["raw"] = {}
-            continue
         here = prefix + name
         if name not in fields:
             raise unknown_key_error(prefix.rstrip("."), name, fields)
@@ -229,9 +250,8 @@ def _check_object(obj, path: str, root: Scenario) -> None:
             _check_object(val, f"{path}.{f.name}", root)
 
 
-def _relink_programs(sc: Scenario) -> Scenario:
-    """Muscles that use a named program get that program's present version."""
-    muscles = {n: (dataclasses.replace(m, program=sc.programs[m.program_ref])
-                   if m.program_ref and m.program is not sc.programs[m.program_ref] else m)
-               for n, m in sc.muscles.items()}
-    return dataclasses.replace(sc, muscles=muscles)
+def _relinked(programs: dict, muscles: dict) -> dict:
+    """The muscles, those that use a named program given that program's present version."""
+    return {n: (dataclasses.replace(m, program=programs[m.program_ref])
+                if m.program_ref and m.program is not programs[m.program_ref] else m)
+            for n, m in muscles.items()}

@@ -14,6 +14,7 @@ from frogsim.scenario.fields import shown
 from frogsim.scenario.motion import build_motions
 from frogsim.scenario.files import read_text
 from frogsim.scenario.schema import MOTION_KINDS, SETPOINT_FIELDS
+from frogsim.scenario.view import Settings
 
 if TYPE_CHECKING:   # annotations only
     from frogsim.scenario.core import Scenario
@@ -30,12 +31,28 @@ def _err(path: str, obj, name: str, allowed: str) -> ScenarioError:
 
 
 def check(sc: Scenario) -> None:
-    """Raise ScenarioError (field, value, what is allowed) on the first rule the scenario breaks."""
+    """Raise ScenarioError (field, value, what is allowed) on the first rule the scenario breaks.
+
+    Each rule of :data:`RULES` sees only the top-level settings it declares (a
+    :class:`frogsim.scenario.view.Settings`), so a batch of variants can check it once per
+    distinct combination of them (:mod:`frogsim.scenario.variants`)."""
+    values, owner = sc.__dict__, type(sc)
+    for names, rule in RULES:
+        rule(Settings(values, names, owner))
+
+
+def _check_output_grid(sc) -> None:
     if sc.output_interval > sc.duration:
-        raise _err("output_interval", sc, "output_interval", f"must not exceed the duration ({sc.duration:g} s)")
+        raise _interval_err(sc, f"must not exceed the duration ({sc.duration:g} s)")
     if sc.duration / sc.output_interval > MAX_OUTPUT_ROWS:
-        raise _err("output_interval", sc, "output_interval",
-                   "too fine for the duration (more than 5 million output rows)")
+        raise _interval_err(sc, "too fine for the duration (more than 5 million output rows)")
+
+
+def _interval_err(sc, allowed: str) -> ScenarioError:
+    return ScenarioError("output_interval", shown(sc.output_interval, sc.meta("output_interval")), allowed)
+
+
+def _check_initial_pressures(sc) -> None:
     p_atm = sc.air.atmospheric_pressure_abs
     starts = [("source.initial_pressure_gauge", sc.source, "initial_pressure_gauge"),
               ("exhaust.initial_pressure_gauge", sc.exhaust, "initial_pressure_gauge")]
@@ -45,18 +62,30 @@ def check(sc: Scenario) -> None:
         if p_atm + getattr(obj, name) <= 0.0:     # air in a chamber has a positive absolute pressure
             raise _err(path, obj, name, f"must be above -{p_atm / 1e5:g} bar: the atmosphere is "
                                         f"{p_atm / 1e3:g} kPa (air.atmospheric_pressure_abs)")
+
+
+def _check_pump(sc) -> None:
     if sc.pump.on_below_gauge >= sc.pump.off_above_gauge:
         off = shown(sc.pump.off_above_gauge, _meta(sc.pump, "off_above_gauge"))
         raise _err("pump.on_below_gauge", sc.pump, "on_below_gauge", f"must be below pump.off_above_gauge ({off})")
+
+
+def _check_valves(sc) -> None:
     for vname in ("charge", "discharge"):
         v = getattr(sc.valves, vname)
         if v.laminar_ratio <= v.critical_ratio:
             raise ScenarioError(f"valves.{vname}.laminar_ratio", v.laminar_ratio,
                                 f"must exceed critical_ratio ({v.critical_ratio:g})")
+
+
+def _check_muscle_types(sc) -> None:
     if not sc.muscle_types:
         raise ScenarioError("muscle_types", {}, "expected at least one muscle type")
     for tname, mt in sc.muscle_types.items():
         mt.check(f"muscle_types.{tname}")
+
+
+def _check_muscles(sc) -> None:
     if not sc.muscles:
         raise ScenarioError("muscles", {}, "expected at least one muscle, e.g. [muscles.hip]")
     for mname, m in sc.muscles.items():
@@ -77,7 +106,9 @@ def check(sc: Scenario) -> None:
                 raise ScenarioError(f"{path}.motion.contraction_percent", c,
                                     f"must be <= the muscle's max_contraction ({mt.max_contraction:.0%})")
     # program steps after the end of the run are allowed: they simply never happen
-    check_controllers(sc)
+
+
+def _check_motions(sc) -> None:
     build_motions(sc)      # overlapping strokes, joint-angle files
 
 
@@ -234,3 +265,17 @@ def _check_joint_controller(sc: Scenario, cname: str, c, driven: dict, p_top: fl
         raise _err(f"{path}.co_contraction", c, "co_contraction",
                    f"must not exceed the source pressure ({p_top / 1e5:g} bar gauge): the charge valve "
                    "cannot reach it")
+
+
+#: The cross-field rules in the order they are checked: (top-level settings it reads, rule).
+RULES = (
+    (("output_interval", "duration"), _check_output_grid),
+    (("air", "source", "exhaust", "muscles"), _check_initial_pressures),
+    (("pump",), _check_pump),
+    (("valves",), _check_valves),
+    (("muscle_types",), _check_muscle_types),
+    (("muscles", "muscle_types"), _check_muscles),
+    (("valves", "controller", "source", "pump", "controllers", "muscles", "air", "base_dir", "joints"),
+     check_controllers),
+    (("controller", "muscles", "muscle_types", "base_dir"), _check_motions),
+)

@@ -3,9 +3,10 @@ to NetCDF as they finish, resumable after any interruption.
 
 Execution
     The points are split into a fixed chunk plan (:meth:`SweepSpec.chunks`, from the spec alone).
-    A chunk is built (:func:`frogsim.engine.batch.compose_models`, or one full build per point
-    when composing would cost more), run (:func:`frogsim.engine.batch.run_models`, in sub-batches
-    so that memory stays small) and reduced to metrics (:func:`frogsim.sweep.metrics.evaluate`) by
+    A chunk is built (:func:`frogsim.engine.batch.build_models`: each distinct part once), run in
+    sub-batches so that memory stays small (:func:`frogsim.engine.batch.run_outputs`: compiled,
+    keeping only the output columns the metrics read; Result objects only when time series are
+    stored) and reduced to metrics (:func:`frogsim.sweep.metrics.evaluate_outputs`) by
     :func:`run_chunk`. Locally the chunks run one after the other on ``workers`` threads; with a
     Dask scheduler each chunk is a task. Same plan, same code: the results are identical.
 
@@ -90,21 +91,56 @@ def _evaluate(results: list, metrics, muscle) -> dict[str, np.ndarray]:
 
 
 def _run_piece(models, metrics, muscle, timeseries) -> dict:
-    """Run a few models on this thread and reduce them at once (their time series are dropped)."""
+    """Run a few models on this thread and reduce them at once (their time series are dropped).
+
+    Without time series to store, the runs keep only the output columns the metrics read and are
+    reduced from those raw outputs (:func:`frogsim.engine.batch.run_outputs`, no Result objects)."""
+    if timeseries:
+        return _run_piece_results(models, metrics, muscle, timeseries)
+    from frogsim.engine.batch import run_outputs
+    from frogsim.sweep.metrics import evaluate_outputs, kept_columns
+    B = len(models)
+    columns = None
+    if hasattr(models, "names"):
+        names = models.names()
+        columns = kept_columns(metrics, len(names), names.index(muscle) if muscle in names else 0)
+    try:
+        groups, failures = run_outputs(models, columns)
+    except SimulationError:                 # isolate the point(s) that fail
+        groups, failures = [], {}
+        for j in range(B):
+            try:
+                g, f = run_outputs(models[j:j + 1], columns)
+            except SimulationError as exc:
+                failures[j] = str(exc)
+                continue
+            groups += [(rows + j, out) for rows, out in g]
+            failures.update({j + k: text for k, text in f.items()})
+    res = {"metrics": {m: np.full(B, np.nan) for m in metrics}, "timeseries": {},
+           "failed": np.zeros(B, bool), "errors": dict(failures)}
+    res["failed"][list(failures)] = True
+    for rows, out in groups:
+        vals = evaluate_outputs(out, list(metrics), muscle)
+        for m in metrics:
+            res["metrics"][m][rows] = vals[m]
+    return res
+
+
+def _run_piece_results(models, metrics, muscle, timeseries) -> dict:
+    """:func:`_run_piece` through Result objects, for the time series a sweep stores."""
     results = _run_isolating(models, 1)
     B = len(models)
     res = {"metrics": {m: np.full(B, np.nan) for m in metrics}, "timeseries": {},
            "failed": np.array([isinstance(r, str) for r in results], bool),
            "errors": {j: r for j, r in enumerate(results) if isinstance(r, str)}}
     ok = [j for j, r in enumerate(results) if not isinstance(r, str)]
-    if timeseries:
-        states, step, n_t = timeseries
-        for s in states:
-            arr = np.full((B, n_t), np.nan)
-            for j in ok:
-                series = np.asarray(STATES[s].get(results[j], muscle), float)[::step][:n_t]
-                arr[j, :series.size] = series
-            res["timeseries"][s] = arr
+    states, step, n_t = timeseries
+    for s in states:
+        arr = np.full((B, n_t), np.nan)
+        for j in ok:
+            series = np.asarray(STATES[s].get(results[j], muscle), float)[::step][:n_t]
+            arr[j, :series.size] = series
+        res["timeseries"][s] = arr
     if ok:
         vals = _evaluate([results[j] for j in ok], metrics, muscle)
         for m in metrics:
