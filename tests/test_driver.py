@@ -83,8 +83,8 @@ def test_a_run_advanced_in_many_calls_matches_one_call(paper_cycle_raw):
 
 def test_pausing_the_driver_changes_no_step(monkeypatch):
     """simulate() pauses the driver every STEPS_PER_CALL steps to read the clock: with a pause
-    every 7 steps (inside pieces and between them, pump band active) the run is bit for bit the
-    run of the batched engine, which never pauses."""
+    every step and every 7 steps (inside pieces and between them, pump band active, Rosenbrock
+    stretches) the run is bit for bit the run of the batched engine, which never pauses."""
     import numpy as np
 
     import frogsim
@@ -93,12 +93,14 @@ def test_pausing_the_driver_changes_no_step(monkeypatch):
     sc = frogsim.load_scenario("paper-cycle").replace({"pump.enabled": True, "pump.displacement": 3e-4,
                                                        "duration": 3.0, "programs.stroke.cycles": 2})
     whole = run_models(build_models(sc, [{}]))[0]
-    monkeypatch.setattr(pneumatic, "STEPS_PER_CALL", 7)
-    paused = frogsim.simulate(sc)
-    assert paused.stats["rhs_evaluations"] > whole.stats["rhs_evaluations"]     # it did pause
-    assert paused.stats["steps"] == whole.stats["steps"]
-    assert np.array_equal(paused.y, whole.y) and np.array_equal(paused.u, whole.u)
-    assert set(np.unique(paused.u[:, -1])) == {0.0, 1.0}                          # the pump switched
+    assert whole.stats["stiff_steps"] > 0          # pauses in and around Rosenbrock stretches too
+    for every in (1, 7):                           # 1: a pause after every step and at every piece's end
+        monkeypatch.setattr(pneumatic, "STEPS_PER_CALL", every)
+        paused = frogsim.simulate(sc)
+        assert paused.stats["rhs_evaluations"] > whole.stats["rhs_evaluations"]     # it did pause
+        assert paused.stats["steps"] == whole.stats["steps"]
+        assert np.array_equal(paused.y, whole.y) and np.array_equal(paused.u, whole.u)
+        assert set(np.unique(paused.u[:, -1])) == {0.0, 1.0}                          # the pump switched
 
 
 def test_open_loop_row_and_table_forms_give_the_same_run():

@@ -541,11 +541,12 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
         ds[D_SI] = si
         if apply_due(laws, t, u, cs):
             changed = True
+        if changed:
+            _explicit_again(ds)               # (before a pause: ds carries it to the next call)
         if ds[D_PAUSE] > 0 and stats[0] >= ds[D_PAUSE] and t < t_end - EPS:
             status = STATUS_PAUSED            # between pieces: the next call starts the next one
             break
         if changed:
-            _explicit_again(ds)
             rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
             stats[2] += 1
     ds[D_T] = t
