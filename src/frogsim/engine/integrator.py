@@ -216,18 +216,13 @@ def _dense(y, rc1, rc2, rc3, rc4, th, out):
 
 
 @jit
-def _stiffness_test(ds, h, y, yn, y6, k6, k7, atol, rtol):
+def _stiffness_test(ds, h, num, den):
     """Hairer's stiffness test for DOPRI5 (Hairer and Wanner, Solving ODEs II, Sec. IV.2), on an
     accepted step: h |lambda| ~ h ||k7 - k6|| / ||yn - y6|| (the last two stages are at the same
     time, so their difference quotient estimates the dominant eigenvalue), in the error norm's
-    weights. STIFF_AFTER steps at the stability boundary (STIFF_HLAMBDA) without NONSTIFF_RESET
-    steps below it in between switch the run to the Rosenbrock method."""
-    num = 0.0
-    den = 0.0
-    for j in range(y.size):
-        sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
-        num += ((k7[j] - k6[j]) / sc) ** 2
-        den += ((yn[j] - y6[j]) / sc) ** 2
+    weights (num and den: the two squared norms, summed with the error norm). STIFF_AFTER steps
+    at the stability boundary (STIFF_HLAMBDA) without NONSTIFF_RESET steps below it in between
+    switch the run to the Rosenbrock method."""
     if den > 0.0 and h * math.sqrt(num / den) > STIFF_HLAMBDA:
         ds[D_NSTIFF] += 1.0
         ds[D_NONSTIFF] = 0.0
@@ -239,6 +234,19 @@ def _stiffness_test(ds, h, y, yn, y6, k6, k7, atol, rtol):
         ds[D_NONSTIFF] += 1.0
         if ds[D_NONSTIFF] >= NONSTIFF_RESET:
             ds[D_NSTIFF] = 0.0
+
+
+@jit
+def _dopri_dense(h, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4):
+    """Coefficients of the Dormand-Prince step's 4th-order continuous extension (Hairer's DOPRI5
+    d1..d7; no extra right-hand-side evaluations), for :func:`_dense`."""
+    for j in range(y.size):
+        ydiff = yn[j] - y[j]
+        bspl = h * f[j] - ydiff
+        rc1[j] = ydiff
+        rc2[j] = bspl
+        rc3[j] = ydiff - h * k7[j] - bspl
+        rc4[j] = h * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j] + D6 * k6[j] + D7 * k7[j])
 
 
 @jit
@@ -408,11 +416,15 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                 rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
                 stats[2] += 6
                 err = 0.0
+                st_num = 0.0
+                st_den = 0.0
                 for j in range(ny):
                     e = h_try * (E1 * f[j] + E3 * k3[j] + E4 * k4[j] + E5 * k5[j] + E6 * k6[j]
                                  + E7 * k7[j])
-                    sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
-                    err += (e / sc) ** 2
+                    w = 1.0 / (atol[j] + rtol * max(abs(y[j]), abs(yn[j])))
+                    err += (e * w) ** 2
+                    st_num += ((k7[j] - k6[j]) * w) ** 2        # the stiffness test's norms
+                    st_den += ((yn[j] - yt[j]) * w) ** 2
                 err = math.sqrt(err / ny)
             if not math.isfinite(err):
                 # a non-finite trial: shrink hard and retry; give up only at step underflow
@@ -423,18 +435,13 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                     break
                 continue
             if err <= 1.0:
+                # the continuous extension on (t, t_new] (rc1..rc4), for the controllers'
+                # samples and the output rows inside the step: Rosenbrock's is made with the
+                # step, Dormand-Prince's only when one of them falls inside it (a step that ends
+                # on its sample, as every coupled-engine step does, needs none)
+                dense_ready = stiff
                 if not stiff:
-                    # the 4th-order continuous extension on (t, t_new], for the controllers'
-                    # samples and the output rows inside the step (no extra rhs evaluations)
-                    for j in range(ny):
-                        ydiff = yn[j] - y[j]
-                        bspl = h_try * f[j] - ydiff
-                        rc1[j] = ydiff
-                        rc2[j] = bspl
-                        rc3[j] = ydiff - h_try * k7[j] - bspl
-                        rc4[j] = h_try * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j]
-                                          + D6 * k6[j] + D7 * k7[j])
-                    _stiffness_test(ds, h_try, y, yn, yt, k6, k7, atol, rtol)
+                    _stiffness_test(ds, h_try, st_num, st_den)
                 # -- the controllers' samples inside the step, read from the dense output. A
                 # command that acts at once (the pump's switch, a valve without dead time) or a
                 # valve command that comes due before t_new ends the step there: the state at
@@ -451,6 +458,9 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                         for j in range(ny):
                             ys[j] = yn[j]
                     else:
+                        if not dense_ready:
+                            _dopri_dense(h_try, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
+                            dense_ready = True
                         _dense(y, rc1, rc2, rc3, rc4, (t_s - t) / h_try, ys)
                     if sample_controllers(laws, t_s, ys, u, cs):
                         refresh = True
@@ -461,6 +471,8 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                     if t_due < t_cut - EPS:
                         t_cut = max(t_due, t)
                     t_s = next_sample_time(laws, cs)
+                if not dense_ready and (t_cut < t_new - EPS or (out_i < n_out and out_t[out_i] <= t_cut)):
+                    _dopri_dense(h_try, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
                 if t_cut < t_new - EPS:
                     # the step ends at t_cut (a sample that changed a command, or a due time)
                     _dense(y, rc1, rc2, rc3, rc4, (t_cut - t) / h_try, yn)
