@@ -474,21 +474,7 @@ def apply_due(laws, t, u, cs):
 def next_control_time(laws, cs, ctrl_dt):
     """The next time [s] at which the controllers need the integrator to stop (inf if never): the
     next sample, or a queued valve command's due time if earlier."""
-    if laws.ndim == 1:                     # open loop: the pump's band samples, if there is a pump
-        return (cs[CS_SAMPLE] + 1.0) * ctrl_dt if laws.size else math.inf
-    if laws.shape[0] == 0:
-        return math.inf
-    t = (cs[CS_SAMPLE] + 1.0) * ctrl_dt
-    Q = int(cs[CS_Q])
-    for c in range(laws.shape[0]):
-        if not _is_valve_law(laws[c, L_KIND]):
-            continue
-        b = _block(cs, c)
-        if cs[b + B_QC_N] > 0:
-            t = min(t, cs[b + B_Q0 + 2 * int(cs[b + B_QC_HEAD])])
-        if cs[b + B_QD_N] > 0:
-            t = min(t, cs[b + B_Q0 + 2 * Q + 2 * int(cs[b + B_QD_HEAD])])
-    return t
+    return min(next_sample_time(laws, cs), next_due_time(laws, cs))
 
 
 @jit
@@ -624,3 +610,23 @@ def switch_counts(laws, cs) -> dict:
             b = int(CS_SIZE + c * cs[CS_BLOCK])
             out[c] = (int(cs[b + B_SW_C]), int(cs[b + B_SW_D]))
     return out
+
+
+_MODES = {"charge": MODE_CHARGE, "hold": MODE_HOLD, "vent": MODE_VENT,
+          1: MODE_CHARGE, 0: MODE_HOLD, -1: MODE_VENT}
+
+
+def command_from_python(laws, rows: dict, cs, cmds: dict, t_k: float, u, t_now: float) -> None:
+    """A Python controller function's commands at sample t_k, {muscle: "charge" | "hold" | "vent"
+    (or +1, 0, -1)}, checked and queued like a compiled law's (:func:`command_valves`; ``rows``:
+    muscle -> its law row); commands without dead time act at once (written into u at t_now)."""
+    from frogsim.errors import SimulationError
+    for name, mode in (cmds or {}).items():
+        if name not in rows:
+            raise SimulationError(f"controller function: muscle {name!r} is not free for closed-loop "
+                                  f"control (free: {', '.join(rows) or 'none'})")
+        if mode not in _MODES:
+            raise SimulationError(f"controller function: mode {mode!r} for {name!r} must be "
+                                  "'charge', 'hold' or 'vent'")
+        command_valves(laws, rows[name], cs, _MODES[mode], t_k)
+    apply_due(laws, t_now, u, cs)

@@ -19,17 +19,14 @@ import numpy as np
 
 from frogsim.circuit import layout as CL
 from frogsim.control.sampled import (B_A_SENSED, B_SENSED, B_W_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE,
-                                     KIND_EXTERNAL, KIND_PUMP_BAND, L_JOINT1, L_KIND, L_MUSCLE, MODE_CHARGE,
-                                     MODE_HOLD, MODE_VENT, apply_due, command_valves)
+                                     KIND_EXTERNAL, KIND_PUMP_BAND, L_JOINT1, L_KIND, L_MUSCLE,
+                                     command_from_python)
 from frogsim.engine.coupled import _failure, kernel_args
 from frogsim.engine.coupled_kernel import step_kernel
 from frogsim.engine.coupled_layout import R_TIME, S_CTRL_DT, S_TRUNK
 from frogsim.engine.integrator import start
 from frogsim.errors import SimulationError
 from frogsim.robot import import_mujoco
-
-_MODES = {"charge": MODE_CHARGE, "hold": MODE_HOLD, "vent": MODE_VENT,
-          1: MODE_CHARGE, 0: MODE_HOLD, -1: MODE_VENT}
 
 
 def external_laws(laws: np.ndarray) -> np.ndarray:
@@ -102,16 +99,7 @@ def run_coupled_python(cm, fn, progress=None) -> dict:
             angle[n], vel[n] = float(cs[b + B_A_SENSED]), float(cs[b + B_W_SENSED])
         obs["angle"], obs["velocity"] = angle, vel
         obs["body_velocity"] = body_velocity(m, d, tb)
-        cmds = fn(t_k, obs) or {}
-        for name, mode in cmds.items():
-            if name not in rows:
-                raise SimulationError(f"controller function: muscle {name!r} is not under closed-loop "
-                                      f"control (free: {', '.join(rows) or 'none'})")
-            if mode not in _MODES:
-                raise SimulationError(f"controller function: mode {mode!r} for {name!r} must be "
-                                      "'charge', 'hold' or 'vent'")
-            command_valves(laws, rows[name], cs, _MODES[mode], t_k)
-        apply_due(laws, t_k, u, cs)             # commands without dead time act at once
+        command_from_python(laws, rows, cs, fn(t_k, obs), t_k, u, t_k)
 
     args = kernel_args(cm)
     step1, step2 = mujoco.mj_step1, mujoco.mj_step2

@@ -49,7 +49,8 @@ D_NSTIFF = 7     # stiffness test: accepted Dormand-Prince steps at the stabilit
 D_NONSTIFF = 8   # ... and steps below it since the last one at it
 D_HSWITCH = 9    # the Dormand-Prince step [s] when the method switched to Rosenbrock
 D_NBACK = 10     # Rosenbrock steps in a row proposing less than D_HSWITCH
-D_SIZE = 11
+D_JAC_AGE = 11   # Rosenbrock steps since its Jacobian was made (-1: none); J, df/dt follow D_SIZE
+D_SIZE = 12
 STATS_SIZE = 4   # stats[:]: accepted steps, rejected steps, rhs evaluations, accepted Rosenbrock steps
 EPS = 1e-12      # [s] stop times closer than this are one stop (they come from different sums)
 
@@ -74,6 +75,7 @@ STIFF_HLAMBDA = 3.25         # the Dormand-Prince stability boundary on the nega
 STIFF_AFTER = 6              # steps at the boundary before the switch to Rosenbrock
 NONSTIFF_RESET = 6           # steps below it that clear the count
 BACK_AFTER = 3               # Rosenbrock steps below the switch step before switching back
+JAC_EVERY = 8                # Rosenbrock steps on one finite-difference Jacobian at most
 # Shampine and Reichelt's modified Rosenbrock triple (ode23s; SIAM J. Sci. Comput. 18, 1997)
 RB_D = 1.0 / (2.0 + math.sqrt(2.0))
 RB_E32 = 6.0 + math.sqrt(2.0)
@@ -134,7 +136,7 @@ def _lu_solve(a, piv, b):
 
 
 @jit
-def _rosenbrock_step(t, h, t_new, y, f0, u, pump_on, model, atol, rtol, nphys, wk, yn, fn,
+def _rosenbrock_step(t, h, t_new, y, f0, u, pump_on, model, atol, rtol, nphys, wk, fresh, yn, fn,
                      rc1, rc2, rc3, rc4, aux, work, stats):
     """One step of the modified Rosenbrock triple of Shampine and Reichelt (1997, Sec. 3; MATLAB's
     ode23s) from (t, y), dy/dt = f0: L-stable, order 2 with a 3rd-order error estimate, for the
@@ -149,33 +151,44 @@ def _rosenbrock_step(t, h, t_new, y, f0, u, pump_on, model, atol, rtol, nphys, w
 
     J = df/dy by forward differences over the first ``nphys`` states (the masses and pressures:
     the right-hand side does not read the cumulative masses after them), T by a forward difference
-    in t. Dense output (Sec. 3 of the paper): y(t + s h) = y + h [s(1-s) k1 + s(s-2d) k2] / (1-2d),
+    in t, both made when ``fresh`` and otherwise kept from an earlier step: the formula for y1 is a
+    W-method (Wolfbrandt's; its order 2 holds for any matrix in W, which the expansion of k1, k2
+    to O(h^2) shows), so a Jacobian a few steps old costs accuracy of the error estimate only, and
+    the driver renews it every JAC_EVERY steps and after every rejected step. Dense output (Sec. 3 of the paper): y(t + s h) = y + h [s(1-s) k1 + s(s-2d) k2] / (1-2d),
     written in the Dormand-Prince interpolant's form (rc1 = h k2, rc2 = h (k1 - k2)/(1-2d),
     rc3 = rc4 = 0). Writes y1 into yn and f(t_new, y1) into fn; returns the error norm (inf if W
-    is singular). ``wk`` = (J, piv, ft, k1, k2, k3, yt, f1, tder)."""
-    J, piv, ft, k1, k2, k3, yt, f1, tder = wk
+    is singular). ``wk`` = (W, piv, ft, k1, k2, k3, yt, f1, tder, J, T)."""
+    J, piv, ft, k1, k2, k3, yt, f1, tder, Jd, Td = wk
     g, mp, mot_t, mot_L, mot_d, mot_n = model
     ny = y.size
-    for j in range(ny):
-        yt[j] = y[j]
-    for c in range(ny):
-        if c < nphys:
-            dc = SQRT_EPS * max(abs(y[c]), atol[c] / rtol)
-            yt[c] = y[c] + dc
-            rhs(t, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, ft, aux, work)
-            yt[c] = y[c]
-            inv = 1.0 / dc
-            for r in range(ny):
-                J[r, c] = -h * RB_D * (ft[r] - f0[r]) * inv
-        else:
-            for r in range(ny):
-                J[r, c] = 0.0
-        J[c, c] += 1.0
-    dt = SQRT_EPS * max(abs(t), h)
-    rhs(t + dt, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, ft, aux, work)
-    for j in range(ny):
-        tder[j] = h * RB_D * (ft[j] - f0[j]) / dt
-    stats[2] += nphys + 3
+    if fresh:
+        # df/dy (columns of the masses and pressures) and df/dt by forward differences, kept in
+        # Jd, Td for the steps that follow (a W-method: order 2 with any matrix in W)
+        for j in range(ny):
+            yt[j] = y[j]
+        for c in range(ny):
+            if c < nphys:
+                dc = SQRT_EPS * max(abs(y[c]), atol[c] / rtol)
+                yt[c] = y[c] + dc
+                rhs(t, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, ft, aux, work)
+                yt[c] = y[c]
+                inv = 1.0 / dc
+                for r in range(ny):
+                    Jd[r, c] = (ft[r] - f0[r]) * inv
+            else:
+                for r in range(ny):
+                    Jd[r, c] = 0.0
+        dt = SQRT_EPS * max(abs(t), h)
+        rhs(t + dt, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, ft, aux, work)
+        for j in range(ny):
+            Td[j] = (ft[j] - f0[j]) / dt
+        stats[2] += nphys + 1
+    for r in range(ny):
+        for c in range(ny):
+            J[r, c] = -h * RB_D * Jd[r, c]
+        J[r, r] += 1.0
+        tder[r] = h * RB_D * Td[r]
+    stats[2] += 2
     if not _lu(J, piv):                   # J now holds W = I - h d J, factorised
         return math.inf
     for j in range(ny):
@@ -268,7 +281,8 @@ def start(t0, h0, y, u, commands):
     .start_controllers`), the first trial step is h0 [s].
     """
     sched_t, sched_u, laws, ctrl_dt = commands
-    ds = np.zeros(D_SIZE)
+    ds = np.zeros(D_SIZE + y.size * y.size + y.size)     # + the Rosenbrock Jacobian J and df/dt
+    ds[D_JAC_AGE] = -1.0
     ds[D_T] = t0
     ds[D_H] = h0
     ds[D_ERR] = 1e-4
@@ -325,8 +339,9 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
 
     Returns a STATUS_* code; on failure ds[D_T] and y are the last accepted step's.
     """
-    if stats.size < STATS_SIZE or ds.size < D_SIZE:
-        raise ValueError("advance: stats needs STATS_SIZE entries and ds D_SIZE (make them with begin or start)")
+    if stats.size < STATS_SIZE or ds.size < D_SIZE + y.size * y.size + y.size:
+        raise ValueError("advance: stats needs STATS_SIZE entries and ds D_SIZE + ny^2 + ny (make them with "
+                         "begin or start)")
     g, mp, mot_t, mot_L, mot_d, mot_n = model
     sched_t, sched_u, laws, ctrl_dt = commands
     rtol, atol, max_step = solver
@@ -353,12 +368,14 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     rc3 = scratch[11 * ny:12 * ny]
     rc4 = scratch[12 * ny:13 * ny]
     ys = scratch[13 * ny:14 * ny]
-    # Rosenbrock: (W, pivots, ft, k1, k2, k3, yt, f1, tder)
+    # Rosenbrock: (W, pivots, ft, k1, k2, k3, yt, f1, tder, J, T)
     wk = (scratch[23 * ny:23 * ny + ny * ny].reshape((ny, ny)), scratch[14 * ny:15 * ny],
           scratch[15 * ny:16 * ny], scratch[16 * ny:17 * ny], scratch[17 * ny:18 * ny],
           scratch[18 * ny:19 * ny], scratch[19 * ny:20 * ny], scratch[20 * ny:21 * ny],
-          scratch[21 * ny:22 * ny])
+          scratch[21 * ny:22 * ny], ds[D_SIZE:D_SIZE + ny * ny].reshape((ny, ny)),
+          ds[D_SIZE + ny * ny:D_SIZE + ny * ny + ny])
     o = 23 * ny + ny * ny
+    # the Rosenbrock Jacobian and its age live in ds: a pause keeps them
     u_prev = scratch[o:o + nu]
     aux = scratch[o + nu:o + nu + 2 * n + 1]
     work = scratch[o + nu + 2 * n + 1:o + nu + 5 * n + 1]
@@ -392,9 +409,14 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
             t_new = t_seg if last else t + h_try
             stiff = ds[D_STIFF] > 0.5
             if stiff:
-                err = _rosenbrock_step(t, h_try, t_new, y, f, u, pump_on, model, atol, rtol, nphys, wk, yn,
-                                       k7, rc1, rc2, rc3, rc4, aux, work, stats)
+                fresh = ds[D_JAC_AGE] < 0 or ds[D_JAC_AGE] >= JAC_EVERY
+                err = _rosenbrock_step(t, h_try, t_new, y, f, u, pump_on, model, atol, rtol, nphys, wk, fresh,
+                                       yn, k7, rc1, rc2, rc3, rc4, aux, work, stats)
+                ds[D_JAC_AGE] = 1.0 if fresh else ds[D_JAC_AGE] + 1.0
+                if not err <= 1.0:
+                    ds[D_JAC_AGE] = -1.0      # a rejected step: a fresh Jacobian for the retry
             else:
+                ds[D_JAC_AGE] = -1.0          # a later stiff stretch makes its own
                 for j in range(ny):
                     yt[j] = y[j] + h_try * A21 * f[j]
                 rhs(t + C2 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)

@@ -24,8 +24,7 @@ from frogsim.physics.muscle import muscle_volume
 from frogsim.scenario.core import Scenario
 from frogsim.circuit.laws import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM, L_SIZE
 from frogsim.control.sampled import (B_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE, KIND_EXTERNAL, KIND_PUMP_BAND,
-                                     MODE_CHARGE, MODE_HOLD, MODE_VENT, apply_due, command_valves,
-                                     next_control_time)
+                                     command_from_python, next_control_time)
 from frogsim.engine.integrator import (D_PAUSE, D_T, EPS, STATUS_NONPHYSICAL, STATUS_OK, STATUS_PAUSED,
                                        STATUS_TEXT, advance, begin, run_schedule)
 from frogsim.engine.result import Result, valve_switchings
@@ -202,10 +201,6 @@ def _finish(model, status, ds, y_end, out_y, out_u, stats, cs) -> Result:
                   switchings=valve_switchings(model, cs))
 
 
-_MODES = {"charge": MODE_CHARGE, "hold": MODE_HOLD, "vent": MODE_VENT,
-          1: MODE_CHARGE, 0: MODE_HOLD, -1: MODE_VENT}
-
-
 def python_laws(model: PneumaticModel) -> tuple[np.ndarray, list]:
     """The model's table of laws with every closed-loop controller's row turned into an external
     one (its sensor kept, its law left to Python), plus an external row for each muscle without a
@@ -267,16 +262,7 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
         t_k = cs[CS_SAMPLE] * dt
         obs = {n: float(cs[int(CS_SIZE + c * block) + B_SENSED]) for n, c in rows.items()}
         obs["source"], obs["exhaust"] = float(y[L.Y_PS]), float(y[L.Y_PE])
-        cmds = fn(t_k, obs) or {}
-        for name, mode in cmds.items():
-            if name not in rows:
-                raise SimulationError(f"controller function: muscle {name!r} is not free for closed-loop "
-                                      f"control (free: {', '.join(rows) or 'none'})")
-            if mode not in _MODES:
-                raise SimulationError(f"controller function: mode {mode!r} for {name!r} must be "
-                                      "'charge', 'hold' or 'vent'")
-            command_valves(laws, rows[name], cs, _MODES[mode], t_k)
-        apply_due(laws, ds[D_T], u, cs)         # commands without dead time act at once
+        command_from_python(laws, rows, cs, fn(t_k, obs), t_k, u, ds[D_T])
 
     decide()
     wall0 = time.perf_counter()
