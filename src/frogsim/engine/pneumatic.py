@@ -26,7 +26,7 @@ from frogsim.circuit.laws import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM, L
 from frogsim.control.sampled import (B_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE, KIND_EXTERNAL, KIND_PUMP_BAND,
                                      command_from_python, next_control_time)
 from frogsim.engine.integrator import (D_PAUSE, D_T, EPS, STATUS_NONPHYSICAL, STATUS_OK, STATUS_PAUSED,
-                                       STATUS_TEXT, advance, begin, run_schedule)
+                                       STATUS_TEXT, advance, begin)
 from frogsim.engine.result import Result, valve_switchings
 from frogsim.errors import SimulationError
 
@@ -162,15 +162,16 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
     T = sc.duration
     wall0 = time.perf_counter()
     ctrl_dt = 1.0 / sc.controller.rate
-    # the first STEPS_PER_CALL steps in one compiled call (most runs end within it)
-    out_y, out_u, y, stats, status, _, cs, u, ds = run_schedule(
-        model.y0, 0.0, T, model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n,
-        model.sched_t, model.sched_u, model.u0, ctrl_dt, model.out_t, sc.solver.rtol, model.atol,
-        sc.solver.max_step, h0, model.laws, STEPS_PER_CALL)
+    # begin, then the first STEPS_PER_CALL steps in one compiled call (most runs end within it):
+    # the same two functions run_schedule calls, called from here so that a first run compiles
+    # only them (run_schedule, the batched engine's entry, is compiled when a batch runs)
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(model.y0, 0.0, model.u0, model.laws, model.sched_t,
+                                                        model.sched_u, ctrl_dt, model.out_t, h0)
+    ds[D_PAUSE] = STEPS_PER_CALL
     circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
-    commands = (model.sched_t, model.sched_u, model.laws, ctrl_dt)
     solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
     out = (model.out_t, out_y, out_u)
+    status = advance(T, y, u, ds, cs, circuit, commands, solver, out, stats)
     bar = None
     try:
         while status == STATUS_PAUSED:

@@ -5,7 +5,7 @@ import numpy as np
 
 from frogsim.circuit import layout as L
 from frogsim.circuit.rhs import rhs
-from frogsim.engine.integrator import begin
+from frogsim.engine.integrator import _rosenbrock_step, begin
 
 
 def warm_up(part: str) -> None:
@@ -16,9 +16,15 @@ def warm_up(part: str) -> None:
     if part == "rhs":
         n = 1
         ny = L.state_size(n)
-        rhs(0.0, np.ones(ny), np.zeros(2 * n), 0.0, np.ones(L.G_SIZE), np.zeros((n, L.M_SIZE)), np.zeros((n, 1)),
-            np.ones((n, 1)), np.zeros((n, 1)), np.ones(n, np.int64), np.zeros(ny), np.zeros(2 * n + 1),
-            np.zeros(3 * n))
+        model = (np.ones(L.G_SIZE), np.zeros((n, L.M_SIZE)), np.zeros((n, 1)), np.ones((n, 1)), np.zeros((n, 1)),
+                 np.ones(n, np.int64))
+        rhs(0.0, np.ones(ny), np.zeros(2 * n), 0.0, *model, np.zeros(ny), np.zeros(2 * n + 1), np.zeros(3 * n))
+        # the Rosenbrock step (the driver's largest part after the right-hand side), on the same types
+        wk = (np.zeros((ny, ny)), np.zeros(ny), np.zeros(ny), np.zeros(ny), np.zeros(ny), np.zeros(ny), np.zeros(ny),
+              np.zeros(ny), np.zeros(ny), np.zeros(ny * ny)[:].reshape((ny, ny)), np.zeros(ny)[:])
+        _rosenbrock_step(0.0, 1e-3, 1e-3, np.ones(ny), np.zeros(ny), np.zeros(2 * n), 0.0, model, np.ones(ny),
+                         1e-7, ny, wk, True, np.zeros(ny), np.zeros(ny), np.zeros(ny), np.zeros(ny), np.zeros(ny),
+                         np.zeros(ny), np.zeros(2 * n + 1), np.zeros(3 * n), np.zeros(4, np.int64))
     elif part == "controllers":
         # an open-loop run's laws: the 1-D pump row (frogsim.control.sampled.sampled_laws)
         begin(np.ones(L.state_size(1)), 0.0, np.zeros(2), np.zeros(0), np.zeros(0), np.zeros((0, 2)),
