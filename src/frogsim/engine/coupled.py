@@ -40,7 +40,7 @@ from frogsim.engine.coupled_layout import (  # noqa: F401
     R_V, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
     S_TRUNK, S_VMAX, S_WMAX, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK,
     T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE, U_TENDON, record_columns)
-from frogsim.engine.integrator import D_SI, STATS_SIZE, STATUS_TEXT, start
+from frogsim.engine.integrator import D_F_VALID, D_SI, STATS_SIZE, STATUS_TEXT, start
 from frogsim.errors import SimulationError
 from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL
 from frogsim.robot import import_mujoco
@@ -82,6 +82,7 @@ class CoupledModel:
         V = muscle_volume(L, mp[i, CL.M_B0], mp[i, CL.M_N]) + mp[i, CL.M_DEAD]
         y[CL.Y_MUSCLE0 + 2 * i] = pressure_abs * V / (g[CL.G_R] * g[CL.G_TAMB])
         y[CL.Y_MUSCLE0 + 2 * i + 1] = pressure_abs
+        self.arrays["ds"][D_F_VALID] = 0.0          # the state changed: dy/dt is evaluated again
 
 
 def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joints, duration,

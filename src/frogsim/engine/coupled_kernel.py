@@ -51,7 +51,7 @@ from frogsim.engine.coupled_layout import (
     R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_TRUNK, S_VMAX,
     S_WMAX, T_EXERGY, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_CMD, T_PALM_TARGET, T_PEAK,
     T_PEAK_TIME, U_ACT, U_FITTINGS, U_TENDON)
-from frogsim.engine.integrator import advance
+from frogsim.engine.integrator import D_REUSE_F, advance
 from frogsim.physics.hydro import (added_mass_rate_force, buoyancy, cross, fan_added_mass,
                                    isotropic_added_mass, kirchhoff_velocity_force, munk_moment,
                                    strip_drag_wrench)
@@ -361,6 +361,9 @@ def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, 
     ps0 = y[CL.Y_PS]
     no_output = (y[:0], mot_t[:0], mot_t[:0])         # no output rows: empty views, no allocation
     observe_joints(laws, cs, qpos, qvel, leg_qpos, leg_dof)     # what joint-angle laws read
+    # the new length paths start with the old ones' value and slope: dy/dt at t is the one the
+    # last step ended with (up to the rounding of the slope), so the driver starts from it
+    ds[D_REUSE_F] = 1.0
     status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n),
                      (sched_t, sched_u, laws, sc[S_CTRL_DT]), (sc[S_RTOL], atol, sc[S_MAXSTEP]),
                      no_output, stats)

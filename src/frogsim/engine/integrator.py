@@ -50,7 +50,9 @@ D_NONSTIFF = 8   # ... and steps below it since the last one at it
 D_HSWITCH = 9    # the Dormand-Prince step [s] when the method switched to Rosenbrock
 D_NBACK = 10     # Rosenbrock steps in a row proposing less than D_HSWITCH
 D_JAC_AGE = 11   # Rosenbrock steps since its Jacobian was made (-1: none); J, df/dt follow D_SIZE
-D_SIZE = 12
+D_F_VALID = 12   # 1: dy/dt at (ds[D_T], y) is kept after J and df/dt (written by every call that ends well)
+D_REUSE_F = 13   # 1: the caller changed nothing that dy/dt reads since the last call: start from the kept one
+D_SIZE = 14
 STATS_SIZE = 4   # stats[:]: accepted steps, rejected steps, rhs evaluations, accepted Rosenbrock steps
 EPS = 1e-12      # [s] stop times closer than this are one stop (they come from different sums)
 
@@ -281,7 +283,7 @@ def start(t0, h0, y, u, commands):
     .start_controllers`), the first trial step is h0 [s].
     """
     sched_t, sched_u, laws, ctrl_dt = commands
-    ds = np.zeros(D_SIZE + y.size * y.size + y.size)     # + the Rosenbrock Jacobian J and df/dt
+    ds = np.zeros(D_SIZE + y.size * y.size + 2 * y.size)    # + the Rosenbrock J, df/dt, and dy/dt
     ds[D_JAC_AGE] = -1.0
     ds[D_T] = t0
     ds[D_H] = h0
@@ -319,8 +321,10 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     The Python-controller driver (:func:`frogsim.engine.pneumatic.run_python_controller`) calls
     this with t_end on every sample, so there each sample is a step's end.
 
-    dy/dt is evaluated at entry: the caller may have changed the model since the last call (the
-    coupled engine extends the muscles' length paths every step). Time reached, step size, PI
+    dy/dt is evaluated at entry: the caller may have changed the model since the last call. A
+    caller that changed nothing dy/dt reads at (t, y) sets ds[D_REUSE_F] = 1, and the call starts
+    from the dy/dt the last call ended with (kept in ds; the coupled engine, whose new length path
+    starts with the old one's value and slope). Time reached, step size, PI
     memory, schedule index and output row are carried in ``ds`` (columns D_*), the controllers'
     memory and the pump's switch in ``cs``, so a run can be advanced in as many calls as wanted:
     the coupled engine calls this once per MuJoCo step, :func:`run_schedule` once for the run.
@@ -339,8 +343,8 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
 
     Returns a STATUS_* code; on failure ds[D_T] and y are the last accepted step's.
     """
-    if stats.size < STATS_SIZE or ds.size < D_SIZE + y.size * y.size + y.size:
-        raise ValueError("advance: stats needs STATS_SIZE entries and ds D_SIZE + ny^2 + ny (make them with "
+    if stats.size < STATS_SIZE or ds.size < D_SIZE + y.size * y.size + 2 * y.size:
+        raise ValueError("advance: stats needs STATS_SIZE entries and ds D_SIZE + ny^2 + 2 ny (make them with "
                          "begin or start)")
     g, mp, mot_t, mot_L, mot_d, mot_n = model
     sched_t, sched_u, laws, ctrl_dt = commands
@@ -386,8 +390,14 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     out_i = int(ds[D_OUT])
     status = STATUS_OK
     pump_on = cs[CS_PUMP]
-    rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
-    stats[2] += 1
+    f_kept = ds[D_SIZE + ny * ny + ny:D_SIZE + ny * ny + 2 * ny]
+    if ds[D_REUSE_F] > 0.5 and ds[D_F_VALID] > 0.5:
+        for j in range(ny):
+            f[j] = f_kept[j]
+    else:
+        rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
+        stats[2] += 1
+    ds[D_F_VALID] = 0.0
     while t < t_end - EPS:
         # -- the piece's end: t_end, the next schedule entry or the next queued valve command ----
         t_seg = t_end
@@ -587,6 +597,10 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     ds[D_H] = h
     ds[D_ERR] = err_old
     ds[D_OUT] = out_i
+    if status == STATUS_OK or status == STATUS_PAUSED:
+        for j in range(ny):
+            f_kept[j] = f[j]
+        ds[D_F_VALID] = 1.0
     return status
 
 
