@@ -6,6 +6,7 @@ import numpy as np
 from frogsim.circuit import layout as L
 from frogsim.circuit.rhs import rhs
 from frogsim.engine.integrator import _rosenbrock_step, begin
+from frogsim.engine.measures import rise_times
 
 
 def warm_up(part: str) -> None:
@@ -29,5 +30,8 @@ def warm_up(part: str) -> None:
         # an open-loop run's laws: the 1-D pump row (frogsim.control.sampled.sampled_laws)
         begin(np.ones(L.state_size(1)), 0.0, np.zeros(2), np.zeros(0), np.zeros(0), np.zeros((0, 2)),
               1e-3, np.zeros(1), 1e-4)
+        # and the measures every study reads from its results (rise times, pressurise windows)
+        t = np.linspace(0.0, 1.0, 11)
+        rise_times(t, np.linspace(1e5, 2e5, 11)[None, :], np.full((1, 11), 2e5), np.ones((1, 11)), np.zeros(1))
     else:
         raise ValueError(f"unknown part {part!r}")
