@@ -278,6 +278,18 @@ def _failure(cm: CoupledModel) -> str:
     return f"failure code {code}"
 
 
+def run_record(cm: CoupledModel, wall: float) -> dict:
+    """What a finished coupled run returns: its record rows, wall time and step statistics."""
+    a = cm.arrays
+    rec = a["rec"]
+    rec = rec[~np.isnan(rec[:, R_TIME])]
+    return {"rec": rec, "wall_s": wall, "stats": {"mujoco_steps": cm.n_steps,
+                                                  "pneumatic_steps": int(a["stats"][0]),
+                                                  "pneumatic_rejected": int(a["stats"][1]),
+                                                  "rhs_evaluations": int(a["stats"][2]),
+                                                  "stiff_steps": int(a["stats"][3])}}
+
+
 def run_coupled(cm: CoupledModel, progress=None, compiled: bool = True) -> dict:
     """Run the loop to the end of the scenario; returns {"rec", "wall_s", "stats", ...}.
 
@@ -289,7 +301,6 @@ def run_coupled(cm: CoupledModel, progress=None, compiled: bool = True) -> dict:
     """
     mujoco = import_mujoco()
     m, d = cm.mjm, cm.mjd
-    a = cm.arrays
     args = kernel_args(cm)
     lib = mujoco_c(mujoco) if compiled else None
     n_steps, every = cm.n_steps, cm.rec_every
@@ -335,13 +346,7 @@ def run_coupled(cm: CoupledModel, progress=None, compiled: bool = True) -> dict:
                     progress(k / n_steps)
     finally:
         mujoco.set_mju_user_warning(previous)
-    wall = time.perf_counter() - t0
-    rec = a["rec"]
-    rec = rec[~np.isnan(rec[:, R_TIME])]
-    return {"rec": rec, "wall_s": wall, "stats": {"mujoco_steps": n_steps,
-                                                  "pneumatic_steps": int(a["stats"][0]),
-                                                  "pneumatic_rejected": int(a["stats"][1]),
-                                                  "rhs_evaluations": int(a["stats"][2])}}
+    return run_record(cm, time.perf_counter() - t0)
 
 
 # --- stepping one controller period at a time ----------------------------------------------------

@@ -21,9 +21,9 @@ from frogsim.circuit import layout as CL
 from frogsim.control.sampled import (B_A_SENSED, B_SENSED, B_W_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE,
                                      KIND_EXTERNAL, KIND_PUMP_BAND, L_JOINT1, L_KIND, L_MUSCLE,
                                      command_from_python)
-from frogsim.engine.coupled import _failure, kernel_args
+from frogsim.engine.coupled import _failure, kernel_args, run_record
 from frogsim.engine.coupled_kernel import step_kernel
-from frogsim.engine.coupled_layout import R_TIME, S_CTRL_DT, S_TRUNK
+from frogsim.engine.coupled_layout import S_CTRL_DT, S_TRUNK
 from frogsim.engine.integrator import start
 from frogsim.errors import SimulationError
 from frogsim.robot import import_mujoco
@@ -122,10 +122,4 @@ def run_coupled_python(cm, fn, progress=None) -> dict:
             step2(m, d)
         if progress is not None and k % chunk == 0:
             progress(k / n_steps)
-    wall = time.perf_counter() - t0
-    rec = a["rec"]
-    rec = rec[~np.isnan(rec[:, R_TIME])]
-    return {"rec": rec, "wall_s": wall, "stats": {"mujoco_steps": n_steps,
-                                                  "pneumatic_steps": int(a["stats"][0]),
-                                                  "pneumatic_rejected": int(a["stats"][1]),
-                                                  "rhs_evaluations": int(a["stats"][2])}}
+    return run_record(cm, time.perf_counter() - t0)
