@@ -223,6 +223,13 @@ def _rosenbrock_step(t, h, t_new, y, f0, u, pump_on, model, atol, rtol, nphys, w
 
 
 @jit
+def ds_size(ny):
+    """Length of the driver state ds for a state of ny entries: the D_* columns, then the
+    Rosenbrock Jacobian df/dy (ny x ny) and df/dt (ny), then the kept dy/dt (ny)."""
+    return D_SIZE + ny * ny + 2 * ny
+
+
+@jit
 def _dense(y, rc1, rc2, rc3, rc4, th, out):
     """The continuous extension at th in [0, 1] of the step: out = y(t + th h)."""
     th1 = 1.0 - th
@@ -283,7 +290,7 @@ def start(t0, h0, y, u, commands):
     .start_controllers`), the first trial step is h0 [s].
     """
     sched_t, sched_u, laws, ctrl_dt = commands
-    ds = np.zeros(D_SIZE + y.size * y.size + 2 * y.size)    # + the Rosenbrock J, df/dt, and dy/dt
+    ds = np.zeros(ds_size(y.size))
     ds[D_JAC_AGE] = -1.0
     ds[D_T] = t0
     ds[D_H] = h0
@@ -343,7 +350,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
 
     Returns a STATUS_* code; on failure ds[D_T] and y are the last accepted step's.
     """
-    if stats.size < STATS_SIZE or ds.size < D_SIZE + y.size * y.size + 2 * y.size:
+    if stats.size < STATS_SIZE or ds.size < ds_size(y.size):
         raise ValueError("advance: stats needs STATS_SIZE entries and ds D_SIZE + ny^2 + 2 ny (make them with "
                          "begin or start)")
     g, mp, mot_t, mot_L, mot_d, mot_n = model
@@ -357,7 +364,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     n_out = out_t.size
     # one scratch allocation per call, cut into the stages' vectors (views, no copies): the
     # coupled engine calls this once per MuJoCo step
-    scratch = np.empty(23 * ny + ny * ny + nu + 5 * n + 1)
+    scratch = np.empty(22 * ny + ny * ny + nu + 5 * n + 1)
     f = scratch[0:ny]
     k2 = scratch[ny:2 * ny]
     k3 = scratch[2 * ny:3 * ny]
@@ -372,14 +379,14 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     rc3 = scratch[11 * ny:12 * ny]
     rc4 = scratch[12 * ny:13 * ny]
     ys = scratch[13 * ny:14 * ny]
-    # Rosenbrock: (W, pivots, ft, k1, k2, k3, yt, f1, tder, J, T)
-    wk = (scratch[23 * ny:23 * ny + ny * ny].reshape((ny, ny)), scratch[14 * ny:15 * ny],
+    # Rosenbrock: (W, pivots, ft, k1, k2, k3, yt, f1, tder, J, T); J and T (df/dy, df/dt) live in
+    # ds after D_SIZE, with their age ds[D_JAC_AGE], so that a pause keeps them
+    wk = (scratch[22 * ny:22 * ny + ny * ny].reshape((ny, ny)), scratch[14 * ny:15 * ny],
           scratch[15 * ny:16 * ny], scratch[16 * ny:17 * ny], scratch[17 * ny:18 * ny],
           scratch[18 * ny:19 * ny], scratch[19 * ny:20 * ny], scratch[20 * ny:21 * ny],
           scratch[21 * ny:22 * ny], ds[D_SIZE:D_SIZE + ny * ny].reshape((ny, ny)),
           ds[D_SIZE + ny * ny:D_SIZE + ny * ny + ny])
-    o = 23 * ny + ny * ny
-    # the Rosenbrock Jacobian and its age live in ds: a pause keeps them
+    o = 22 * ny + ny * ny
     u_prev = scratch[o:o + nu]
     aux = scratch[o + nu:o + nu + 2 * n + 1]
     work = scratch[o + nu + 2 * n + 1:o + nu + 5 * n + 1]
