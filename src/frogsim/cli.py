@@ -428,22 +428,17 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--overwrite", action="store_true",
                    help="replace studies this folder already holds (or another command's files)")
     s.set_defaults(func=cmd_reproduce)
-    s = sub.add_parser("design", help="run the design studies (main tubes, endurance, valves): a PNG and "
-                                      "a CSV per study, DIR/summary.json with written conclusions")
-    s.add_argument("studies", nargs="*", metavar="STUDY", help="studies to run (default: all design studies)")
-    s.add_argument("--out", default="design", metavar="DIR", help="output folder (default: design)")
-    s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
-    s.add_argument("--overwrite", action="store_true",
-                   help="replace studies this folder already holds (or another command's files)")
-    s.set_defaults(func=cmd_design)
-    s = sub.add_parser("control", help="run the closed-loop control studies (control-pressure, control-joint): a PNG and a "
-                                       "CSV per study, DIR/summary.json with written conclusions")
-    s.add_argument("studies", nargs="*", metavar="STUDY", help="studies to run (default: all control studies)")
-    s.add_argument("--out", default="control", metavar="DIR", help="output folder (default: control)")
-    s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
-    s.add_argument("--overwrite", action="store_true",
-                   help="replace studies this folder already holds (or another command's files)")
-    s.set_defaults(func=cmd_control)
+    for name, what, func in (("design", "the design studies (main tubes, endurance, valves)", cmd_design),
+                             ("control", "the closed-loop control studies (control-pressure, control-joint)",
+                              cmd_control)):
+        s = sub.add_parser(name, help=f"run {what}: a PNG and a CSV per study, DIR/summary.json with written "
+                                      "conclusions")
+        s.add_argument("studies", nargs="*", metavar="STUDY", help=f"studies to run (default: all {name} studies)")
+        s.add_argument("--out", default=name, metavar="DIR", help=f"output folder (default: {name})")
+        s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
+        s.add_argument("--overwrite", action="store_true",
+                       help="replace studies this folder already holds (or another command's files)")
+        s.set_defaults(func=func)
     s = sub.add_parser("simulate", help="run one scenario: timeseries.csv, pressures.png, summary.json")
     s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file, or a shipped name (paper-cycle)")
     s.add_argument("--out", required=True, metavar="DIR", help="output folder")
