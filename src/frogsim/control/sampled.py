@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from frogsim._jit import jit
+from frogsim._jit import jit, jit_alloc
 from frogsim.circuit.laws import (  # noqa: F401  (the table's layout, re-exported)
     KIND_BANG_BANG, KIND_PUMP_BAND, KIND_PWM, KIND_SLIDING, L_BAND, L_BITS, L_BRANCH, L_CB, L_CC, L_CM,
     L_CRL, L_DB, L_DC, L_DEAD_C, L_DEAD_D, L_DM, L_DRL, L_DUTY, L_FS, L_GAIN, L_HIGH, L_HORIZON, L_INPUT,
@@ -575,7 +575,7 @@ def sample_controllers(laws, t, y, u, cs):
     return changed
 
 
-@jit
+@jit_alloc
 def start_controllers(laws, t0, y, u, ctrl_dt):
     """Controller state at the start of a run at t0: pump stopped, valves under control shut, then
     the sample at or just before t0 taken (its commands hold from t0 on, or a dead time later)."""

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from frogsim._jit import jit
+from frogsim._jit import jit, jit_alloc
 
 from frogsim.circuit.layout import Y_MUSCLE0
 from frogsim.circuit.rhs import rhs
@@ -225,8 +225,20 @@ def _rosenbrock_step(t, h, t_new, y, f0, u, pump_on, model, atol, rtol, nphys, w
 @jit
 def ds_size(ny):
     """Length of the driver state ds for a state of ny entries: the D_* columns, then the
-    Rosenbrock Jacobian df/dy (ny x ny) and df/dt (ny), then the kept dy/dt (ny)."""
-    return D_SIZE + ny * ny + 2 * ny
+    Rosenbrock Jacobian df/dy (ny x ny) and df/dt (ny), then the kept dy/dt (ny), then the
+    scratch space of :func:`advance` (:func:`_scratch_size`; its contents are not carried from one
+    call to the next)."""
+    return D_SIZE + ny * ny + 2 * ny + _scratch_size(ny)
+
+
+@jit
+def _scratch_size(ny):
+    """Entries of advance's scratch space for a state of ny entries: 22 stage vectors, the
+    Rosenbrock matrix (ny x ny), the previous valve states (2n) and the right-hand side's aux
+    (2n + 1) and work (3n) vectors; n muscles make a state of Y_MUSCLE0 + 4 n + 1 entries
+    (:func:`frogsim.circuit.layout.state_size`)."""
+    n = (ny - Y_MUSCLE0 - 1) // 4
+    return 22 * ny + ny * ny + 2 * n + 5 * n + 1
 
 
 @jit
@@ -282,6 +294,173 @@ def _explicit_again(ds):
 
 
 @jit
+def _dopri_step(t, h, t_new, y, f, u, pump_on, model, atol, rtol, stages, aux, work, stats):
+    """One Dormand-Prince 5(4) trial step from (t, y), whose dy/dt is f, to t_new = t + h (passed
+    so that a step that ends a piece ends on it exactly). ``stages`` = (k2, k3, k4, k5, k6, k7, yt,
+    yn) receive the stages, the sixth stage's argument (yt) and the 5th-order solution yn; k7 is
+    dy/dt at (t_new, yn) (first same as last). Returns (err, num, den): the error norm (Hairer's
+    DOPRI5 norm, RMS of the weighted error) and the two squared norms of :func:`_stiffness_test`."""
+    g, mp, mot_t, mot_L, mot_d, mot_n = model
+    k2, k3, k4, k5, k6, k7, yt, yn = stages
+    ny = y.size
+    for j in range(ny):
+        yt[j] = y[j] + h * A21 * f[j]
+    rhs(t + C2 * h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)
+    for j in range(ny):
+        yt[j] = y[j] + h * (A31 * f[j] + A32 * k2[j])
+    rhs(t + C3 * h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux, work)
+    for j in range(ny):
+        yt[j] = y[j] + h * (A41 * f[j] + A42 * k2[j] + A43 * k3[j])
+    rhs(t + C4 * h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux, work)
+    for j in range(ny):
+        yt[j] = y[j] + h * (A51 * f[j] + A52 * k2[j] + A53 * k3[j] + A54 * k4[j])
+    rhs(t + C5 * h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux, work)
+    for j in range(ny):
+        yt[j] = y[j] + h * (A61 * f[j] + A62 * k2[j] + A63 * k3[j] + A64 * k4[j] + A65 * k5[j])
+    rhs(t + h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux, work)
+    for j in range(ny):
+        yn[j] = y[j] + h * (B1 * f[j] + B3 * k3[j] + B4 * k4[j] + B5 * k5[j] + B6 * k6[j])
+    rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
+    stats[2] += 6
+    err = 0.0
+    num = 0.0
+    den = 0.0
+    for j in range(ny):
+        e = h * (E1 * f[j] + E3 * k3[j] + E4 * k4[j] + E5 * k5[j] + E6 * k6[j] + E7 * k7[j])
+        w = 1.0 / (atol[j] + rtol * max(abs(y[j]), abs(yn[j])))
+        err += (e * w) ** 2
+        num += ((k7[j] - k6[j]) * w) ** 2        # the stiffness test's norms
+        den += ((yn[j] - yt[j]) * w) ** 2
+    return math.sqrt(err / ny), num, den
+
+
+@jit
+def _samples_in_step(laws, cs, t, t_new, h, y, yn, f, stages, dense, ys, u, dense_ready):
+    """The controllers' samples t_k inside an accepted step (t, t_new] of length h, in order,
+    each taken from the step's continuous extension (``dense`` = rc1..rc4; made here from the
+    Dormand-Prince stages f, ``stages`` when ``dense_ready`` is False and a sample needs it) into
+    ys, or from yn at t_new. A sample whose command acts at once ends the step at t_k; a queued
+    command due before the step's end ends it at its due time (see :func:`advance`).
+
+    Returns (t_cut, refresh, dense_ready): where the step ends, whether a command changed, and
+    whether the continuous extension has been made.
+    """
+    _, k3, k4, k5, k6, k7, _, _ = stages
+    rc1, rc2, rc3, rc4 = dense
+    t_cut = t_new
+    refresh = False
+    t_s = next_sample_time(laws, cs)
+    while t_s <= t_cut + EPS:
+        if t_s >= t_new - EPS:
+            t_s = t_new
+            for j in range(y.size):
+                ys[j] = yn[j]
+        else:
+            if not dense_ready:
+                _dopri_dense(h, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
+                dense_ready = True
+            _dense(y, rc1, rc2, rc3, rc4, (t_s - t) / h, ys)
+        if sample_controllers(laws, t_s, ys, u, cs):
+            refresh = True
+            if t_s < t_new - EPS:
+                t_cut = t_s
+                break
+        t_due = next_due_time(laws, cs)
+        if t_due < t_cut - EPS:
+            t_cut = max(t_due, t)
+        t_s = next_sample_time(laws, cs)
+    return t_cut, refresh, dense_ready
+
+
+@jit
+def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, yn, f, stages, dense, ys, u, u_prev,
+            pump_on, out, out_i, stats):
+    """An accepted step of length h from t to t_new (error norm err; the previous one err_old):
+    the stiffness test (a Dormand-Prince step), the controllers' samples inside the step
+    (:func:`_samples_in_step`; the step may end early at t_cut), the output rows it covers (from
+    the continuous extension ``dense``), y and f moved on (f = dy/dt at the step's end, k7, unless
+    a command changed), the physical check, and the next step size (Rosenbrock's order-2
+    controller, or the PI controller of Dormand-Prince).
+
+    Returns (t, h_next, err_old, pump_on, out_i, refresh, status): the time reached, the proposed
+    next step, the PI memory, the pump's switch, the next output row, whether a command changed
+    (the caller evaluates dy/dt again; the explicit method is set again here) and a STATUS_* code
+    (STATUS_NONPHYSICAL when an air mass or pressure is no longer positive; the rest is then
+    not done).
+    """
+    _, k3, k4, k5, k6, k7, _, _ = stages
+    rc1, rc2, rc3, rc4 = dense
+    out_t, out_y, out_u = out
+    ny = y.size
+    nu = u.size
+    n_out = out_t.size
+    n = nu // 2
+    status = STATUS_OK
+    h_try = h
+    refresh = False
+    # the continuous extension on (t, t_new] (rc1..rc4), for the controllers'
+    # samples and the output rows inside the step: Rosenbrock's is made with the
+    # step, Dormand-Prince's only when one of them falls inside it (a step that ends
+    # on its sample, as every coupled-engine step does, needs none)
+    dense_ready = stiff
+    if not stiff:
+        _stiffness_test(ds, h_try, st_num, st_den)
+    # -- the controllers' samples inside the step, read from the dense output. A
+    # command that acts at once (the pump's switch, a valve without dead time) or a
+    # valve command that comes due before t_new ends the step there: the state at
+    # that time is the continuous extension's, the rest of the step is dropped.
+    for j in range(nu):
+        u_prev[j] = u[j]
+    pump_prev = pump_on
+    t_cut, refresh, dense_ready = _samples_in_step(laws, cs, t, t_new, h_try, y, yn, f, stages, dense,
+                                                   ys, u, dense_ready)
+    if not dense_ready and (t_cut < t_new - EPS or (out_i < n_out and out_t[out_i] <= t_cut)):
+        _dopri_dense(h_try, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
+    if t_cut < t_new - EPS:
+        # the step ends at t_cut (a sample that changed a command, or a due time)
+        _dense(y, rc1, rc2, rc3, rc4, (t_cut - t) / h_try, yn)
+        t_new = t_cut
+        apply_due(laws, t_new, u, cs)
+        refresh = True
+    pump_on = cs[CS_PUMP]
+    while out_i < n_out and out_t[out_i] <= t_new:
+        th = (out_t[out_i] - t) / h_try
+        _dense(y, rc1, rc2, rc3, rc4, th, out_y[out_i])
+        for j in range(nu):
+            out_u[out_i, j] = u_prev[j]
+        out_u[out_i, nu] = pump_prev
+        out_i += 1
+    for j in range(ny):
+        y[j] = yn[j]
+        f[j] = k7[j]
+    t = t_new
+    stats[0] += 1
+    if stiff:
+        stats[3] += 1
+    for j in range(Y_MUSCLE0 + 2 * n):
+        if not y[j] > 0.0:          # every air mass and pressure; NaN fails too
+            status = STATUS_NONPHYSICAL
+    if status != STATUS_OK:
+        return t, h_try, err_old, pump_on, out_i, refresh, status
+    if refresh:
+        # commands changed (or the step was cut): a transient ahead, the explicit method again
+        _explicit_again(ds)
+    if stiff:
+        h_next = h_try * min(5.0, max(0.2, SAFETY * max(err, 1e-10) ** (-1.0 / 3.0)))
+        # back to Dormand-Prince where it would be held to smaller steps by accuracy
+        # than by stability
+        ds[D_NBACK] = ds[D_NBACK] + 1.0 if h_next < ds[D_HSWITCH] else 0.0
+        if ds[D_NBACK] >= BACK_AFTER:
+            _explicit_again(ds)
+    else:
+        e = max(err, 1e-4)
+        fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
+        err_old = e
+        h_next = h_try * fac
+    return t, h_next, err_old, pump_on, out_i, refresh, status
+
+
+@jit_alloc
 def start(t0, h0, y, u, commands):
     """Driver state ``ds`` and controller state ``cs`` of a run that starts at t0.
 
@@ -356,15 +535,13 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     g, mp, mot_t, mot_L, mot_d, mot_n = model
     sched_t, sched_u, laws, ctrl_dt = commands
     rtol, atol, max_step = solver
-    out_t, out_y, out_u = out
     ny = y.size
     nu = u.size
     ns = sched_t.size
     n = mp.shape[0]
-    n_out = out_t.size
-    # one scratch allocation per call, cut into the stages' vectors (views, no copies): the
-    # coupled engine calls this once per MuJoCo step
-    scratch = np.empty(22 * ny + ny * ny + nu + 5 * n + 1)
+    # the scratch space at ds's end, cut into the stages' vectors (views, no copies): nothing is
+    # allocated per call (the coupled engine calls this once per MuJoCo step)
+    scratch = ds[D_SIZE + ny * ny + 2 * ny:]
     f = scratch[0:ny]
     k2 = scratch[ny:2 * ny]
     k3 = scratch[2 * ny:3 * ny]
@@ -386,6 +563,8 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
           scratch[18 * ny:19 * ny], scratch[19 * ny:20 * ny], scratch[20 * ny:21 * ny],
           scratch[21 * ny:22 * ny], ds[D_SIZE:D_SIZE + ny * ny].reshape((ny, ny)),
           ds[D_SIZE + ny * ny:D_SIZE + ny * ny + ny])
+    stages = (k2, k3, k4, k5, k6, k7, yt, yn)
+    dense = (rc1, rc2, rc3, rc4)
     o = 22 * ny + ny * ny
     u_prev = scratch[o:o + nu]
     aux = scratch[o + nu:o + nu + 2 * n + 1]
@@ -425,6 +604,8 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                 last = True
             t_new = t_seg if last else t + h_try
             stiff = ds[D_STIFF] > 0.5
+            st_num = 0.0
+            st_den = 0.0
             if stiff:
                 fresh = ds[D_JAC_AGE] < 0 or ds[D_JAC_AGE] >= JAC_EVERY
                 err = _rosenbrock_step(t, h_try, t_new, y, f, u, pump_on, model, atol, rtol, nphys, wk, fresh,
@@ -434,37 +615,8 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                     ds[D_JAC_AGE] = -1.0      # a rejected step: a fresh Jacobian for the retry
             else:
                 ds[D_JAC_AGE] = -1.0          # a later stiff stretch makes its own
-                for j in range(ny):
-                    yt[j] = y[j] + h_try * A21 * f[j]
-                rhs(t + C2 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)
-                for j in range(ny):
-                    yt[j] = y[j] + h_try * (A31 * f[j] + A32 * k2[j])
-                rhs(t + C3 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux, work)
-                for j in range(ny):
-                    yt[j] = y[j] + h_try * (A41 * f[j] + A42 * k2[j] + A43 * k3[j])
-                rhs(t + C4 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux, work)
-                for j in range(ny):
-                    yt[j] = y[j] + h_try * (A51 * f[j] + A52 * k2[j] + A53 * k3[j] + A54 * k4[j])
-                rhs(t + C5 * h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux, work)
-                for j in range(ny):
-                    yt[j] = y[j] + h_try * (A61 * f[j] + A62 * k2[j] + A63 * k3[j] + A64 * k4[j]
-                                            + A65 * k5[j])
-                rhs(t + h_try, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux, work)
-                for j in range(ny):
-                    yn[j] = y[j] + h_try * (B1 * f[j] + B3 * k3[j] + B4 * k4[j] + B5 * k5[j] + B6 * k6[j])
-                rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
-                stats[2] += 6
-                err = 0.0
-                st_num = 0.0
-                st_den = 0.0
-                for j in range(ny):
-                    e = h_try * (E1 * f[j] + E3 * k3[j] + E4 * k4[j] + E5 * k5[j] + E6 * k6[j]
-                                 + E7 * k7[j])
-                    w = 1.0 / (atol[j] + rtol * max(abs(y[j]), abs(yn[j])))
-                    err += (e * w) ** 2
-                    st_num += ((k7[j] - k6[j]) * w) ** 2        # the stiffness test's norms
-                    st_den += ((yn[j] - yt[j]) * w) ** 2
-                err = math.sqrt(err / ny)
+                err, st_num, st_den = _dopri_step(t, h_try, t_new, y, f, u, pump_on, model, atol, rtol, stages,
+                                                  aux, work, stats)
             if not math.isfinite(err):
                 # a non-finite trial: shrink hard and retry; give up only at step underflow
                 stats[1] += 1
@@ -474,88 +626,15 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                     break
                 continue
             if err <= 1.0:
-                # the continuous extension on (t, t_new] (rc1..rc4), for the controllers'
-                # samples and the output rows inside the step: Rosenbrock's is made with the
-                # step, Dormand-Prince's only when one of them falls inside it (a step that ends
-                # on its sample, as every coupled-engine step does, needs none)
-                dense_ready = stiff
-                if not stiff:
-                    _stiffness_test(ds, h_try, st_num, st_den)
-                # -- the controllers' samples inside the step, read from the dense output. A
-                # command that acts at once (the pump's switch, a valve without dead time) or a
-                # valve command that comes due before t_new ends the step there: the state at
-                # that time is the continuous extension's, the rest of the step is dropped.
-                for j in range(nu):
-                    u_prev[j] = u[j]
-                pump_prev = pump_on
-                t_cut = t_new
-                refresh = False
-                t_s = next_sample_time(laws, cs)
-                while t_s <= t_cut + EPS:
-                    if t_s >= t_new - EPS:
-                        t_s = t_new
-                        for j in range(ny):
-                            ys[j] = yn[j]
-                    else:
-                        if not dense_ready:
-                            _dopri_dense(h_try, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
-                            dense_ready = True
-                        _dense(y, rc1, rc2, rc3, rc4, (t_s - t) / h_try, ys)
-                    if sample_controllers(laws, t_s, ys, u, cs):
-                        refresh = True
-                        if t_s < t_new - EPS:
-                            t_cut = t_s
-                            break
-                    t_due = next_due_time(laws, cs)
-                    if t_due < t_cut - EPS:
-                        t_cut = max(t_due, t)
-                    t_s = next_sample_time(laws, cs)
-                if not dense_ready and (t_cut < t_new - EPS or (out_i < n_out and out_t[out_i] <= t_cut)):
-                    _dopri_dense(h_try, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
-                if t_cut < t_new - EPS:
-                    # the step ends at t_cut (a sample that changed a command, or a due time)
-                    _dense(y, rc1, rc2, rc3, rc4, (t_cut - t) / h_try, yn)
-                    t_new = t_cut
-                    apply_due(laws, t_new, u, cs)
-                    refresh = True
-                pump_on = cs[CS_PUMP]
-                while out_i < n_out and out_t[out_i] <= t_new:
-                    th = (out_t[out_i] - t) / h_try
-                    _dense(y, rc1, rc2, rc3, rc4, th, out_y[out_i])
-                    for j in range(nu):
-                        out_u[out_i, j] = u_prev[j]
-                    out_u[out_i, nu] = pump_prev
-                    out_i += 1
-                for j in range(ny):
-                    y[j] = yn[j]
-                    f[j] = k7[j]
-                t = t_new
-                stats[0] += 1
-                if stiff:
-                    stats[3] += 1
-                for j in range(Y_MUSCLE0 + 2 * n):
-                    if not y[j] > 0.0:          # every air mass and pressure; NaN fails too
-                        status = STATUS_NONPHYSICAL
+                t, h_next, err_old, pump_on, out_i, refresh, status = _accept(
+                    ds, laws, cs, t, t_new, h_try, err, err_old, stiff, st_num, st_den, y, yn, f, stages, dense, ys,
+                    u, u_prev, pump_on, out, out_i, stats)
                 if status != STATUS_OK:
                     break
                 if refresh:
-                    # commands changed (or the step was cut): dy/dt at the new point under them,
-                    # and a transient ahead: the explicit method again
-                    _explicit_again(ds)
+                    # commands changed (or the step was cut): dy/dt at the new point under them
                     rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
                     stats[2] += 1
-                if stiff:
-                    h_next = h_try * min(5.0, max(0.2, SAFETY * max(err, 1e-10) ** (-1.0 / 3.0)))
-                    # back to Dormand-Prince where it would be held to smaller steps by accuracy
-                    # than by stability
-                    ds[D_NBACK] = ds[D_NBACK] + 1.0 if h_next < ds[D_HSWITCH] else 0.0
-                    if ds[D_NBACK] >= BACK_AFTER:
-                        _explicit_again(ds)
-                else:
-                    e = max(err, 1e-4)
-                    fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
-                    err_old = e
-                    h_next = h_try * fac
                 h = max(h, h_next) if (last and t >= t_seg) else h_next
                 if t < t_seg:
                     # a sample in the step may have queued a command due before the piece's end
@@ -611,7 +690,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     return status
 
 
-@jit
+@jit_alloc
 def begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
     """Everything a run from t0 needs before its first :func:`advance`: output arrays (the rows at
     or before t0 hold the initial state), the state and valve vectors, the driver and controller
@@ -639,7 +718,7 @@ def begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
     return out_y, out_u, y, u, ds, cs, stats, commands
 
 
-@jit
+@jit_alloc
 def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
                  ctrl_dt, out_t, rtol, atol, max_step, h0, laws, pause_every):
     """Integrate from t0 to t_end under an open-loop valve schedule and the run's sampled laws

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frogsim._jit import jit
+from frogsim._jit import jit_alloc
 
 # status codes of a rise-time measurement
 REACHED = 0
@@ -60,7 +60,7 @@ def _rows(x):
     return np.ascontiguousarray(x, dtype=float)
 
 
-@jit
+@jit_alloc
 def _window(t, u, t_open):
     """(k0, k_closed, k_last, closes) of one run (:func:`pressurise_window`): u (T,) its valve."""
     T = t.size
@@ -71,7 +71,7 @@ def _window(t, u, t_open):
     return k0, T - 1, T - 1, False
 
 
-@jit
+@jit_alloc
 def _windows(t, u, t_open):
     B = u.shape[0]
     k0, kc, kl = np.empty(B, np.int64), np.empty(B, np.int64), np.empty(B, np.int64)
@@ -81,7 +81,7 @@ def _windows(t, u, t_open):
     return k0, kc, kl, closes
 
 
-@jit
+@jit_alloc
 def _rise(t, p, p_source, u, t_open, fraction):
     """The rise measurement of one run (module docstring): (seconds, p_start, p_target, level,
     reached, status, closes)."""
@@ -117,7 +117,7 @@ def _rise(t, p, p_source, u, t_open, fraction):
     return seconds, p0, ptarget, level, reached, status, closes
 
 
-@jit
+@jit_alloc
 def _rises(t, p, p_source, u, t_open, fraction):
     B = p.shape[0]
     out = np.empty((5, B))
