@@ -4,7 +4,8 @@ The stepping driver and the coupled engine's kernel are compiled without Numba's
 counting (``frogsim._jit.jit``): they may only use arrays they are given. Were one of them to
 receive a new array from a function that allocates, that array would never be freed. Numba's
 own allocation statistics (``NUMBA_NRT_STATS=1``, set before Numba starts, hence a subprocess)
-show both: stepping on after the first step allocates nothing, and everything allocated is freed.
+show both: stepping on after the first step allocates nothing, and everything allocated (by a
+run, or by a batch of runs in one compiled call) is freed.
 """
 from __future__ import annotations
 
@@ -37,9 +38,13 @@ SCRIPT = textwrap.dedent("""
     for u, palm in acts[1:]:
         st.step(u, palm)                    # 39 x 10 MuJoCo steps, each one call of the driver
     during = live()
-    # a whole pneumatic run, then everything dropped
-    r = frogsim.simulate(frogsim.load_scenario("paper-cycle"))
-    del r, st
+    # a whole pneumatic run and a batch of 20 runs in one compiled call, then everything dropped
+    from frogsim.engine.batch import build_models, run_outputs
+    base = frogsim.load_scenario("paper-cycle")
+    r = frogsim.simulate(base)
+    models = build_models(base, [{"source.initial_pressure_gauge": 3e5 + 1e4 * k} for k in range(20)])
+    out = run_outputs(models, columns=(np.array([5]), np.array([0])))
+    del r, st, models, out
     gc.collect()
     after = live()
     print(json.dumps({"before": before, "during": during, "after": after}))

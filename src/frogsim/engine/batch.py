@@ -24,7 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from frogsim._jit import jit
+from frogsim._jit import jit_alloc
 from frogsim._parallel import default_threads, map_pieces
 from frogsim.circuit import layout as L
 from frogsim.circuit.model import PARTS, PneumaticModel, assemble, build_model
@@ -172,7 +172,7 @@ def _stack_parts(parts: dict) -> dict:
     return out
 
 
-@jit
+@jit_alloc
 def _run_rows(im, iu, il, ist, ig, ir, y0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
               ctrl_dt, out_t, rtol, atol, max_step, laws, ycols, ucols, Y, U, status, t_reached):
     """Run points one after the other, each from its parts (row im[b] of the motion stacks, iu[b]
