@@ -31,8 +31,11 @@ Checks and targets (acceptance criteria)
       scenario's rtol) so that the ratio compares implementations, not tolerances; the tight
       reference's time is shown too;
     * ``frogsim reproduce --out <tmpdir>`` wall time, with a fresh Numba cache so compilation is
-      included, below 15 s (option --reproduce, on by default; skipped with a message when the
-      command is missing or fails).
+      included, below 15 s, best of --reproduce-runs (2) cold runs (option --reproduce, on by
+      default; skipped with a message when the command is missing or fails). Each run follows a
+      cold run of the code before the one stepping driver (BASELINE, from the git history), and
+      the ratio to its best is printed: this machine's speed drifts, so only a baseline timed in
+      turns with the run says whether it got slower.
 
 Exit status: 0 when every measured target is met, 1 otherwise.
 """
@@ -75,6 +78,7 @@ AGREEMENT_TOL = 1e-3                # 0.1 % of PRESSURE_SCALE
 SPEEDUP_TARGET = 100.0
 REPRODUCE_TARGET = 15.0             # [s]
 CHECK_METHOD, CHECK_RTOL = "DOP853", 1e-9
+BASELINE = "e625af2"                # the last commit before the one stepping driver
 
 # reference state vector
 MS, PS, ME, PE, MM, PM = range(6)
@@ -332,20 +336,27 @@ def numba_origin() -> str:
     return "Numba compilation, caching off"
 
 
-def time_reproduce(timeout: float) -> float | None:
+def time_reproduce(timeout: float, src: str | None = None) -> float | None:
     """Wall time [s] of `frogsim reproduce --out <tmpdir>` with a fresh Numba cache.
 
-    Returns None (with a message) when the command is missing or fails, inf on timeout; on success
-    prints the command's own last progress line.
+    ``src``: run the package found there (a ``src`` folder, e.g. an older commit's) instead of the
+    installed ``frogsim`` command. Returns None (with a message) when the command is missing or
+    fails, inf on timeout; on success prints the command's own last progress line.
     """
-    exe = shutil.which("frogsim")
-    if exe is None:
-        print("  skipped: no `frogsim` command on PATH")
-        return None
+    env = dict(os.environ)
+    if src is None:
+        exe = shutil.which("frogsim")
+        if exe is None:
+            print("  skipped: no `frogsim` command on PATH")
+            return None
+        prefix = [exe]
+    else:
+        prefix = [sys.executable, "-m", "frogsim"]
+        env["PYTHONPATH"] = src
     with tempfile.TemporaryDirectory(prefix="frogsim-out-") as out, \
             tempfile.TemporaryDirectory(prefix="frogsim-numba-") as cache:
-        env = {**os.environ, "NUMBA_CACHE_DIR": cache}
-        cmd = [exe, "reproduce", "--out", out]
+        env["NUMBA_CACHE_DIR"] = cache
+        cmd = prefix + ["reproduce", "--out", out]
         t0 = time.perf_counter()
         try:
             proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=timeout)
@@ -362,6 +373,23 @@ def time_reproduce(timeout: float) -> float | None:
     return wall
 
 
+def baseline_src(folder: str) -> str | None:
+    """The ``src`` folder of BASELINE (from the repository's history, by ``git archive``) unpacked
+    into folder, or None (with a message) when the history is not at hand."""
+    import io
+    import tarfile
+    repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    try:
+        blob = subprocess.run(["git", "-C", repo, "archive", BASELINE, "src"], capture_output=True,
+                              check=True).stdout
+    except (OSError, subprocess.CalledProcessError):
+        print(f"  baseline {BASELINE} skipped: no git history here")
+        return None
+    with tarfile.open(fileobj=io.BytesIO(blob)) as tar:
+        tar.extractall(folder)
+    return os.path.join(folder, "src")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -375,6 +403,9 @@ def main(argv=None) -> int:
                     help="rtol of the reference timed for the verdict (default: frogsim's own)")
     ap.add_argument("--reproduce", action=argparse.BooleanOptionalAction, default=True,
                     help="also time `frogsim reproduce` with a fresh Numba cache (default on)")
+    ap.add_argument("--reproduce-runs", type=int, default=2,
+                    help="cold runs of `frogsim reproduce`, best taken, each after one of the baseline "
+                         f"({BASELINE}; 0: no baseline, one run) (default 2)")
     ap.add_argument("--reproduce-timeout", type=float, default=300.0,
                     help="give up on `frogsim reproduce` after this many seconds (default 300)")
     args = ap.parse_args(argv)
@@ -450,14 +481,33 @@ def main(argv=None) -> int:
     if not ok:
         failures.append("speed-up")
 
-    # 3. frogsim reproduce, cold
-    print(f"\n`frogsim reproduce` with a fresh Numba cache (target < {REPRODUCE_TARGET:g} s)")
+    # 3. frogsim reproduce, cold; the code before the one-core change as the baseline, in turns
+    print(f"\n`frogsim reproduce` with a fresh Numba cache (target < {REPRODUCE_TARGET:g} s; baseline: the "
+          f"code of {BASELINE}, before the one stepping driver, in turns with it)")
     if args.reproduce:
-        wall = time_reproduce(args.reproduce_timeout)
-        if wall is not None:
+        walls, base = [], []
+        with tempfile.TemporaryDirectory(prefix="frogsim-baseline-") as folder:
+            old = baseline_src(folder) if args.reproduce_runs > 0 else None
+            for _ in range(max(1, args.reproduce_runs)):
+                if old is not None:
+                    print(f"  baseline {BASELINE}:")
+                    w = time_reproduce(args.reproduce_timeout, old)
+                    if w is not None:
+                        base.append(w)
+                print("  now:")
+                w = time_reproduce(args.reproduce_timeout)
+                if w is not None:
+                    walls.append(w)
+        if walls:
+            wall = min(walls)
             ok = wall < REPRODUCE_TARGET
-            if math.isfinite(wall):
-                print(f"  wall time {wall:.2f} s")
+            print(f"  wall time {wall:.2f} s (best of {', '.join(f'{x:.2f}' for x in walls)} s)")
+            if base:
+                b = min(base)
+                print(f"  baseline {BASELINE}: {b:.2f} s (best of {', '.join(f'{x:.2f}' for x in base)} s); "
+                      f"now / baseline {wall / b:.2f}: {'no slower' if wall <= b else 'SLOWER'} than before")
+                if wall > b:
+                    failures.append(f"reproduce slower than {BASELINE}")
             print(f"  reproduce: {'PASS' if ok else 'FAIL'}")
             if not ok:
                 failures.append("reproduce time")
