@@ -542,26 +542,14 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     # the scratch space at ds's end, cut into the stages' vectors (views, no copies): nothing is
     # allocated per call (the coupled engine calls this once per MuJoCo step)
     scratch = ds[D_SIZE + ny * ny + 2 * ny:]
-    f = scratch[0:ny]
-    k2 = scratch[ny:2 * ny]
-    k3 = scratch[2 * ny:3 * ny]
-    k4 = scratch[3 * ny:4 * ny]
-    k5 = scratch[4 * ny:5 * ny]
-    k6 = scratch[5 * ny:6 * ny]
-    k7 = scratch[6 * ny:7 * ny]
-    yt = scratch[7 * ny:8 * ny]
-    yn = scratch[8 * ny:9 * ny]
-    rc1 = scratch[9 * ny:10 * ny]
-    rc2 = scratch[10 * ny:11 * ny]
-    rc3 = scratch[11 * ny:12 * ny]
-    rc4 = scratch[12 * ny:13 * ny]
-    ys = scratch[13 * ny:14 * ny]
+    vectors = scratch[:22 * ny].reshape((22, ny))         # 22 stage vectors of ny entries
+    f, k2, k3, k4, k5, k6, k7, yt, yn = (vectors[0], vectors[1], vectors[2], vectors[3], vectors[4], vectors[5],
+                                         vectors[6], vectors[7], vectors[8])
+    rc1, rc2, rc3, rc4, ys = vectors[9], vectors[10], vectors[11], vectors[12], vectors[13]
     # Rosenbrock: (W, pivots, ft, k1, k2, k3, yt, f1, tder, J, T); J and T (df/dy, df/dt) live in
     # ds after D_SIZE, with their age ds[D_JAC_AGE], so that a pause keeps them
-    wk = (scratch[22 * ny:22 * ny + ny * ny].reshape((ny, ny)), scratch[14 * ny:15 * ny],
-          scratch[15 * ny:16 * ny], scratch[16 * ny:17 * ny], scratch[17 * ny:18 * ny],
-          scratch[18 * ny:19 * ny], scratch[19 * ny:20 * ny], scratch[20 * ny:21 * ny],
-          scratch[21 * ny:22 * ny], ds[D_SIZE:D_SIZE + ny * ny].reshape((ny, ny)),
+    wk = (scratch[22 * ny:22 * ny + ny * ny].reshape((ny, ny)), vectors[14], vectors[15], vectors[16], vectors[17],
+          vectors[18], vectors[19], vectors[20], vectors[21], ds[D_SIZE:D_SIZE + ny * ny].reshape((ny, ny)),
           ds[D_SIZE + ny * ny:D_SIZE + ny * ny + ny])
     stages = (k2, k3, k4, k5, k6, k7, yt, yn)
     dense = (rc1, rc2, rc3, rc4)
