@@ -335,17 +335,18 @@ def _dopri_step(t, h, t_new, y, f, u, pump_on, model, atol, rtol, stages, aux, w
 
 
 @jit
-def _samples_in_step(laws, cs, t, t_new, h, y, yn, f, stages, dense, ys, u, dense_ready):
+def _samples_in_step(laws, cs, t, t_new, h, y, f, stages, dense, ys, u, dense_ready):
     """The controllers' samples t_k inside an accepted step (t, t_new] of length h, in order,
     each taken from the step's continuous extension (``dense`` = rc1..rc4; made here from the
     Dormand-Prince stages f, ``stages`` when ``dense_ready`` is False and a sample needs it) into
-    ys, or from yn at t_new. A sample whose command acts at once ends the step at t_k; a queued
-    command due before the step's end ends it at its due time (see :func:`advance`).
+    ys, or from the step's solution yn (``stages[7]``) at t_new. A sample whose command acts at
+    once ends the step at t_k; a queued command due before the step's end ends it at its due time
+    (see :func:`advance`).
 
     Returns (t_cut, refresh, dense_ready): where the step ends, whether a command changed, and
     whether the continuous extension has been made.
     """
-    _, k3, k4, k5, k6, k7, _, _ = stages
+    _, k3, k4, k5, k6, k7, _, yn = stages
     rc1, rc2, rc3, rc4 = dense
     t_cut = t_new
     refresh = False
@@ -373,7 +374,7 @@ def _samples_in_step(laws, cs, t, t_new, h, y, yn, f, stages, dense, ys, u, dens
 
 
 @jit
-def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, yn, f, stages, dense, ys, u, u_prev,
+def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, f, stages, dense, ys, u, u_prev,
             pump_on, out, out_i, stats):
     """An accepted step of length h from t to t_new (error norm err; the previous one err_old):
     the stiffness test (a Dormand-Prince step), the controllers' samples inside the step
@@ -388,7 +389,7 @@ def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, y
     (STATUS_NONPHYSICAL when an air mass or pressure is no longer positive; the rest is then
     not done).
     """
-    _, k3, k4, k5, k6, k7, _, _ = stages
+    _, k3, k4, k5, k6, k7, _, yn = stages        # yn: the step's solution at t_new
     rc1, rc2, rc3, rc4 = dense
     out_t, out_y, out_u = out
     ny = y.size
@@ -412,8 +413,8 @@ def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, y
     for j in range(nu):
         u_prev[j] = u[j]
     pump_prev = pump_on
-    t_cut, refresh, dense_ready = _samples_in_step(laws, cs, t, t_new, h_try, y, yn, f, stages, dense,
-                                                   ys, u, dense_ready)
+    t_cut, refresh, dense_ready = _samples_in_step(laws, cs, t, t_new, h_try, y, f, stages, dense, ys, u,
+                                                   dense_ready)
     if not dense_ready and (t_cut < t_new - EPS or (out_i < n_out and out_t[out_i] <= t_cut)):
         _dopri_dense(h_try, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
     if t_cut < t_new - EPS:
@@ -615,8 +616,8 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                 continue
             if err <= 1.0:
                 t, h_next, err_old, pump_on, out_i, refresh, status = _accept(
-                    ds, laws, cs, t, t_new, h_try, err, err_old, stiff, st_num, st_den, y, yn, f, stages, dense, ys,
-                    u, u_prev, pump_on, out, out_i, stats)
+                    ds, laws, cs, t, t_new, h_try, err, err_old, stiff, st_num, st_den, y, f, stages, dense, ys, u,
+                    u_prev, pump_on, out, out_i, stats)
                 if status != STATUS_OK:
                     break
                 if refresh:

@@ -41,7 +41,7 @@ def warm_up(part: str) -> None:
         laws = commands[2]
         dense = tuple(np.zeros(ny) for _ in range(4))
         out = (np.zeros(1), np.zeros((1, ny)), np.zeros((1, 2 * n + 1)))
-        _accept(ds, laws, cs, 0.0, 1e-3, 1e-3, 0.5, 1e-4, False, 0.0, 1.0, y, y.copy(), np.zeros(ny), stages, dense,
+        _accept(ds, laws, cs, 0.0, 1e-3, 1e-3, 0.5, 1e-4, False, 0.0, 1.0, y, np.zeros(ny), stages, dense,
                 np.zeros(ny), u, u.copy(), 0.0, out, 0, stats)
         _dense(y, *dense, 0.5, vec[0])
         t = np.linspace(0.0, 1.0, 11)
