@@ -14,7 +14,7 @@ from frogsim.scenario.core import Scenario
 from frogsim.scenario.variants import _codes
 from frogsim.scenario.view import Settings
 from frogsim.sweep.spec import FieldInfo, dumps_toml
-from tests.test_sweep_every_path import BASE, _candidates
+from tests.test_sweep_every_path import BASE, current_and_valid
 
 ARRAYS = ("g", "mp", "mot_t", "mot_L", "mot_d", "mot_n", "sched_t", "sched_u", "u0", "y0", "atol", "out_t", "laws")
 
@@ -37,24 +37,10 @@ def base(tmp_path_factory):
     return frogsim.load_scenario(folder / "base.toml")
 
 
-def _value(base, path):
-    node = base
-    for key in path.split("."):
-        node = node[key] if isinstance(node, dict) else getattr(node, key)
-    return node
-
-
 def test_every_variable_path_builds_the_per_point_model(base):
     built = 0
     for path, meta in base.variable_paths().items():
-        now = _value(base, path)
-        good = []
-        for v in _candidates(now, FieldInfo.of(meta)):
-            try:
-                base.replace({path: v})
-                good.append(v)
-            except frogsim.ScenarioError:
-                continue
+        now, good = current_and_valid(base, path, FieldInfo.of(meta))
         if not good:
             continue
         points = [{path: v} for v in ([now] if now is not None else []) + good[:2]]

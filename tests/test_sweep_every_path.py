@@ -39,6 +39,21 @@ def _candidates(value, info: FieldInfo):
     return [x for x in (value * 1.05, value * 0.95, value + 0.01) if _inside(float(x), info.meta)]
 
 
+def current_and_valid(base, path: str, info: FieldInfo):
+    """(the path's present value in base, the candidate values base.replace accepts for it)."""
+    node = base
+    for key in path.split("."):
+        node = node[key] if isinstance(node, dict) else getattr(node, key)
+    good = []
+    for v in _candidates(node, info):
+        try:
+            base.replace({path: v})
+            good.append(v)
+        except frogsim.ScenarioError:
+            continue
+    return node, good
+
+
 def _spec_values(values, info: FieldInfo):
     if info.kind in ("flag", "choice", "integer"):
         return {"values": list(values)}
@@ -59,16 +74,7 @@ def test_every_variable_path_sweeps_and_matches_single_runs(tmp_path):
     swept = 0
     for path, meta in paths.items():
         info = FieldInfo.of(meta)
-        node = base
-        for key in path.split("."):
-            node = node[key] if isinstance(node, dict) else getattr(node, key)
-        good = []
-        for v in _candidates(node, info):
-            try:
-                base.replace({path: v})
-                good.append(v)
-            except frogsim.ScenarioError:
-                continue
+        node, good = current_and_valid(base, path, info)
         if not good:
             continue                  # no nearby value is valid here (e.g. a bound is already met)
         values = [node, good[0]] if node is not None else good[:1]
