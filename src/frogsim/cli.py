@@ -139,7 +139,7 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     from frogsim._jit import cache_is_warm
-    from frogsim.engine.warmup import warm_up
+    from frogsim.engine.warmup import warm_up_parts
     from frogsim._files import write_json
     from frogsim.studies import STUDIES
     workers = min(args.workers or os.cpu_count() or 1, len(names))
@@ -167,9 +167,8 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
         methods = multiprocessing.get_all_start_methods()
         ctx = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
         with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
-            if cold:      # two independent parts of the engine compiled side by side, first
-                for fut in [pool.submit(warm_up, part) for part in ("controllers", "rhs")]:
-                    fut.result()
+            if cold:      # the engine's parts compiled side by side, first
+                warm_up_parts(pool, workers)
             futures = [pool.submit(_study_task, name, str(out)) for name in order]
             for k, fut in enumerate(as_completed(futures), 1):
                 report(k, *fut.result())

@@ -1,50 +1,122 @@
-"""Compiling the pneumatic engine in parts, so that two processes can share the first run's work."""
+"""Compiling the pneumatic engine in parts, so that two processes can share the first run's work.
+
+Numba compiles a function together with everything it calls, so the engine is a chain: the
+circuit's right-hand side, then the two methods' steps that call it, then the stepping driver
+(:func:`frogsim.engine.integrator.advance`) over all of them. Each part is compiled once, for the
+argument types the driver passes (a one-muscle circuit has the same types as any other), and
+saved in the cache, where the next part, in this process or another, finds it. :data:`PARTS`
+lists the parts with the parts each needs first; :func:`warm_up_parts` runs them on a process
+pool, the driver's chain first, and what the driver does not need (a run's start, the measures)
+on the other process while the driver compiles.
+"""
 from __future__ import annotations
 
 import numpy as np
+from numba import typeof
 
 from frogsim.circuit import layout as L
-from frogsim.circuit.rhs import rhs
-from frogsim.engine.integrator import STATS_SIZE, _accept, _dense, _dopri_step, _rosenbrock_step, begin
-from frogsim.engine.measures import rise_times
+from frogsim.circuit.rhs import _hermite, common_piece, manifold_pressure, muscle_volume_state, rhs
+from frogsim.engine import integrator as I
+from frogsim.engine.measures import _rises, _windows
+
+# name: (the parts it needs compiled first, what it compiles); in the order a free process takes
+# them when several are ready (the driver's chain first: it is the longest)
+PARTS = {
+    "flow": ((), "the manifold pressure and the valves' flow (part of the right-hand side)"),
+    "volume": ((), "the muscles' volumes along their length paths (part of the right-hand side)"),
+    # with the LU solve, which needs nothing and shortens the Rosenbrock step's part
+    "accept": ((), "an accepted step's work (samples, dense output, stiffness test, step size), the LU solve"),
+    "rhs": (("flow", "volume"), "the circuit's right-hand side"),
+    "rosenbrock": (("rhs",), "the Rosenbrock step"),
+    "dopri": (("rhs",), "the Dormand-Prince step"),
+    "driver": (("rhs", "accept", "rosenbrock", "dopri"), "the stepping driver"),
+    "start": ((), "a run's start"),
+    "measures": ((), "the rise-time measures"),
+}
+
+
+def _one_muscle():
+    """Arguments of the types the driver passes, for a one-muscle circuit (values irrelevant)."""
+    n = 1
+    ny = L.state_size(n)
+    a = {"ny": ny, "y": np.ones(ny), "f": np.zeros(ny), "u": np.zeros(2 * n), "aux": np.zeros(2 * n + 1),
+         "work": np.zeros(3 * n), "atol": np.ones(ny), "stats": np.zeros(I.STATS_SIZE, np.int64),
+         "model": (np.ones(L.G_SIZE), np.zeros((n, L.M_SIZE)), np.zeros((n, 1)), np.ones((n, 1)),
+                   np.zeros((n, 1)), np.ones(n, np.int64)),
+         # an open-loop run's commands: (sched_t, sched_u, laws, ctrl_dt), laws the pump's row
+         # (frogsim.control.sampled.sampled_laws)
+         "commands": (np.zeros(0), np.zeros((0, 2 * n)), np.zeros(1), 1e-3),
+         "ds": np.zeros(1), "cs": np.zeros(1)}
+    a["stages"] = tuple(np.zeros(ny) for _ in range(8))       # (k2..k7, yt, yn), as advance cuts them
+    a["dense"] = tuple(np.zeros(ny) for _ in range(4))
+    a["out"] = (np.zeros(1), np.zeros((1, ny)), np.zeros((1, 2 * n + 1)))
+    return a
+
+
+def _compile(dispatcher, *args) -> None:
+    """Compile (or load from the cache) ``dispatcher`` for the types of ``args``, without running it."""
+    dispatcher.compile(tuple(typeof(x) for x in args))
 
 
 def warm_up(part: str) -> None:
-    """Compile (or load from the cache) one independent part of the pneumatic engine, on a
-    one-muscle circuit with the argument types :func:`frogsim.engine.integrator.advance` passes:
-    "rhs" (the circuit's right-hand side and the two methods' steps, which call it) or
-    "controllers" (a run's start; an accepted step's work: the open-loop laws' samples inside it,
-    the dense output, the stiffness test and the step-size control; the measures every study reads
-    from its results). Two processes warming one part each, before anything calls the driver,
-    compile them side by side; compiling the driver itself then finds all of them in the cache and
-    has only its own loop left."""
-    n = 1
-    ny = L.state_size(n)
-    vec = [np.zeros(ny) for _ in range(8)]
-    stages = tuple(vec)                                 # (k2..k7, yt, yn), as advance cuts them
-    stats = np.zeros(STATS_SIZE, np.int64)
-    if part == "rhs":
-        model = (np.ones(L.G_SIZE), np.zeros((n, L.M_SIZE)), np.zeros((n, 1)), np.ones((n, 1)), np.zeros((n, 1)),
-                 np.ones(n, np.int64))
-        y, f, atol, u, aux, work = np.ones(ny), np.zeros(ny), np.ones(ny), np.zeros(2 * n), np.zeros(2 * n + 1), \
-            np.zeros(3 * n)
-        rhs(0.0, y, u, 0.0, *model, f, aux, work)
-        _dopri_step(0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, stages, aux, work, stats)
+    """Compile (or load from the cache) one part of the engine (a key of :data:`PARTS`). Parts
+    compiled in another process are loaded from the cache, so a part runs after those it needs."""
+    a = _one_muscle()
+    y, f, u, aux, work, atol, stats, model = (a[k] for k in ("y", "f", "u", "aux", "work", "atol", "stats",
+                                                              "model"))
+    vec = a["stages"][:6]
+    if part == "flow":
+        _compile(manifold_pressure, 1e5, 293.0, y, u, model[0], model[1], 1, work)
+    elif part == "volume":
+        _compile(muscle_volume_state, 0.0, 0, *model[1:])
+        _compile(common_piece, 0.0, model[1], model[2], model[5])
+        _compile(_hermite, 0.0, 0, 0, 1, model[2], model[3], model[4])
+    elif part == "rhs":
+        _compile(rhs, 0.0, y, u, 0.0, *model, f, aux, work)
+    elif part == "dopri":
+        _compile(I._dopri_step, 0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, a["stages"], aux, work, stats)
+    elif part == "rosenbrock":
         # Rosenbrock's work tuple (W, pivots, ft, k1, k2, k3, yt, f1, tder, J, T)
+        ny = a["ny"]
         wk = (np.zeros((ny, ny)),) + tuple(np.zeros(ny) for _ in range(8)) + (np.zeros((ny, ny)), np.zeros(ny))
-        _rosenbrock_step(0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, ny, wk, True, *vec[:6], aux, work,
-                         stats)
-    elif part == "controllers":
-        # an open-loop run's laws: the 1-D pump row (frogsim.control.sampled.sampled_laws)
-        _, _, y, u, ds, cs, _, commands = begin(np.ones(ny), 0.0, np.zeros(2 * n), np.zeros(0), np.zeros(0),
-                                                np.zeros((0, 2 * n)), 1e-3, np.zeros(1), 1e-4)
-        laws = commands[2]
-        dense = tuple(np.zeros(ny) for _ in range(4))
-        out = (np.zeros(1), np.zeros((1, ny)), np.zeros((1, 2 * n + 1)))
-        _accept(ds, laws, cs, 0.0, 1e-3, 1e-3, 0.5, 1e-4, False, 0.0, 1.0, y, np.zeros(ny), stages, dense,
-                np.zeros(ny), u, u.copy(), 0.0, out, 0, stats)
-        _dense(y, *dense, 0.5, vec[0])
-        t = np.linspace(0.0, 1.0, 11)
-        rise_times(t, np.linspace(1e5, 2e5, 11)[None, :], np.full((1, 11), 2e5), np.ones((1, 11)), np.zeros(1))
+        _compile(I._rosenbrock_step, 0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, 1, wk, True, *vec, aux, work,
+                 stats)
+    elif part == "accept":
+        _compile(I._accept, a["ds"], a["commands"][2], a["cs"], 0.0, 1e-3, 1e-3, 0.5, 1e-4, False, 0.0, 1.0, y, f,
+                 a["stages"], a["dense"], f, u, u, 0.0, a["out"], 0, stats)
+        _compile(I._dense, y, *a["dense"], 0.5, f)
+        J, piv = np.zeros((a["ny"], a["ny"])), np.zeros(a["ny"])      # pivots stored as floats
+        _compile(I._lu, J, piv)
+        _compile(I._lu_solve, J, piv, f)
+    elif part == "driver":
+        _compile(I.advance, 1.0, y, u, a["ds"], a["cs"], model, a["commands"], (1e-6, atol, 1e-3), a["out"], stats)
+    elif part == "start":
+        c = a["commands"]
+        _compile(I.begin, y, 0.0, u, c[2], c[0], c[1], c[3], a["out"][0], 1e-4)
+    elif part == "measures":
+        t, p = np.zeros(11), np.zeros((1, 11))
+        _compile(_rises, t, p, p, p, np.zeros(1), 0.9)
+        _compile(_windows, t, p, np.zeros(1))
     else:
-        raise ValueError(f"unknown part {part!r}")
+        raise ValueError(f"unknown part {part!r}; the parts are {', '.join(PARTS)}")
+
+
+def warm_up_parts(pool, workers: int) -> None:
+    """Compile every part of :data:`PARTS` on ``pool`` (a process pool of ``workers`` processes), in
+    the listed order: the next part is handed to a free process once the parts it needs are done,
+    and a free process waits for it rather than jump ahead (a later part would hold up the driver's
+    chain). Returns when all are done; a part's error is raised here."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+    done: set[str] = set()
+    running = {}
+    waiting = list(PARTS)
+    while waiting or running:
+        while waiting and len(running) < workers and all(d in done for d in PARTS[waiting[0]][0]):
+            name = waiting.pop(0)
+            running[pool.submit(warm_up, name)] = name
+        if not running:
+            raise RuntimeError(f"part {waiting[0]!r} waits for parts listed after it")   # PARTS out of order
+        finished, _ = wait(running, return_when=FIRST_COMPLETED)
+        for fut in finished:
+            fut.result()
+            done.add(running.pop(fut))

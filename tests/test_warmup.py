@@ -1,0 +1,96 @@
+"""The first run's compilation in parts: the parts cover the engine and the scheduler keeps their
+order."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+import frogsim
+from frogsim.engine import warmup
+
+SRC = str(Path(frogsim.__file__).resolve().parent.parent)
+
+
+def test_every_part_needs_only_parts_listed_before_it():
+    seen = set()
+    for name, (needs, what) in warmup.PARTS.items():
+        assert set(needs) <= seen, f"{name} needs {set(needs) - seen}, listed after it"
+        assert what
+        seen.add(name)
+    with pytest.raises(ValueError, match="unknown part"):
+        warmup.warm_up("no-such-part")
+
+
+def test_scheduler_hands_out_parts_in_order_after_what_they_need(monkeypatch):
+    """Two workers, parts of made-up lengths: a part starts only after the parts it needs have
+    ended, and parts start in the listed order."""
+    lengths = {name: 0.02 + 0.01 * (k % 3) for k, name in enumerate(warmup.PARTS)}
+    log, lock = [], threading.Lock()
+
+    def fake(part):
+        with lock:
+            log.append(("start", part, time.perf_counter()))
+        time.sleep(lengths[part])
+        with lock:
+            log.append(("end", part, time.perf_counter()))
+    monkeypatch.setattr(warmup, "warm_up", fake)
+    with ThreadPoolExecutor(2) as pool:
+        warmup.warm_up_parts(pool, 2)
+    starts = {p: t for kind, p, t in log if kind == "start"}
+    ends = {p: t for kind, p, t in log if kind == "end"}
+    assert set(starts) == set(warmup.PARTS)
+    assert [p for kind, p, _ in log if kind == "start"] == list(warmup.PARTS)
+    for name, (needs, _) in warmup.PARTS.items():
+        for n in needs:
+            assert starts[name] >= ends[n], f"{name} started before {n} ended"
+
+
+def test_a_failing_part_raises(monkeypatch):
+    def fake(part):
+        if part == "rhs":
+            raise RuntimeError("boom")
+    monkeypatch.setattr(warmup, "warm_up", fake)
+    with ThreadPoolExecutor(2) as pool, pytest.raises(RuntimeError, match="boom"):
+        warmup.warm_up_parts(pool, 2)
+
+
+@pytest.mark.slow
+def test_warm_parts_leave_the_engine_nothing_to_compile(tmp_path):
+    """With every part compiled into a fresh cache (in one process), a run of the paper's cycle in
+    a second process compiles nothing of the circuit, the driver, the controllers or the measures:
+    the parts were compiled for the argument types a run passes."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=SRC)
+    subprocess.run([sys.executable, "-c", "from frogsim.engine.warmup import PARTS, warm_up\n"
+                    "for p in PARTS: warm_up(p)"], env=env, check=True, timeout=600)
+    script = textwrap.dedent("""
+        import json
+        from numba.core import event
+        compiled = []
+        class Listener(event.Listener):
+            def on_start(self, e):
+                f = e.data["dispatcher"].py_func
+                compiled.append(f"{f.__module__}.{f.__qualname__}")
+            def on_end(self, e):
+                pass
+        event.register("numba:compile", Listener())
+        from frogsim.studies.paper import HIP, run
+        r = run()
+        r.rise(HIP)
+        r.pressurise_window(HIP)
+        print(json.dumps(compiled))
+    """)
+    out = subprocess.run([sys.executable, "-c", script], env=env, check=True, timeout=600, capture_output=True,
+                         text=True).stdout
+    compiled = json.loads(out.strip().splitlines()[-1])
+    engine = [c for c in compiled if c.startswith(("frogsim.engine.integrator", "frogsim.circuit.rhs",
+                                                  "frogsim.control.sampled", "frogsim.engine.measures"))]
+    assert not engine, f"compiled again after the warm-up: {engine}"
