@@ -1,5 +1,5 @@
-"""The first run's compilation in parts: the parts cover the engine and the scheduler keeps their
-order."""
+"""The first run's compilation in parts: the parts cover the engine, the scheduler keeps their
+order, and the engine's internal pieces (compiled for compiled callers only) refuse Python calls."""
 from __future__ import annotations
 
 import json
@@ -15,9 +15,32 @@ from pathlib import Path
 import pytest
 
 import frogsim
+from frogsim._jit import _CompiledCallersOnly
 from frogsim.engine import warmup
 
 SRC = str(Path(frogsim.__file__).resolve().parent.parent)
+
+
+def _step_pieces():
+    import importlib
+    import pkgutil
+    found = {}
+    for info in pkgutil.walk_packages(frogsim.__path__, "frogsim."):
+        if info.name.endswith("__main__"):
+            continue
+        for name, obj in vars(importlib.import_module(info.name)).items():
+            if isinstance(obj, _CompiledCallersOnly):
+                found[f"{info.name}.{name}"] = obj
+    return found
+
+
+def test_step_pieces_refuse_python_calls():
+    pieces = _step_pieces()
+    assert "frogsim.engine.integrator._dopri_step" in pieces and "frogsim.circuit.rhs.manifold_pressure" in pieces
+    for name, d in pieces.items():
+        with pytest.raises(TypeError, match="compiled callers only"):
+            d(0.0)
+        assert d.targetoptions["no_cpython_wrapper"] and not d.targetoptions["_nrt"], name
 
 
 def test_every_part_needs_only_parts_listed_before_it():

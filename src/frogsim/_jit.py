@@ -1,6 +1,10 @@
-"""The one Numba decorator frogsim compiles its hot code with, and where its machine code is cached.
+"""The Numba decorators frogsim compiles its hot code with (one set of settings), and where its machine
+code is cached.
 
-cache=True keeps the machine code between runs (the first run compiles, about 8 s).
+cache=True keeps the machine code between runs (the first run compiles: about 15 s of compiler
+work, spread over the cores by :mod:`frogsim.engine.warmup`). no_cfunc_wrapper: Numba would also
+build a C-callable wrapper of every function, for passing it as a function pointer, which frogsim
+never does.
 error_model="numpy" lets a division by zero give inf/NaN instead of raising, which removes a
 branch from every division in the hot loop; non-finite values are caught by the integrator's error
 norm and reported. fastmath is limited to "arcp" (x/y may become x*(1/y)) and "contract" (fused
@@ -21,6 +25,7 @@ from pathlib import Path
 
 import numba
 from numba import njit
+from numba.core.registry import CPUDispatcher
 
 _PACKAGE = Path(__file__).resolve().parent
 # robot/water.py: its table layout (E_*, P_*) is compiled into the coupled engine as constants
@@ -55,7 +60,8 @@ if not os.environ.get("NUMBA_CACHE_DIR"):
     numba.config.CACHE_DIR = _cache_dir()
 
 
-_OPTIONS = dict(cache=True, nogil=True, error_model="numpy", fastmath={"arcp", "contract"})
+_OPTIONS_NO_CACHE = dict(nogil=True, error_model="numpy", fastmath={"arcp", "contract"}, no_cfunc_wrapper=True)
+_OPTIONS = dict(cache=True, **_OPTIONS_NO_CACHE)
 
 
 def jit(func):
@@ -74,6 +80,30 @@ def jit(func):
     return njit(_nrt=False, **_OPTIONS)(func)
 
 
+class _CompiledCallersOnly(CPUDispatcher):
+    """A dispatcher compiled without the wrapper that lets Python call it (see :func:`jit_step`):
+    calling it from Python raises instead of jumping to the missing wrapper."""
+
+    def __call__(self, *args, **kwargs):
+        raise TypeError(f"{self.py_func.__module__}.{self.py_func.__qualname__} is compiled for compiled callers "
+                        f"only (frogsim._jit.jit_step) and cannot be called from Python")
+
+
+def jit_step(func):
+    """:func:`jit` for the engine's internal pieces that only compiled code calls (the driver's
+    steps, an accepted step's work, the LU solve, the right-hand side's manifold pressure and
+    motion pieces): compiled without the wrappers that let Python
+    (``no_cpython_wrapper``) or C (``no_cfunc_wrapper``) call them. Numba builds the Python wrapper
+    for every compiled function, with code to unpack each argument (these take up to two dozen,
+    tuples of arrays among them), and optimises it again in every caller's module; leaving it out
+    shortens a first run's compilation. Calling one from Python raises TypeError; compile one
+    ahead with ``func.compile(signature)`` (:mod:`frogsim.engine.warmup`)."""
+    disp = _CompiledCallersOnly(py_func=func, locals={}, targetoptions=dict(
+        _nrt=False, no_cpython_wrapper=True, nopython=True, **_OPTIONS_NO_CACHE))
+    disp.enable_caching()
+    return disp
+
+
 def jit_alloc(func):
     """Compile func with frogsim's Numba settings and Numba's reference counting, for the few
     compiled functions that allocate arrays (a run's start, the measures over whole results).
@@ -83,7 +113,7 @@ def jit_alloc(func):
 
 
 def cache_is_warm() -> bool:
-    """True if compiled engine code is already cached (the first run compiles, about 8 s)."""
+    """True if compiled engine code is already cached (the first run compiles)."""
     d = numba.config.CACHE_DIR
     return bool(d) and os.path.isdir(d) and any(n.endswith(".nbi") for _, _, fs in os.walk(d) for n in fs)
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from frogsim._jit import jit
+from frogsim._jit import jit, jit_step
 
 from frogsim.circuit.layout import (
     G_BRANCH_LIMIT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF, G_SUPPLY_MODE, G_TAMB,
@@ -47,7 +47,7 @@ def motion_length(t, i, mot_t, mot_L, mot_d, mot_n):
     return _hermite(t, i, lo, hi, mot_t, mot_L, mot_d)
 
 
-@jit
+@jit_step
 def _hermite(t, i, lo, hi, mot_t, mot_L, mot_d):
     """Muscle i's (L, dL/dt) on its path's piece between knots lo and hi = lo + 1."""
     h = mot_t[i, hi] - mot_t[i, lo]
@@ -63,7 +63,7 @@ def _hermite(t, i, lo, hi, mot_t, mot_L, mot_d):
     return L, dLds / h
 
 
-@jit
+@jit_step
 def common_piece(t, mp, mot_t, mot_n):
     """The knot index lo such that every muscle's length path has t strictly inside its knots
     and on its piece [t_lo, t_lo+1) (what :func:`motion_length`'s search finds for each), or -1
@@ -104,7 +104,7 @@ def muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n):
     return muscle_volume(L, b0, nt) + mp[i, M_DEAD], muscle_volume_slope(L, b0, nt) * dL
 
 
-@jit
+@jit_step
 def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
     """Main-tube inflow minus the open branches' outflow at manifold pressure pm [kg/s]."""
     R = g[G_R]
@@ -120,7 +120,7 @@ def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
     return f
 
 
-@jit
+@jit_step
 def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
     """Physical tube mode: pressure where the main tube feeds the open branches [Pa abs].
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from frogsim._jit import jit, jit_alloc
+from frogsim._jit import jit, jit_alloc, jit_step
 
 from frogsim.circuit.layout import Y_MUSCLE0
 from frogsim.circuit.rhs import rhs
@@ -84,7 +84,7 @@ RB_E32 = 6.0 + math.sqrt(2.0)
 SQRT_EPS = 1.4901161193847656e-08
 
 
-@jit
+@jit_step
 def _lu(a, piv):
     """In-place LU factorisation with partial pivoting of the small dense matrix a (n x n), the
     row swaps in piv (row indices, stored as floats); returns False if a pivot is zero (a is
@@ -115,7 +115,7 @@ def _lu(a, piv):
     return True
 
 
-@jit
+@jit_step
 def _lu_solve(a, piv, b):
     """Solve a x = b in place (b becomes x) with the factors of :func:`_lu`."""
     n = a.shape[0]
@@ -137,7 +137,7 @@ def _lu_solve(a, piv, b):
         b[i] = acc / a[i, i]
 
 
-@jit
+@jit_step
 def _rosenbrock_step(t, h, t_new, y, f0, u, pump_on, model, atol, rtol, nphys, wk, fresh, yn, fn,
                      rc1, rc2, rc3, rc4, aux, work, stats):
     """One step of the modified Rosenbrock triple of Shampine and Reichelt (1997, Sec. 3; MATLAB's
@@ -241,7 +241,7 @@ def _scratch_size(ny):
     return 22 * ny + ny * ny + 2 * n + 5 * n + 1
 
 
-@jit
+@jit_step
 def _dense(y, rc1, rc2, rc3, rc4, th, out):
     """The continuous extension at th in [0, 1] of the step: out = y(t + th h)."""
     th1 = 1.0 - th
@@ -249,7 +249,7 @@ def _dense(y, rc1, rc2, rc3, rc4, th, out):
         out[j] = y[j] + th * (rc1[j] + th1 * (rc2[j] + th * (rc3[j] + th1 * rc4[j])))
 
 
-@jit
+@jit_step
 def _stiffness_test(ds, h, num, den):
     """Hairer's stiffness test for DOPRI5 (Hairer and Wanner, Solving ODEs II, Sec. IV.2), on an
     accepted step: h |lambda| ~ h ||k7 - k6|| / ||yn - y6|| (the last two stages are at the same
@@ -270,7 +270,7 @@ def _stiffness_test(ds, h, num, den):
             ds[D_NSTIFF] = 0.0
 
 
-@jit
+@jit_step
 def _dopri_dense(h, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4):
     """Coefficients of the Dormand-Prince step's 4th-order continuous extension (Hairer's DOPRI5
     d1..d7; no extra right-hand-side evaluations), for :func:`_dense`."""
@@ -283,7 +283,7 @@ def _dopri_dense(h, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4):
         rc4[j] = h * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j] + D6 * k6[j] + D7 * k7[j])
 
 
-@jit
+@jit_step
 def _explicit_again(ds):
     """Back to Dormand-Prince with a fresh stiffness count (after a command change: a transient
     follows; or when the Rosenbrock steps have become accuracy-limited)."""
@@ -293,7 +293,7 @@ def _explicit_again(ds):
     ds[D_NBACK] = 0.0
 
 
-@jit
+@jit_step
 def _dopri_step(t, h, t_new, y, f, u, pump_on, model, atol, rtol, stages, aux, work, stats):
     """One Dormand-Prince 5(4) trial step from (t, y), whose dy/dt is f, to t_new = t + h (passed
     so that a step that ends a piece ends on it exactly). ``stages`` = (k2, k3, k4, k5, k6, k7, yt,
@@ -334,7 +334,7 @@ def _dopri_step(t, h, t_new, y, f, u, pump_on, model, atol, rtol, stages, aux, w
     return math.sqrt(err / ny), num, den
 
 
-@jit
+@jit_step
 def _samples_in_step(laws, cs, t, t_new, h, y, f, stages, dense, ys, u, dense_ready):
     """The controllers' samples t_k inside an accepted step (t, t_new] of length h, in order,
     each taken from the step's continuous extension (``dense`` = rc1..rc4; made here from the
@@ -373,7 +373,7 @@ def _samples_in_step(laws, cs, t, t_new, h, y, f, stages, dense, ys, u, dense_re
     return t_cut, refresh, dense_ready
 
 
-@jit
+@jit_step
 def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, f, stages, dense, ys, u, u_prev,
             pump_on, out, out_i, stats):
     """An accepted step of length h from t to t_new (error norm err; the previous one err_old):
