@@ -93,3 +93,26 @@ def test_override_creates_optional_table_but_not_through_a_value():
     assert sc.solver.rtol == pytest.approx(1e-9)
     with pytest.raises(ScenarioError, match="duration"):
         frogsim.with_overrides(raw, {"duration.value": "2 s"})
+
+
+def test_unit_registry_survives_a_broken_disk_cache(tmp_path, monkeypatch):
+    """pint's disk cache is written without locking; a broken one (two first runs at once, a
+    killed process) gives a registry built without it, and is removed for the next run."""
+    from frogsim.scenario import units
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    units.registry.cache_clear()
+    try:
+        assert units.registry().cache_folder is not None         # the cache is written
+        broken = list(tmp_path.rglob("*.pickle"))
+        assert broken
+        for f in broken:
+            f.write_bytes(b"not a pickle")
+        units.registry.cache_clear()
+        reg = units.registry()
+        assert reg.cache_folder is None
+        assert reg.Quantity("6 bar").to("Pa").magnitude == pytest.approx(6e5, rel=1e-15)
+        assert not list(tmp_path.rglob("*.pickle"))                # removed: the next run writes it anew
+        units.registry.cache_clear()
+        assert units.registry().cache_folder is not None
+    finally:
+        units.registry.cache_clear()

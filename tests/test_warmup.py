@@ -117,3 +117,4 @@ def test_warm_parts_leave_the_engine_nothing_to_compile(tmp_path):
     engine = [c for c in compiled if c.startswith(("frogsim.engine.integrator", "frogsim.circuit.rhs",
                                                   "frogsim.control.sampled", "frogsim.engine.measures"))]
     assert not engine, f"compiled again after the warm-up: {engine}"
+

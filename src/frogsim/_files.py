@@ -54,6 +54,21 @@ def out_folder(path) -> Path:
     return out
 
 
+def user_cache_folder(*parts: str) -> str | None:
+    """A writable folder for frogsim's caches: <user cache>/frogsim/<parts...>, created if need be
+    ($XDG_CACHE_HOME or ~/.cache, else the temporary folder); None if neither can hold it."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    for root in (base, tempfile.gettempdir()):
+        path = os.path.join(root, "frogsim", *parts)
+        try:
+            os.makedirs(path, exist_ok=True)
+            if os.access(path, os.W_OK):
+                return path
+        except OSError:
+            continue
+    return None
+
+
 def atomic_write(path: str | os.PathLike, write, durable: bool = False) -> None:
     """Call write(tmp_path) then move the file into place, so readers never see half a file.
 

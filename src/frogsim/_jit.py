@@ -20,12 +20,13 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 from pathlib import Path
 
 import numba
 from numba import njit
 from numba.core.registry import CPUDispatcher
+
+from frogsim._files import user_cache_folder
 
 _PACKAGE = Path(__file__).resolve().parent
 # robot/water.py: its table layout (E_*, P_*) is compiled into the coupled engine as constants
@@ -44,16 +45,7 @@ def _source_hash() -> str:
 
 
 def _cache_dir() -> str:
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    for root in (base, tempfile.gettempdir()):
-        path = os.path.join(root, "frogsim", "numba", _source_hash())
-        try:
-            os.makedirs(path, exist_ok=True)
-            if os.access(path, os.W_OK):
-                return path
-        except OSError:
-            continue
-    return ""
+    return user_cache_folder("numba", _source_hash()) or ""
 
 
 if not os.environ.get("NUMBA_CACHE_DIR"):
