@@ -19,8 +19,8 @@ from frogsim.circuit.rhs import _hermite, common_piece, manifold_pressure, muscl
 from frogsim.engine import integrator as I
 from frogsim.engine.measures import _rises, _windows
 
-# name: (the parts it needs compiled first, what it compiles); in the order a free process takes
-# them when several are ready (the driver's chain first: it is the longest)
+# name: (the parts it needs compiled first, what it compiles); handed to the processes in this
+# order (the driver's chain first: it is the longest), each once the parts it needs are done
 PARTS = {
     "flow": ((), "the manifold pressure and the valves' flow (part of the right-hand side)"),
     "volume": ((), "the muscles' volumes along their length paths (part of the right-hand side)"),
