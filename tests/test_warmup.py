@@ -92,8 +92,14 @@ def test_warm_parts_leave_the_engine_nothing_to_compile(tmp_path):
     a second process compiles nothing of the circuit, the driver, the controllers or the measures:
     the parts were compiled for the argument types a run passes."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=SRC)
+    warm = "from frogsim._jit import cache_is_warm\nfrom frogsim.engine.integrator import advance\n" \
+           "print(cache_is_warm(advance))"
+    assert subprocess.run([sys.executable, "-c", warm], env=env, check=True, timeout=600, capture_output=True,
+                          text=True).stdout.split() == ["False"]
     subprocess.run([sys.executable, "-c", "from frogsim.engine.warmup import PARTS, warm_up\n"
                     "for p in PARTS: warm_up(p)"], env=env, check=True, timeout=600)
+    assert subprocess.run([sys.executable, "-c", warm], env=env, check=True, timeout=600, capture_output=True,
+                          text=True).stdout.split() == ["True"]
     script = textwrap.dedent("""
         import json
         from numba.core import event

@@ -104,8 +104,12 @@ def jit_alloc(func):
     return njit(_nrt=True, **_OPTIONS)(func)
 
 
-def cache_is_warm() -> bool:
-    """True if compiled engine code is already cached (the first run compiles)."""
+def cache_is_warm(dispatcher) -> bool:
+    """True if the cache holds compiled code of ``dispatcher`` (a compiled function), for a
+    progress message before a first run's compilation. Read from the names of Numba's index files
+    (``<module>.<function>-<line>.py<version>.nbi``), not from their contents."""
     d = numba.config.CACHE_DIR
-    return bool(d) and os.path.isdir(d) and any(n.endswith(".nbi") for _, _, fs in os.walk(d) for n in fs)
-
+    f = dispatcher.py_func
+    prefix = f"{f.__module__.rsplit('.', 1)[-1]}.{f.__qualname__}-"
+    return bool(d) and os.path.isdir(d) and any(n.startswith(prefix) and n.endswith(".nbi")
+                                                for _, _, fs in os.walk(d) for n in fs)

@@ -139,12 +139,12 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
     from concurrent.futures import ProcessPoolExecutor, as_completed
 
     from frogsim._jit import cache_is_warm
+    from frogsim.engine.integrator import advance
     from frogsim.engine.warmup import warm_up_parts
     from frogsim._files import write_json
     from frogsim.studies import STUDIES
     workers = min(args.workers or os.cpu_count() or 1, len(names))
-    cold = not cache_is_warm()
-    if cold:
+    if not cache_is_warm(advance):
         _progress("first run: compiling the engines (cached afterwards)")
     _progress(f"{len(names)} studies on {workers} process{'es' if workers > 1 else ''} -> {out}/")
     order = sorted(names, key=lambda n: -STUDIES[n].cost)     # costly first, so they overlap the rest
@@ -167,8 +167,9 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
         methods = multiprocessing.get_all_start_methods()
         ctx = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
         with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
-            if cold:      # the engine's parts compiled side by side, first
-                warm_up_parts(pool, workers)
+            # the engine's parts compiled (or loaded from the cache) side by side, first: on a
+            # warm cache this loads the engine in parallel, in about the time the studies would
+            warm_up_parts(pool, workers)
             futures = [pool.submit(_study_task, name, str(out)) for name in order]
             for k, fut in enumerate(as_completed(futures), 1):
                 report(k, *fut.result())
@@ -221,9 +222,10 @@ def cmd_swim(args) -> int:
 
 def _swim_into(args, folder, out: Path, rs) -> int:
     from frogsim._jit import cache_is_warm
+    from frogsim.engine.coupled_loop import run_steps
     from frogsim.engine.swim import swim
     from frogsim.studies.robot import write_outputs
-    if not cache_is_warm():
+    if not cache_is_warm(run_steps):
         _progress("first run: compiling the engine (cached afterwards)")
     _progress(f"running {rs.name!r}: {len(rs.muscles)} muscles in {rs.options.environment}, "
               f"{rs.gait.cycles} cycles of {rs.gait.period:g} s ...")
