@@ -43,6 +43,37 @@ def test_step_pieces_refuse_python_calls():
         assert d.targetoptions["no_cpython_wrapper"] and not d.targetoptions["_nrt"], name
 
 
+def test_step_pieces_are_referenced_by_compiled_code_only():
+    """Read every module: a name that resolves to a piece compiled for compiled callers only may
+    appear inside compiled functions, and in the warm-up (which compiles them without a call),
+    nowhere else (a call from Python would raise at run time)."""
+    import ast
+    import importlib
+    import inspect
+    import pkgutil
+    from numba.core.registry import CPUDispatcher
+    bad = []
+    for info in pkgutil.walk_packages(frogsim.__path__, "frogsim."):
+        if info.name.endswith("__main__") or info.name == "frogsim.engine.warmup":
+            continue
+        mod = importlib.import_module(info.name)
+        tree = ast.parse(inspect.getsource(mod))
+        glb = vars(mod)
+
+        def visit(node, compiled):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                compiled = compiled or isinstance(glb.get(node.name), CPUDispatcher)
+            if isinstance(node, ast.Name) and isinstance(glb.get(node.id), _CompiledCallersOnly) and not compiled:
+                bad.append(f"{info.name}: {node.id} (line {node.lineno})")
+            for child in ast.iter_child_nodes(node):
+                visit(child, compiled)
+        for node in tree.body:
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                continue
+            visit(node, False)
+    assert not bad, "compiled-callers-only pieces used outside compiled code: " + "; ".join(bad)
+
+
 def test_every_part_needs_only_parts_listed_before_it():
     seen = set()
     for name, (needs, what) in warmup.PARTS.items():

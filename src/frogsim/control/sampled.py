@@ -37,7 +37,7 @@ import math
 
 import numpy as np
 
-from frogsim._jit import jit, jit_alloc
+from frogsim._jit import jit, jit_alloc, jit_step
 from frogsim.circuit.laws import (  # noqa: F401  (the table's layout, re-exported)
     KIND_BANG_BANG, KIND_PUMP_BAND, KIND_PWM, KIND_SLIDING, L_BAND, L_BITS, L_BRANCH, L_CB, L_CC, L_CM,
     L_CRL, L_DB, L_DC, L_DEAD_C, L_DEAD_D, L_DM, L_DRL, L_DUTY, L_FS, L_GAIN, L_HIGH, L_HORIZON, L_INPUT,
@@ -151,7 +151,7 @@ def setpoint(laws, c, t):
     return laws[c, L_SP0 + 2 * n - 1], 0.0
 
 
-@jit
+@jit_step
 def _mix64(z):
     """splitmix64's finaliser (Steele, Lea and Flood 2014): a well-mixed 64-bit hash of z."""
     z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
@@ -159,7 +159,7 @@ def _mix64(z):
     return z ^ (z >> np.uint64(31))
 
 
-@jit
+@jit_step
 def _uniform(seed, k, stream):
     """A uniform number in (0, 1) that depends only on (seed, sample k, stream): counter-based, so a
     run's noise is the same however it is advanced and on whichever thread."""
@@ -168,7 +168,7 @@ def _uniform(seed, k, stream):
     return (float(_mix64(z) >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0)
 
 
-@jit
+@jit_step
 def normal_noise(seed, k, stream):
     """Standard normal noise of sample k (Box-Muller on the counter-based uniforms of streams
     ``stream`` and ``stream + 1``)."""
@@ -183,7 +183,7 @@ def sensor_noise(seed, k):
     return normal_noise(seed, k, 1)
 
 
-@jit
+@jit_step
 def sensor_chain(x, k, noise, seed, stream, bits, fs):
     """The sensor model's noise and ADC on a (lagged) reading x at sample k: noise of standard
     deviation ``noise`` (counter-based, streams ``stream`` and ``stream + 1``), then ``bits``
@@ -391,12 +391,12 @@ def observe_joints(laws, cs, qpos, qvel, leg_qpos, leg_dof):
 
 
 # --- commands, their dead time and the driver's protocol ------------------------------------------------
-@jit
+@jit_step
 def _block(cs, c):
     return int(CS_SIZE + c * cs[CS_BLOCK])
 
 
-@jit
+@jit_step
 def _push(cs, b, head, q0, due, state):
     Q = int(cs[CS_Q])
     n = int(cs[b + head + 1])
@@ -477,7 +477,7 @@ def next_control_time(laws, cs, ctrl_dt):
     return min(next_sample_time(laws, cs), next_due_time(laws, cs))
 
 
-@jit
+@jit_step
 def next_sample_time(laws, cs):
     """The time [s] of the controllers' next sample (inf when the run has no sampled rule)."""
     if laws.ndim == 1:
@@ -487,7 +487,7 @@ def next_sample_time(laws, cs):
     return (cs[CS_SAMPLE] + 1.0) * cs[CS_DT]
 
 
-@jit
+@jit_step
 def next_due_time(laws, cs):
     """The earliest due time [s] of the valve commands waiting in the queues (inf if none): the
     times at which a valve's state will change, known since the sample that decided it. A due

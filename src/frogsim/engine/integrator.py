@@ -222,7 +222,7 @@ def _rosenbrock_step(t, h, t_new, y, f0, u, pump_on, model, atol, rtol, nphys, w
     return math.sqrt(err / ny)
 
 
-@jit
+@jit_step
 def ds_size(ny):
     """Length of the driver state ds for a state of ny entries: the D_* columns, then the
     Rosenbrock Jacobian df/dy (ny x ny) and df/dt (ny), then the kept dy/dt (ny), then the
@@ -231,7 +231,7 @@ def ds_size(ny):
     return D_SIZE + ny * ny + 2 * ny + _scratch_size(ny)
 
 
-@jit
+@jit_step
 def _scratch_size(ny):
     """Entries of advance's scratch space for a state of ny entries: 22 stage vectors, the
     Rosenbrock matrix (ny x ny), the previous valve states (2n) and the right-hand side's aux

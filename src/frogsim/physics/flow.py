@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-from frogsim._jit import jit
+from frogsim._jit import jit, jit_step
 
 from frogsim.physics.air import choked_mass_flux_factor
 
@@ -38,7 +38,7 @@ def iso6358_flow_function(sigma: float, b: float, m: float, r_lam: float) -> flo
     return _power(1.0 - x * x, m)
 
 
-@jit
+@jit_step
 def _power(x: float, m: float) -> float:
     """x**m, with the usual m = 0.5 (Eq. (8)'s square root) taken by sqrt, several times faster."""
     if m == 0.5:
