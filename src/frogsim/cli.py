@@ -143,10 +143,15 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
     from frogsim.engine.warmup import warm_up_parts
     from frogsim._files import write_json
     from frogsim.studies import STUDIES
-    workers = min(args.workers or os.cpu_count() or 1, len(names))
+    procs = args.workers or os.cpu_count() or 1
+    workers = min(procs, len(names))
+    # the engine is compiled (or loaded) on two processes or more even for a single study
+    pool_size = min(procs, max(len(names), 2))
     if not cache_is_warm(advance):
-        _progress("first run: compiling the engines (cached afterwards)")
-    _progress(f"{len(names)} studies on {workers} process{'es' if workers > 1 else ''} -> {out}/")
+        _progress(f"first run: compiling the engines on {pool_size} process{'es' if pool_size > 1 else ''} "
+                  "(cached afterwards)")
+    studies = f"{len(names)} stud{'ies' if len(names) != 1 else 'y'}"
+    _progress(f"{studies} on {workers} process{'es' if workers > 1 else ''} -> {out}/")
     order = sorted(names, key=lambda n: -STUDIES[n].cost)     # costly first, so they overlap the rest
     t_all = time.perf_counter()
 
@@ -158,7 +163,7 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
             if isinstance(entry, dict) and "conclusion" in entry:
                 _progress(textwrap.fill(entry["conclusion"], 100, initial_indent="      ",
                                         subsequent_indent="      "))
-    if workers == 1:
+    if pool_size == 1:
         for k, name in enumerate(order, 1):
             report(k, *_study_task(name, str(out)))
     else:
@@ -166,10 +171,10 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
         # imports each with spawn); no threads are running yet, so forking is safe here
         methods = multiprocessing.get_all_start_methods()
         ctx = multiprocessing.get_context("fork" if "fork" in methods else "spawn")
-        with ProcessPoolExecutor(workers, mp_context=ctx) as pool:
+        with ProcessPoolExecutor(pool_size, mp_context=ctx) as pool:
             # the engine's parts compiled (or loaded from the cache) side by side, first: on a
             # warm cache this loads the engine in parallel, in about the time the studies would
-            warm_up_parts(pool, workers)
+            warm_up_parts(pool, pool_size)
             futures = [pool.submit(_study_task, name, str(out)) for name in order]
             for k, fut in enumerate(as_completed(futures), 1):
                 report(k, *fut.result())
@@ -178,7 +183,7 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
         summary.update(summaries[name])
     write_json(out / "summary.json", summary)
     folder.finish("complete", {n: list(summaries[n]) for n in names})
-    _progress(f"{len(names)} studies in {time.perf_counter() - t_all:.1f} s; summary: {out / 'summary.json'}, "
+    _progress(f"{studies} in {time.perf_counter() - t_all:.1f} s; summary: {out / 'summary.json'}, "
               f"manifest: {out / 'manifest.json'}")
     return 0
 
