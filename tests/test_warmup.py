@@ -120,8 +120,9 @@ def test_a_failing_part_raises(monkeypatch):
 @pytest.mark.slow
 def test_warm_parts_leave_the_engine_nothing_to_compile(tmp_path):
     """With every part compiled into a fresh cache (in one process), a run of the paper's cycle in
-    a second process compiles nothing of the circuit, the driver, the controllers or the measures:
-    the parts were compiled for the argument types a run passes."""
+    a second process (its model built from the scenario) compiles nothing of the physics, the
+    circuit, the driver, the controllers or the measures: the parts were compiled for the argument
+    types a run passes."""
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"), PYTHONPATH=SRC)
     warm = "from frogsim._jit import cache_is_warm\nfrom frogsim.engine.integrator import advance\n" \
            "print(cache_is_warm(advance))"
@@ -152,6 +153,7 @@ def test_warm_parts_leave_the_engine_nothing_to_compile(tmp_path):
                          text=True).stdout
     compiled = json.loads(out.strip().splitlines()[-1])
     engine = [c for c in compiled if c.startswith(("frogsim.engine.integrator", "frogsim.circuit.rhs",
-                                                  "frogsim.control.sampled", "frogsim.engine.measures"))]
+                                                  "frogsim.control.sampled", "frogsim.engine.measures",
+                                                  "frogsim.physics"))]
     assert not engine, f"compiled again after the warm-up: {engine}"
 

@@ -18,6 +18,9 @@ from frogsim.circuit import layout as L
 from frogsim.circuit.rhs import _hermite, common_piece, manifold_pressure, muscle_volume_state, rhs
 from frogsim.engine import integrator as I
 from frogsim.engine.measures import _rises, _windows
+from frogsim.physics.air import choked_mass_flux_factor, critical_pressure_ratio
+from frogsim.physics.flow import main_pipe_branch_limit, tube_sonic_conductance
+from frogsim.physics.muscle import braid_parameters
 
 # name: (the parts it needs compiled first, what it compiles); handed to the processes in this
 # order (the driver's chain first: it is the longest), each once the parts it needs are done
@@ -32,6 +35,7 @@ PARTS = {
     "driver": (("rhs", "accept", "rosenbrock", "dopri"), "the stepping driver"),
     "start": ((), "a run's start"),
     "measures": ((), "the rise-time measures"),
+    "model": ((), "the physics that building a model calls from Python (braid, tube, choked flow)"),
 }
 
 
@@ -97,6 +101,12 @@ def warm_up(part: str) -> None:
         t, p = np.zeros(11), np.zeros((1, 11))
         _compile(_rises, t, p, p, p, np.zeros(1), 0.9)
         _compile(_windows, t, p, np.zeros(1))
+    elif part == "model":
+        _compile(braid_parameters, 0.15, 0.02, 0.5)
+        _compile(critical_pressure_ratio, 1.4)
+        _compile(choked_mass_flux_factor, 287.0, 1.4)
+        _compile(main_pipe_branch_limit, 0.004, 10.0, 1, 1)
+        _compile(tube_sonic_conductance, 0.004, 0.8, 287.0, 1.4, 293.0, 1.2)
     else:
         raise ValueError(f"unknown part {part!r}; the parts are {', '.join(PARTS)}")
 
