@@ -157,3 +157,20 @@ def test_warm_parts_leave_the_engine_nothing_to_compile(tmp_path):
                                                   "frogsim.physics"))]
     assert not engine, f"compiled again after the warm-up: {engine}"
 
+
+
+def test_the_engine_runs_as_plain_python_with_numba_disabled():
+    """NUMBA_DISABLE_JIT=1 (the engine as plain Python, for a debugger) still runs: the pieces
+    compiled for compiled callers only stay plain functions then, and the warm-up has nothing to
+    compile. The hip's rise time agrees with the compiled run's (they differ at most by fused
+    multiply-adds)."""
+    from frogsim.studies.paper import HIP, run
+    compiled = run().rise_time(HIP)
+    script = ("from frogsim.studies.paper import HIP, run\n"
+              "from frogsim.engine.warmup import PARTS, warm_up\n"
+              "for p in PARTS: warm_up(p)\n"
+              "print(repr(run().rise_time(HIP)))")
+    out = subprocess.run([sys.executable, "-c", script], env=dict(os.environ, NUMBA_DISABLE_JIT="1",
+                                                                  PYTHONPATH=SRC),
+                         check=True, timeout=600, capture_output=True, text=True).stdout
+    assert float(out.split()[-1]) == pytest.approx(compiled, rel=1e-9)

@@ -89,7 +89,10 @@ def jit_step(func):
     for every compiled function, with code to unpack each argument (these take up to two dozen,
     tuples of arrays among them), and optimises it again in every caller's module; leaving it out
     shortens a first run's compilation. Calling one from Python raises TypeError; compile one
-    ahead with ``func.compile(signature)`` (:mod:`frogsim.engine.warmup`)."""
+    ahead with ``func.compile(signature)`` (:mod:`frogsim.engine.warmup`). With NUMBA_DISABLE_JIT
+    set (running the engine as plain Python, for a debugger) it returns func itself, as njit does."""
+    if numba.config.DISABLE_JIT:
+        return func
     disp = _CompiledCallersOnly(py_func=func, locals={}, targetoptions=dict(
         _nrt=False, no_cpython_wrapper=True, nopython=True, **_OPTIONS_NO_CACHE))
     disp.enable_caching()

@@ -58,8 +58,10 @@ def _one_muscle():
 
 
 def _compile(dispatcher, *args) -> None:
-    """Compile (or load from the cache) ``dispatcher`` for the types of ``args``, without running it."""
-    dispatcher.compile(tuple(typeof(x) for x in args))
+    """Compile (or load from the cache) ``dispatcher`` for the types of ``args``, without running it
+    (nothing to do when NUMBA_DISABLE_JIT leaves it a plain Python function)."""
+    if hasattr(dispatcher, "compile"):
+        dispatcher.compile(tuple(typeof(x) for x in args))
 
 
 def warm_up(part: str) -> None:
