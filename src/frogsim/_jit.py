@@ -84,8 +84,9 @@ class _CompiledCallersOnly(CPUDispatcher):
 def jit_step(func):
     """:func:`jit` for the engine's internal pieces that only compiled code calls (the driver's
     steps, an accepted step's work, the LU solve, the right-hand side's manifold pressure and
-    motion pieces): compiled without the wrappers that let Python
-    (``no_cpython_wrapper``) or C (``no_cfunc_wrapper``) call them. Numba builds the Python wrapper
+    motion pieces, the controllers' queue, noise and timing helpers, the driver's memory sizes):
+    compiled without the wrappers that let Python (``no_cpython_wrapper``) or C
+    (``no_cfunc_wrapper``) call them. Numba builds the Python wrapper
     for every compiled function, with code to unpack each argument (these take up to two dozen,
     tuples of arrays among them), and optimises it again in every caller's module; leaving it out
     shortens a first run's compilation. Calling one from Python raises TypeError; compile one
@@ -102,7 +103,7 @@ def jit_step(func):
 def jit_alloc(func):
     """Compile func with frogsim's Numba settings and Numba's reference counting, for the few
     compiled functions that allocate arrays (a run's start, the measures over whole results).
-    The setting is explicit on both decorators: a callee left unset would take its first
+    The setting is explicit on every decorator: a callee left unset would take its first
     caller's."""
     return njit(_nrt=True, **_OPTIONS)(func)
 

@@ -6,8 +6,8 @@ circuit's right-hand side, then the two methods' steps that call it, then the st
 argument types the driver passes (a one-muscle circuit has the same types as any other), and
 saved in the cache, where the next part, in this process or another, finds it. :data:`PARTS`
 lists the parts with the parts each needs first; :func:`warm_up_parts` runs them on a process
-pool, the driver's chain first, and what the driver does not need (a run's start, the measures)
-on the other process while the driver compiles.
+pool, the driver's chain first, and what the driver does not need (a run's start, the measures,
+the physics a model's build calls from Python) on the other process while the driver compiles.
 """
 from __future__ import annotations
 
