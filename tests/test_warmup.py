@@ -16,22 +16,16 @@ import pytest
 
 import frogsim
 from frogsim._jit import _CompiledCallersOnly
+from test_compiled_counting import _dispatchers
 from frogsim.engine import warmup
 
 SRC = str(Path(frogsim.__file__).resolve().parent.parent)
 
 
 def _step_pieces():
-    import importlib
-    import pkgutil
-    found = {}
-    for info in pkgutil.walk_packages(frogsim.__path__, "frogsim."):
-        if info.name.endswith("__main__"):
-            continue
-        for name, obj in vars(importlib.import_module(info.name)).items():
-            if isinstance(obj, _CompiledCallersOnly):
-                found[f"{info.name}.{name}"] = obj
-    return found
+    """The package's dispatchers compiled for compiled callers only (read as the counting test
+    reads every dispatcher)."""
+    return {name: d for name, d in _dispatchers().items() if isinstance(d, _CompiledCallersOnly)}
 
 
 def test_step_pieces_refuse_python_calls():
