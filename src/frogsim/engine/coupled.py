@@ -119,7 +119,7 @@ def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joint
         ds=ds, cs=cs, mot_t=np.zeros((n, 4)), mot_L=np.zeros((n, 4)), mot_d=np.zeros((n, 4)),
         mot_n=np.full(n, 4, np.int64), sched_t=sched_t, sched_u=sched_u, laws=laws, atol=atol,
         stats=np.zeros(STATS_SIZE, np.int64), vprev=np.zeros((el.shape[0], 3)), tension=np.zeros(n),
-        rec=np.full((n_steps // rec_every + 2, cols["size"]), np.nan), leg_qpos=leg_qpos,
+        rec=np.full((record_rows(n_steps, rec_every), cols["size"]), np.nan), leg_qpos=leg_qpos,
         leg_dof=leg_dof)
     apply_added_mass(el, arrays["pa"], frac, False, m.body_mass, m.body_ipos, m.body_inertia,
                      m.body_subtreemass, m.body_parentid)
@@ -278,11 +278,26 @@ def _failure(cm: CoupledModel) -> str:
     return f"failure code {code}"
 
 
+def record_rows(n_steps: int, every: int) -> int:
+    """The number of record rows of a run of ``n_steps`` MuJoCo steps recorded every ``every``
+    steps: steps 0, every, 2 every, ... and the last step n_steps (its own row if it is not a
+    multiple of ``every``)."""
+    return n_steps // every + 1 + (1 if n_steps % every else 0)
+
+
 def run_record(cm: CoupledModel, wall: float) -> dict:
-    """What a finished coupled run returns: its record rows, wall time and step statistics."""
+    """What a finished coupled run returns: its record rows, wall time and step statistics.
+
+    Raises SimulationError if a row of the output grid was not written (a run is never returned
+    with a row nobody wrote)."""
     a = cm.arrays
     rec = a["rec"]
-    rec = rec[~np.isnan(rec[:, R_TIME])]
+    want = record_rows(cm.n_steps, cm.rec_every)
+    written = ~np.isnan(rec[:, R_TIME])
+    if int(written[:want].sum()) != want or written[want:].any():
+        raise SimulationError(f"scenario {cm.name!r}: the run ended with {int(written.sum())} of its {want} "
+                              f"output rows written")
+    rec = rec[:want]
     return {"rec": rec, "wall_s": wall, "stats": {"mujoco_steps": cm.n_steps,
                                                   "pneumatic_steps": int(a["stats"][0]),
                                                   "pneumatic_rejected": int(a["stats"][1]),

@@ -32,10 +32,13 @@ STATUS_NOT_FINITE = 2
 STATUS_MAX_STEPS = 3
 STATUS_PAUSED = 4        # stopped after ds[D_PAUSE] accepted steps, to be resumed (not a failure)
 STATUS_NONPHYSICAL = 5   # an accepted step left an air mass or pressure <= 0 (or NaN): ds[D_T], y show it
+STATUS_ROWS_UNWRITTEN = 6  # the run reached its end with output rows it never wrote (a grid past the end)
 STATUS_TEXT = {STATUS_STEP_UNDERFLOW: "step size fell below 1e-14 s",
                STATUS_NOT_FINITE: "the state became non-finite (NaN or inf)",
                STATUS_MAX_STEPS: "more than 50 million steps",
-               STATUS_NONPHYSICAL: "an air mass or pressure became zero or negative"}
+               STATUS_NONPHYSICAL: "an air mass or pressure became zero or negative",
+               STATUS_ROWS_UNWRITTEN: "the run ended with output rows it never wrote (an output time "
+                                      "past the end of the run)"}
 
 # --- driver state ds[:] (see advance) ----------------------------------------------------------------
 D_T = 0          # time reached [s]
@@ -707,6 +710,16 @@ def begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
     return out_y, out_u, y, u, ds, cs, stats, commands
 
 
+@jit_step
+def finished_status(status, ds, n_out):
+    """A run's final status: STATUS_ROWS_UNWRITTEN in place of STATUS_OK when the run reached its
+    end but its output row counter ds[D_OUT] stopped short of the n_out rows (empty rows left
+    uninitialised are never returned as results)."""
+    if status == STATUS_OK and ds[D_OUT] < n_out:
+        return STATUS_ROWS_UNWRITTEN
+    return status
+
+
 @jit_alloc
 def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
                  ctrl_dt, out_t, rtol, atol, max_step, h0, laws, pause_every):
@@ -726,4 +739,5 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
     ds[D_PAUSE] = pause_every
     status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), commands,
                      (rtol, atol, max_step), (out_t, out_y, out_u), stats)
+    status = finished_status(status, ds, out_t.size)
     return out_y, out_u, y, stats, status, ds[D_T], cs, u, ds

@@ -25,8 +25,8 @@ from frogsim.scenario.core import Scenario
 from frogsim.circuit.laws import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM, L_SIZE
 from frogsim.control.sampled import (B_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE, KIND_EXTERNAL, KIND_PUMP_BAND,
                                      command_from_python, next_control_time)
-from frogsim.engine.integrator import (D_PAUSE, D_T, EPS, STATUS_NONPHYSICAL, STATUS_OK, STATUS_PAUSED,
-                                       STATUS_TEXT, advance, begin)
+from frogsim.engine.integrator import (D_OUT, D_PAUSE, D_T, EPS, STATUS_NONPHYSICAL, STATUS_OK, STATUS_PAUSED,
+                                       STATUS_ROWS_UNWRITTEN, STATUS_TEXT, advance, begin)
 from frogsim.engine.result import Result, valve_switchings
 from frogsim.errors import SimulationError
 
@@ -195,6 +195,8 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
 
 
 def _finish(model, status, ds, y_end, out_y, out_u, stats, cs) -> Result:
+    if status == STATUS_OK and int(ds[D_OUT]) < model.out_t.size:
+        status = STATUS_ROWS_UNWRITTEN                # (run_schedule's finished_status, in Python)
     _check_status(model, status, ds[D_T], y_end)     # every accepted step was checked by the driver
     return Result(t=model.out_t, y=out_y, u=out_u, model=model,
                   stats={"steps": int(stats[0]), "rejected": int(stats[1]), "rhs_evaluations": int(stats[2]),

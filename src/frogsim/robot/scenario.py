@@ -135,6 +135,24 @@ def check_joint_setpoints(sc: Scenario, robot: RobotParams) -> None:
                                 f"(joints.{c.joint.split('_')[0]}.range)")
 
 
+def whole_steps(value: float, step: float) -> bool:
+    """True if ``value`` is a whole number (at least one) of ``step``s, to a millionth of a step
+    (the rule of :func:`frogsim.scenario.motion.output_times`)."""
+    r = value / step
+    return round(r) >= 1 and abs(r - round(r)) <= 1e-6
+
+
+def check_step_grid(output_interval: float, period: float, timestep: float) -> None:
+    """The coupled engine records whole MuJoCo steps (t_k = k robot.timestep): the output interval
+    and the gait's period (so the run's duration) must be whole numbers of steps, or a recorded
+    row would not be at the time its name says."""
+    for path, value in (("output_interval", output_interval), ("gait.period", period)):
+        if not whole_steps(value, timestep):
+            raise ScenarioError(path, f"{value * 1e3:g} ms", f"must be a whole number of robot.timestep "
+                                                             f"steps ({timestep * 1e3:g} ms): the robot is "
+                                                             f"recorded at its MuJoCo steps")
+
+
 def load_robot_scenario(source, cycles: int | None = None) -> RobotScenario:
     """Load and validate a robot scenario (a TOML path, a shipped name such as "swim", or a dict).
 
@@ -162,6 +180,7 @@ def load_robot_scenario(source, cycles: int | None = None) -> RobotScenario:
                for name, (joint, _, _) in names.items()}
     pneumatic = scenario_from_raw(raw, base_dir, duration=gait.duration, muscles=muscles, joints=pairs)
     check_joint_setpoints(pneumatic, robot)
+    check_step_grid(pneumatic.output_interval, gait.period, options.timestep)
     lay = layout(robot, pneumatic.muscle_types)
     return RobotScenario(name=pneumatic.name, pneumatic=pneumatic, robot=robot, options=options,
                          gait=gait, layout=lay, muscles=names, raw=raw)
