@@ -169,3 +169,26 @@ def test_robot_output_interval_must_be_whole_steps(key, value):
     with pytest.raises(ScenarioError, match="whole number of robot.timestep"):
         raw, _ = merged_raw("hip-angle-in-air")
         frogsim.load_robot_scenario(frogsim.with_overrides(raw, {key: value}))
+
+
+@settings(max_examples=6, deadline=None)
+@given(st.integers(5, 1500), st.data())
+def test_coupled_engine_writes_every_row(period_ms, data):
+    """The robot (MuJoCo + pneumatics, closed-loop hip) over Hypothesis-drawn durations and output
+    intervals, both whole numbers of its 1 ms steps: every row written, finite, at k * interval,
+    the last at the end of the run."""
+    interval_ms = data.draw(st.integers(1, period_ms))
+    raw, _ = merged_raw("hip-angle-in-air")
+    raw = frogsim.with_overrides(raw, {"gait.period": f"{period_ms} ms", "output_interval": f"{interval_ms} ms",
+                                       "controllers.hip.setpoint": "20 deg",
+                                       "controllers.hip.settle": "0 s"})
+    rs = frogsim.load_robot_scenario(raw)
+    run = frogsim.swim(rs)
+    t = run.t
+    assert np.isfinite(run.rec).all()
+    assert t[0] == 0.0 and t[-1] == pytest.approx(period_ms * 1e-3, abs=1e-12)
+    steps = np.rint(t / 1e-3).astype(int)
+    np.testing.assert_allclose(t, steps * 1e-3, rtol=0, atol=1e-12)
+    assert (steps[:-1] % interval_ms == 0).all() and np.all(np.diff(steps) > 0)
+    assert t.size == period_ms // interval_ms + 1 + (1 if period_ms % interval_ms else 0)
+    assert (run.source_pressure > 0).all()
