@@ -236,7 +236,8 @@ def _swim_into(args, folder, out: Path, rs) -> int:
               f"{rs.gait.cycles} cycles of {rs.gait.period:g} s ...")
     result = swim(rs)
     _progress(f"      {result.stats['mujoco_steps']} MuJoCo steps in {result.wall_s:.2f} s "
-              f"({result.t[-1] / result.wall_s:.0f} x real time)")
+              f"({result.t[-1] / result.wall_s:.3g} x real time; compiling {result.compile_s:.2f} s "
+              "before them, not counted)")
     files, s = write_outputs(result, out, animation=not args.no_animation, progress=_progress)
     files["manifest"] = folder.finish(extra_files=[Path(p).name for p in files.values()])
     _progress(f"mean speed {s['mean_speed_m_per_s']:.3f} m/s ({s['mean_speed_body_lengths_per_s']:.2f} "
