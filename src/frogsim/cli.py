@@ -395,16 +395,13 @@ def cmd_optimize_gait(args) -> int:
                   f"{search.trials} trials ({done} done), {search.cycles} cycles of "
                   f"{search.period:g} s each, {search.workers} worker(s) ...")
         res = G.run_search(search, study_db, fresh=not resume, progress=_progress)
-        name = f"{search.rs.name}-best-{search.objective}"
         best, base = res["best"].value, res["baseline"].value
         unit = G.OBJECTIVES[search.objective][1]
-        text = G.scenario_text(search.raw, res["best_gait"], name,
-                               f"Gait found by frogsim optimize-gait ({search.objective}: {best:.6g} {unit} "
-                               f"against {base:.6g} {unit} for the scenario's own gait, {search.cycles} cycles)")
+        text = G.best_scenario_text(res, search)
         atomic_write(out / "best-gait.toml", lambda tmp: Path(tmp).write_text(text))
         table = G.trials_table(res["study"], search)
         write_csv(out / "trials.csv", table)
-        G.plot_trials(table, search, base, out / "trials.png")
+        G.plot_trials(table, search, base, out / "trials.png", res["steadiness"])
         s = G.summary_of(res, search, {"best_gait": "best-gait.toml", "trials": "trials.csv",
                                        "figure": "trials.png", "study": "study.db"})
         write_json(out / "summary.json", s)

@@ -287,6 +287,8 @@ class SwimResult:
             "pump_moved_L_std": float(self.rec[-1, C.R_PUMPED] / rho * 1e3),
             "source_pressure_initial_bar_gauge": float((self.source_pressure[0] - patm) / 1e5),
             "source_pressure_after_cycles_bar_gauge": float((self.source_pressure[-1] - patm) / 1e5),
+            "source_pressure_each_cycle_start_bar_gauge": [float((np.interp(k * T, t, self.source_pressure) - patm)
+                                                                 / 1e5) for k in range(N + 1)],
             "exhaust_pressure_after_cycles_bar_gauge": float((self.exhaust_pressure[-1] - patm) / 1e5),
             "air_exergy_J": exergy,
             "cost_of_transport": exergy / (mass * g * dist) if dist > 0 else None,
