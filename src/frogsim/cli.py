@@ -55,12 +55,14 @@ def _folder(args, command: str, **kw):
 
 
 def _finishing(folder, work):
-    """Run work() in a claimed folder: manifest "running" first, then "complete" or "failed"."""
+    """Run work() in a claimed folder: manifest "running" first, then "complete", "interrupted"
+    or "failed"."""
+    from frogsim.io.outputs import ended_status
     folder.begin()
     try:
         result = work()
-    except BaseException:
-        folder.finish("failed")
+    except BaseException as exc:
+        folder.finish(ended_status(exc))
         raise
     return result
 
@@ -122,14 +124,15 @@ def _run_studies(args, group: str) -> int:
     folder.begin()
     try:
         return _studies_into(args, folder, out, names, summaries)
-    except BaseException:
+    except BaseException as exc:
+        from frogsim.io.outputs import ended_status
         done = [n for n in names if n in summaries]     # the studies that did finish stay recorded
         if done:
             summary = folder.previous_summary()
             for name in done:
                 summary.update(summaries[name])
             write_json(out / "summary.json", summary)
-        folder.finish("failed", {n: list(summaries[n]) for n in done})
+        folder.finish(ended_status(exc), {n: list(summaries[n]) for n in done})
         raise
 
 
