@@ -106,7 +106,7 @@ def write_json(path, data: dict) -> None:
 
 
 CSV_FLOAT = "%.8g"
-CSV_CELL_BYTES = 12          # [bytes] a float written with 8 digits and its separator, about
+CSV_CELL_BYTES = 8           # [bytes] a cell written with up to 8 digits and its separator, on the low side
 CSV_PROGRESS_CELLS = 2_000_000   # tables with more cells are written in pieces under a progress bar
 CSV_PIECE_ROWS = 20_000
 
@@ -114,7 +114,7 @@ CSV_PIECE_ROWS = 20_000
 def write_csv(path, df, progress: bool = True) -> None:
     """Write a table atomically (floats with 8 significant digits).
 
-    Its size is checked first (:func:`frogsim._budget.check`: about 12 bytes a cell against the
+    Its size is checked first (:func:`frogsim._budget.check`: 8 bytes a cell against the
     disk's free space). A table of more than :data:`CSV_PROGRESS_CELLS` cells is written in pieces
     of rows, the same text as in one piece, under a progress bar on stderr (``progress``), so a
     long write shows how far it is and stops promptly on Ctrl-C (leaving no file)."""
