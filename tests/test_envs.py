@@ -171,3 +171,106 @@ def test_swim_env_episode_conserves_air_and_pays_for_it():
     assert total_air > 0.5 and total_prog > 0.05
     assert total_r == pytest.approx(total_prog - 0.1 * total_air)
     assert abs(stepper.total_air_mass() / air0 - 1) < 1e-10
+
+
+# --- every bad argument, option and action is refused with a clear ValueError -----------------------
+#: argument -> values that are not allowed (NaN, infinities, negatives, wrong types)
+NOT_A_NUMBER = [float("nan"), float("inf"), float("-inf"), "1", True, 1 + 0j, None, [1.0]]
+BAD_ARGS = {
+    "frogsim/HipPressure-v0": {
+        "duration": NOT_A_NUMBER + [-1, 0, 0.0005, 2e6],     # 0.0005 s: less than the 1 ms period
+        "control_period": [float("nan"), float("inf"), -1e-3, 0, "1 ms", True, 1j],
+        "switch_price": NOT_A_NUMBER + [-0.01],
+        "noise_std": NOT_A_NUMBER + [-0.1],
+        "setpoint": [float("nan"), float("inf"), -1.0, 101.0, "2 bar", True, 2j],
+        "setpoint_range": [(float("nan"), 2.0), (1.0, float("inf")), (-1.0, 2.0), (3.0, 2.0), (1.0,),
+                           "1-5", (True, 2.0), (1.0, 2j)],
+    },
+    "frogsim/Swim-v0": {
+        "duration": NOT_A_NUMBER + [-1, 0, 0.005, 2e6],       # 0.005 s: less than the 10 ms period
+        "steps_per_action": [float("nan"), 0, -1, 1.5, 10.0, "10", True, 10j, None, 10**9],
+        "air_price": NOT_A_NUMBER + [-0.05],
+        "noise_std": NOT_A_NUMBER + [-0.1],
+    },
+}
+BAD_CASES = [(env_id, arg, v) for env_id, args in BAD_ARGS.items() for arg, vals in args.items() for v in vals]
+
+
+@pytest.mark.parametrize("env_id,arg,value", BAD_CASES, ids=[f"{e[8:]}-{a}-{v!r}" for e, a, v in BAD_CASES])
+def test_every_bad_constructor_argument_raises_a_value_error_naming_it(env_id, arg, value):
+    with pytest.raises(ValueError) as err:
+        gym.make(env_id, **{arg: value})
+    msg = str(err.value)
+    assert msg.startswith(arg) and "\n" not in msg
+    assert any(w in msg for w in ("must", "expected"))
+
+
+@pytest.fixture(scope="module")
+def made():
+    envs = {env_id: gym.make(env_id, **SHORT[env_id]).unwrapped for env_id in ENVS}
+    yield envs
+    for env in envs.values():
+        env.close()
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), -0.5, 100.5, "2", True, 2j, None])
+def test_every_bad_setpoint_option_raises(made, value):
+    env = made["frogsim/HipPressure-v0"]
+    with pytest.raises(ValueError, match=r"^options\['setpoint'\] = .*must|^options\['setpoint'\] = .*expected"):
+        env.reset(options={"setpoint": value})
+
+
+@pytest.mark.parametrize("env_id,opts", [("frogsim/HipPressure-v0", {"setpont": 2.0}),
+                                         ("frogsim/HipPressure-v0", [("setpoint", 2.0)]),
+                                         ("frogsim/Swim-v0", {"setpoint": 2.0})])
+def test_unknown_reset_options_raise(made, env_id, opts):
+    with pytest.raises(ValueError, match="options"):
+        made[env_id].reset(options=opts)
+
+
+def _outside(space):
+    """Actions outside a MultiDiscrete space: each entry one past its range or below 0, floats
+    (even whole ones), bools, complex numbers, the wrong length, the wrong shape, text, None."""
+    n = space.shape[0]
+    good = [0] * n
+    out = []
+    for j, k in enumerate(space.nvec):
+        out += [good[:j] + [int(k)] + good[j + 1:], good[:j] + [-1] + good[j + 1:],
+                good[:j] + [1.7] + good[j + 1:], good[:j] + [True] + good[j + 1:],
+                good[:j] + [1 + 0j] + good[j + 1:]]
+    out += [np.zeros(n, float), np.zeros(n, bool), np.zeros(n, complex), good[:-1], good + [0],
+            np.zeros((1, n), int), "0" * n, None, 1]
+    return out
+
+
+@pytest.mark.parametrize("env_id", sorted(ENVS))
+def test_every_action_outside_the_space_raises(made, env_id):
+    env = made[env_id]
+    env.reset(seed=0)
+    bad = _outside(env.action_space)
+    assert len(bad) > 10
+    for a in bad:
+        with pytest.raises(ValueError, match="^action = .*action space"):
+            env.step(a)
+    env.step(np.zeros(env.action_space.shape, np.int64))       # the refusals changed nothing
+    assert env.steps == 1
+
+
+@pytest.mark.parametrize("env_id", sorted(ENVS))
+def test_stepping_before_reset_or_after_the_episode_ended_raises(env_id):
+    from gymnasium.error import ResetNeeded
+    env = gym.make(env_id, **SHORT[env_id]).unwrapped
+    hold = np.ones(env.action_space.shape, np.int64)
+    with pytest.raises(ResetNeeded, match="reset"):
+        env.step(hold)
+    env.reset(seed=0)
+    k, done = 0, False
+    while not done:
+        _, _, term, trunc, _ = env.step(hold)
+        done = term or trunc
+        k += 1
+    assert trunc and k == env.max_steps
+    with pytest.raises(ResetNeeded, match="ended"):
+        env.step(hold)
+    env.reset(seed=0)
+    env.step(hold)                              # a reset starts another episode

@@ -328,3 +328,35 @@ def test_control_command_writes_the_control_joint_study(tmp_path):
     for level in s["runs"].values():
         assert level["sine"]["tracking_error_rms_deg"] < 3.0           # it tracks
         assert level["step"]["rise_time_s"] is not None
+
+
+def test_every_closed_loop_controller_is_drawn_with_setpoint_antagonist_and_numbers(monkeypatch, tmp_path):
+    """swim.png of a joint-angle run: the setpoint and the tracked angle on one axis, the muscle's
+    and the antagonist's pressures, the tracking numbers of summary.json in the panel's title;
+    the palm on an axis of its own (never scaled onto a degree axis)."""
+    import frogsim._plotting as plotting
+    from frogsim.studies import robot as R
+    seen = {}
+    real = plotting.save
+
+    def save(fig, path, note=""):
+        seen["fig"] = fig
+        seen["titles"] = [a.get_title() for a in fig.axes]
+        seen["labels"] = [[ln.get_label() for ln in a.get_lines()] for a in fig.axes]
+        seen["ylabels"] = [a.get_ylabel() for a in fig.axes]
+        real(fig, path, note)
+    monkeypatch.setattr(R, "save", save)
+    r = frogsim.swim("hip-angle-in-air")
+    s = r.summary()
+    R.plot_swim(r, str(tmp_path / "swim.png"), s)
+    m = s["control"]["hip"]
+    title = next(t for t in seen["titles"] if t.startswith("hip: joint-angle control"))
+    assert f"RMS {m['tracking_error_rms_deg']:.3g} deg" in title
+    assert f"max {m['tracking_error_max_deg']:.3g} deg" in title
+    k = seen["titles"].index(title)
+    assert seen["labels"][k] == ["hip_left setpoint", "hip_left angle"]            # one axis
+    twins = [lb for labels in seen["labels"] for lb in labels if "antagonist" in lb]
+    assert twins == ["hip_left_recovery (antagonist) pressure, right axis"]
+    assert not any("x 40" in lb for labels in seen["labels"] for lb in labels)
+    palm = [i for i, labels in enumerate(seen["labels"]) if any("palm" in lb for lb in labels)]
+    assert palm and all("deg" not in seen["ylabels"][i] for i in palm)

@@ -95,3 +95,42 @@ def test_fifty_trials_beat_the_paper_gait():
         res = G.run_search(search, Path(d) / "study.db", fresh=True)
     assert res["best"].value > res["baseline"].value * 1.005
     assert math.isfinite(res["best"].value)
+
+
+def test_steadiness_is_judged_from_the_source_pressure_change_per_cycle():
+    """The criterion on made-up pressures: a 2 % change over the last cycle is the border."""
+    s = G.steadiness({"source_pressure_each_cycle_start_bar_gauge": [6.0, 5.0]})
+    assert not s["steady"] and s["cycles_evaluated"] == 1
+    assert s["source_change_last_cycle_percent"] == pytest.approx(-100 / 6)
+    assert "--cycles" in s["warning"] and "6.00 -> 5.00" in s["warning"]
+    s = G.steadiness({"source_pressure_each_cycle_start_bar_gauge": [6.0, 4.0, 3.0, 2.99]})
+    assert s["steady"] and "warning" not in s and s["cycles_evaluated"] == 3
+
+
+def test_a_search_over_too_few_cycles_warns_and_says_what_it_optimised(tmp_path, capsys):
+    """One cycle of the shipped swim scenario starts from a full 6 bar source and drops it by
+    more than 2 %: a transient. The search says so on stderr, in summary.json, in
+    best-gait.toml's description and on trials.png (whose trial axis has whole ticks only)."""
+    import frogsim._plotting  # noqa: F401  (Agg backend)
+    from matplotlib import pyplot as plt
+    seen = {}
+    real_savefig = plt.Figure.savefig
+
+    def savefig(fig, *a, **k):
+        seen["ticks"] = fig.axes[0].get_xticks()
+        seen["texts"] = [t.get_text() for t in fig.texts]
+        return real_savefig(fig, *a, **k)
+    out = tmp_path / "opt"
+    import unittest.mock as mock
+    with mock.patch.object(plt.Figure, "savefig", savefig):
+        assert main(["optimize-gait", "swim", "--objective", "speed", "--cycles", "1", "--trials", "3",
+                     "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "warning: the source pressure still changes" in err and "--cycles" in err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["cycles_evaluated"] == 1 and s["steady"] is False
+    assert s["steadiness"]["source_change_last_cycle_percent"] < -2.0
+    text = (out / "best-gait.toml").read_text()
+    assert "evaluated over the first 1 cycle(s)" in text and "not a steady gait" in text
+    assert all(float(t) == int(t) for t in seen["ticks"])
+    assert any("not a steady gait" in t for t in seen["texts"])

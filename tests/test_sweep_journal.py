@@ -164,3 +164,18 @@ def test_format_1_file_is_read_in_si(tmp_path):
     assert np.allclose(f["final_pressure"].values, ds["final_pressure"].values, rtol=1e-14)
     assert np.allclose(f["aeration_volume"].values, ds["aeration_volume"].values, rtol=1e-14)
     assert f["supply.branch_limit"].attrs["units"] == "m3 s-1"
+
+
+def test_a_journal_path_taken_by_a_file_is_refused_on_every_retry(tmp_path, capsys):
+    """results.nc.parts replaced by a regular file: one line naming the path and what to do, exit 2,
+    every time; the file is left as it was and no results file is made."""
+    spec_path = write_case(tmp_path)
+    out = tmp_path / "r.nc"
+    parts = tmp_path / "r.nc.parts"
+    parts.write_text("not a folder")
+    for _ in range(2):
+        assert main(["sweep", str(spec_path), "--out", str(out), "--quiet"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "Traceback" not in err
+        assert str(parts) in err and "is a file" in err and ("delete" in err or "another --out" in err)
+    assert parts.read_text() == "not a folder" and not out.exists()

@@ -61,3 +61,60 @@ def test_geometric_values_over_a_decade_are_log_without_the_attribute(results):
     assert is_log(ds, "supply.branch_limit")                # 15, 52, 180 L/min: geometric, 12x
     ds = ds.assign_coords({"supply.branch_limit": ("supply.branch_limit", [1.0, 2.0, 3.0])})
     assert not is_log(ds, "supply.branch_limit")
+
+
+# --- "not reached" is counted and drawn, never averaged away ------------------------------------------
+def _with_missed(ds, metric="rise_time"):
+    """The results with the metric set by hand: 1.0 everywhere, NaN (not reached) at every point of
+    the first branch limit with fraction 0 and at one point of the second; one point not run."""
+    ds = ds.copy(deep=True)
+    v = np.ones(ds[metric].shape)
+    dims = list(ds[metric].dims)
+    ib, ifr, ip = dims.index("supply.branch_limit"), dims.index("muscles.hip.motion.fraction"), \
+        dims.index("source.initial_pressure_gauge")
+    idx = [slice(None)] * 3
+    idx[ib], idx[ifr] = 0, 0
+    v[tuple(idx)] = np.nan                          # 2 of the 4 points at the first limit not reached
+    idx = [0, 0, 0]
+    idx[ib], idx[ifr], idx[ip] = 1, 1, 1
+    v[tuple(idx)] = np.nan                          # 1 of the 4 at the second limit
+    ds[metric].values[...] = v
+    comp = np.ones(ds["completed"].shape, bool)
+    idx = [0, 0, 0]
+    idx[ib] = 2
+    comp[tuple(idx)] = False                        # 1 of the 4 at the third limit not run
+    ds["completed"].values[...] = comp
+    return ds
+
+
+def test_reduce_mean_never_hides_points_that_were_not_reached(results, monkeypatch):
+    from frogsim.sweep.plot import _ran, reduced
+    folder, ds = results
+    ds = _with_missed(ds)
+    da = ds["rise_time"].where(_ran(ds))
+    r = reduced(da, _ran(ds), ["source.initial_pressure_gauge", "muscles.hip.motion.fraction"])
+    assert list(r["n_run"].values) == [4, 4, 3]
+    assert list(r["n_reached"].values) == [2, 3, 3]
+    # the mean is drawn only where every run point reached it; elsewhere the count says how many did
+    assert np.isnan(r["mean"].values[:2]).all() and r["mean"].values[2] == 1.0
+    assert list(r["mean_reached"].values) == [1.0, 1.0, 1.0]
+    seen = drawn(monkeypatch, ds, folder / "m.png", x="supply.branch_limit", metric="rise_time",
+                 reduce="mean")
+    texts = [t.get_text() for t in seen["ax"].texts]
+    assert "2 of 4 reached" in texts and "3 of 4 reached" in texts
+    labels = seen["ax"].get_legend_handles_labels()[1]
+    assert any("reached" in lb for lb in labels)
+
+
+def test_every_not_reached_point_or_cell_is_marked_with_a_legend_entry(results, monkeypatch):
+    folder, ds = results
+    ds = _with_missed(ds)
+    seen = drawn(monkeypatch, ds, folder / "l.png", x="supply.branch_limit", metric="rise_time",
+                 select={"muscles.hip.motion.fraction": "0", "source.initial_pressure_gauge": "3 bar"})
+    labels = seen["ax"].get_legend_handles_labels()[1]
+    assert "not reached (NaN)" in labels
+    seen = drawn(monkeypatch, ds, folder / "h.png", x="source.initial_pressure_gauge", y="supply.branch_limit",
+                 metric="rise_time", select={"muscles.hip.motion.fraction": "0"})
+    legend = seen["ax"].get_legend()
+    assert legend is not None
+    assert legend.get_texts()[0].get_text() == "2 of 6 cells not reached; 1 of 6 not run or failed"

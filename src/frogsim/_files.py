@@ -105,8 +105,39 @@ def write_json(path, data: dict) -> None:
     atomic_write(path, w)
 
 
-def write_csv(path, df) -> None:
-    atomic_write(path, lambda tmp: df.to_csv(tmp, index=False, float_format="%.8g"))
+CSV_FLOAT = "%.8g"
+CSV_CELL_BYTES = 8           # [bytes] a cell written with up to 8 digits and its separator, on the low side
+CSV_PROGRESS_CELLS = 2_000_000   # tables with more cells are written in pieces under a progress bar
+CSV_PIECE_ROWS = 20_000
+
+
+def write_csv(path, df, progress: bool = True) -> None:
+    """Write a table atomically (floats with 8 significant digits).
+
+    Its size is checked first (:func:`frogsim._budget.check`: 8 bytes a cell against the
+    disk's free space). A table of more than :data:`CSV_PROGRESS_CELLS` cells is written in pieces
+    of rows, the same text as in one piece, under a progress bar on stderr (``progress``), so a
+    long write shows how far it is and stops promptly on Ctrl-C (leaving no file)."""
+    from frogsim._budget import Need, check
+    rows, cols = df.shape
+    cells = rows * max(cols, 1)
+    check("--out", str(path), Need(f"writing {Path(path).name} ({rows:,} rows x {cols} columns)", rows, "rows",
+                                   2**62, disk=float(cells * CSV_CELL_BYTES), disk_path=Path(path).parent))
+    if cells <= CSV_PROGRESS_CELLS:
+        atomic_write(path, lambda tmp: df.to_csv(tmp, index=False, float_format=CSV_FLOAT))
+        return
+
+    def pieces(tmp):
+        import sys
+
+        from tqdm import tqdm
+        with open(tmp, "w", newline="") as fh, \
+                tqdm(total=rows, desc=f"writing {Path(path).name}", unit="row", unit_scale=True, file=sys.stderr,
+                     disable=not progress, mininterval=0.5, dynamic_ncols=True) as bar:
+            for a in range(0, rows, CSV_PIECE_ROWS):
+                df.iloc[a:a + CSV_PIECE_ROWS].to_csv(fh, index=False, header=a == 0, float_format=CSV_FLOAT)
+                bar.update(min(CSV_PIECE_ROWS, rows - a))
+    atomic_write(path, pieces)
 
 
 def write_figure(path, draw) -> None:

@@ -55,12 +55,14 @@ def _folder(args, command: str, **kw):
 
 
 def _finishing(folder, work):
-    """Run work() in a claimed folder: manifest "running" first, then "complete" or "failed"."""
+    """Run work() in a claimed folder: manifest "running" first, then "complete", "interrupted"
+    or "failed"."""
+    from frogsim.io.outputs import ended_status
     folder.begin()
     try:
         result = work()
-    except BaseException:
-        folder.finish("failed")
+    except BaseException as exc:
+        folder.finish(ended_status(exc))
         raise
     return result
 
@@ -122,14 +124,15 @@ def _run_studies(args, group: str) -> int:
     folder.begin()
     try:
         return _studies_into(args, folder, out, names, summaries)
-    except BaseException:
+    except BaseException as exc:
+        from frogsim.io.outputs import ended_status
         done = [n for n in names if n in summaries]     # the studies that did finish stay recorded
         if done:
             summary = folder.previous_summary()
             for name in done:
                 summary.update(summaries[name])
             write_json(out / "summary.json", summary)
-        folder.finish("failed", {n: list(summaries[n]) for n in done})
+        folder.finish(ended_status(exc), {n: list(summaries[n]) for n in done})
         raise
 
 
@@ -236,7 +239,8 @@ def _swim_into(args, folder, out: Path, rs) -> int:
               f"{rs.gait.cycles} cycles of {rs.gait.period:g} s ...")
     result = swim(rs)
     _progress(f"      {result.stats['mujoco_steps']} MuJoCo steps in {result.wall_s:.2f} s "
-              f"({result.t[-1] / result.wall_s:.0f} x real time)")
+              f"({result.t[-1] / result.wall_s:.3g} x real time; compiling {result.compile_s:.2f} s "
+              "before them, not counted)")
     files, s = write_outputs(result, out, animation=not args.no_animation, progress=_progress)
     files["manifest"] = folder.finish(extra_files=[Path(p).name for p in files.values()])
     _progress(f"mean speed {s['mean_speed_m_per_s']:.3f} m/s ({s['mean_speed_body_lengths_per_s']:.2f} "
@@ -394,16 +398,13 @@ def cmd_optimize_gait(args) -> int:
                   f"{search.trials} trials ({done} done), {search.cycles} cycles of "
                   f"{search.period:g} s each, {search.workers} worker(s) ...")
         res = G.run_search(search, study_db, fresh=not resume, progress=_progress)
-        name = f"{search.rs.name}-best-{search.objective}"
         best, base = res["best"].value, res["baseline"].value
         unit = G.OBJECTIVES[search.objective][1]
-        text = G.scenario_text(search.raw, res["best_gait"], name,
-                               f"Gait found by frogsim optimize-gait ({search.objective}: {best:.6g} {unit} "
-                               f"against {base:.6g} {unit} for the scenario's own gait, {search.cycles} cycles)")
+        text = G.best_scenario_text(res, search)
         atomic_write(out / "best-gait.toml", lambda tmp: Path(tmp).write_text(text))
         table = G.trials_table(res["study"], search)
         write_csv(out / "trials.csv", table)
-        G.plot_trials(table, search, base, out / "trials.png")
+        G.plot_trials(table, search, base, out / "trials.png", res["steadiness"])
         s = G.summary_of(res, search, {"best_gait": "best-gait.toml", "trials": "trials.csv",
                                        "figure": "trials.png", "study": "study.db"})
         write_json(out / "summary.json", s)

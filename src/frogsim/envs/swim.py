@@ -17,7 +17,14 @@ Reward
 Episode
     ``duration`` [s] (default 4 s: two of the paper's 2 s strokes), then truncated; terminated
     when the simulation goes unstable (``info["failure"]``). Deterministic: no randomness unless
-    ``noise_std`` [bar] adds sensor noise to the pressures (seeded by reset).
+    ``noise_std`` [bar] adds sensor noise to the pressures (seeded by reset). A step before the
+    first reset or after the episode ended raises ``gymnasium.error.ResetNeeded``.
+Arguments (checked before anything is built; ValueError naming the argument, value and range)
+    ``steps_per_action`` a whole number in [1, 100000]; ``duration`` (0, 1e6] s and at least one
+    action period; ``air_price`` >= 0; ``noise_std`` >= 0 bar; ``reset`` takes no options. An
+    action outside the action space (a muscle value other than 0, 1, 2, a palm value other than
+    0, 1, the wrong length, a bool or a float) raises ValueError
+    (:func:`frogsim.envs.checks.action`).
 """
 from __future__ import annotations
 
@@ -28,10 +35,14 @@ import numpy as np
 from gymnasium import spaces
 
 from frogsim.circuit import layout as CL
+from frogsim.envs import checks
 from frogsim.envs.plant import ACTIONS
-from frogsim.errors import SimulationError
+from frogsim.errors import ScenarioError, SimulationError
 
 BAR = 1e5
+MAX_DURATION = 1e6                   # [s]
+MAX_STEPS_PER_ACTION = 100_000       # MuJoCo steps held per action (100 s at 1 ms)
+ACTION_MEANING = "per muscle 0 vent, 1 hold, 2 charge; then the palms 0 fold, 1 open"
 
 
 class SwimEnv(gym.Env):
@@ -43,8 +54,15 @@ class SwimEnv(gym.Env):
                  air_price: float = 0.05, noise_std: float = 0.0):
         from frogsim.engine.coupled import CoupledStepper
         from frogsim.engine.swim import as_robot_scenario
+        steps_per_action = checks.whole("steps_per_action", steps_per_action, 1, MAX_STEPS_PER_ACTION)
+        duration = checks.real("duration", duration, 0.0, MAX_DURATION, low_open=True, unit="s")
+        air_price = checks.real("air_price", air_price, 0.0)
+        noise_std = checks.real("noise_std", noise_std, 0.0, unit="bar")
         rs = as_robot_scenario(scenario)
         self.stepper = CoupledStepper(rs, steps_per_action=steps_per_action)
+        if duration < self.stepper.period * (1 - 1e-9):
+            raise ScenarioError("duration", duration, f"must be at least one action period "
+                                                      f"({self.stepper.period:g} s)")
         cm = self.stepper.cm
         self.muscle_names = list(cm.muscle_names)
         self.joint_names = list(cm.joint_names)
@@ -52,8 +70,8 @@ class SwimEnv(gym.Env):
         self.n = n
         self.patm = float(cm.pneumatic.g[CL.G_PATM])
         self.rho_ref = float(cm.pneumatic.g[CL.G_RHOREF])
-        self.air_price = float(air_price)
-        self.noise_std = float(noise_std)
+        self.air_price = air_price
+        self.noise_std = noise_std
         self.max_steps = max(1, int(math.floor(duration / self.stepper.period + 1e-9)))
         self.action_space = spaces.MultiDiscrete([3] * n + [2])
         nj = len(self.joint_names)
@@ -64,6 +82,7 @@ class SwimEnv(gym.Env):
                         + [100.0] * (n + 1), np.float32)
         self.observation_space = spaces.Box(low, high, dtype=np.float32)
         self.steps = 0
+        self.episode = checks.Episode()
 
     def _obs(self) -> np.ndarray:
         s = self.stepper
@@ -79,22 +98,25 @@ class SwimEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
+        checks.options(options, ())
         self.stepper.reset()
         self.x0 = self.stepper.position()[:2]
         self.h0 = self.stepper.heading()
         self.steps = 0
         self.distance = 0.0
         self.charged = 0.0
+        self.episode.start()
         return self._obs(), {}
 
     def step(self, action):
-        a = np.asarray(action).reshape(-1)
-        if a.size != self.n + 1:
-            raise ValueError(f"action has {a.size} entries, expected {self.n + 1}")
+        """One action period (module docstring); ResetNeeded once the episode has ended."""
+        self.episode.check_step()
+        a = checks.action(self.action_space, action, ACTION_MEANING)
         u = np.array([v for x in a[:-1] for v in ACTIONS[int(x)]], float)
         try:
             switches = self.stepper.step(u, float(a[-1]))
         except SimulationError as exc:
+            self.episode.end(True, False, f"terminated: {exc}")
             return self._obs(), 0.0, True, False, {"failure": str(exc)}
         self.steps += 1
         dist, charged = self._forward(), self.stepper.charged_mass()
@@ -104,4 +126,6 @@ class SwimEnv(gym.Env):
         reward = progress - self.air_price * air_L
         info = {"progress_m": progress, "air_L_std": air_L, "distance_m": dist,
                 "switches": switches, "time_s": self.stepper.t}
-        return self._obs(), float(reward), False, self.steps >= self.max_steps, info
+        truncated = self.steps >= self.max_steps
+        self.episode.end(False, truncated, f"truncated after {self.steps} steps, {self.stepper.t:g} s")
+        return self._obs(), float(reward), False, truncated, info

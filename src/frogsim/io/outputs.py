@@ -17,8 +17,9 @@ The rule (README, "Output folders")
 
     Every check happens before the first write. ``manifest.json`` is written first with
     ``"status": "running"`` (so even an interrupted run owns its folder) and rewritten at the end
-    with ``"complete"`` (``"failed"`` if the run stopped on an error); a run of the same command
-    may replace an interrupted or failed one without ``--overwrite``.
+    with ``"complete"``, ``"interrupted"`` (Ctrl-C, SIGINT) or ``"failed"`` (an error:
+    :func:`ended_status`); a run of the same command may replace an interrupted or failed one
+    without ``--overwrite``.
 
 manifest.json
     ``command``, ``command_line`` (and ``argv``), ``cwd``, ``frogsim_version``, ``started`` and
@@ -81,6 +82,12 @@ def shipped_inputs() -> list[dict]:
     files = [(f"parameters {p.stem}", p) for p in sorted(PARAMS_DIR.glob("*.toml"))]
     files += [(f"scenario {p.stem}", p) for p in sorted(SCENARIOS_DIR.glob("*.toml"))]
     return describe_inputs(files)
+
+
+def ended_status(exc: BaseException) -> str:
+    """The manifest status of a run that stopped on ``exc``: "interrupted" for Ctrl-C (and a
+    SystemExit from a signal handler), "failed" for an error."""
+    return "interrupted" if isinstance(exc, (KeyboardInterrupt, SystemExit)) else "failed"
 
 
 class OutputFolder:

@@ -100,6 +100,24 @@ def muscle_colors(n: int) -> list:
     return [cmap(i / (n - 1)) for i in range(n)]
 
 
+SAME_PA = 100.0          # [Pa]: curves closer than this everywhere are drawn as one (1 mbar)
+
+
+def same_curves(t, curves, tol: float = SAME_PA) -> list:
+    """Group (name, values) curves that lie within ``tol`` of each other at every sample, so that a
+    figure draws each visible line once and its legend names every curve on it; returns
+    [(names, values of the first)] in the order given."""
+    groups = []
+    for name, v in curves:
+        for names, ref in groups:
+            if np.max(np.abs(np.asarray(v) - ref)) <= tol:
+                names.append(name)
+                break
+        else:
+            groups.append(([name], np.asarray(v)))
+    return groups
+
+
 def plot_run(result, path: str) -> None:
     """Pressures of source, exhaust and every muscle, and the valve states, against time."""
     from frogsim._plotting import figure, save
@@ -111,8 +129,11 @@ def plot_run(result, path: str) -> None:
     a, b = ax[0, 0], ax[1, 0]
     a.plot(result.t, (result.source_pressure - patm) / 1e5, "k", lw=2, label="source")
     a.plot(result.t, (result.exhaust_pressure - patm) / 1e5, "k--", lw=1, label="exhaust")
-    for name, c in zip(result.names, colors):
-        a.plot(result.t, (result.muscle_pressure(name) - patm) / 1e5, color=c, label=name)
+    for names, p in same_curves(result.t, [(n, result.muscle_pressure(n)) for n in result.names]):
+        c = colors[result.names.index(names[0])]
+        label = names[0] if len(names) == 1 else \
+            ",\n".join(", ".join(names[k:k + 2]) for k in range(0, len(names), 2)) + f"\n(one curve, within {SAME_PA:g} Pa)"
+        a.plot(result.t, (p - patm) / 1e5, color=c, label=label)
     a.set_ylabel("pressure [bar gauge]")
     a.set_title(f"Scenario {result.model.scenario.name!r}")
     a.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))     # outside: hides no curve

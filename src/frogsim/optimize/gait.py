@@ -19,6 +19,15 @@ scenario's (or ``cycles``). Objectives, both maximised, from the run's
     speed               mean forward speed over the run [m/s]
     distance-per-litre  forward distance per standard litre of air charged [m/L]
 
+Each trial runs the evaluated cycles from the scenario's initial state (a full source), so the
+objective is an average over those cycles, not a steady gait's value. :func:`steadiness` judges
+it from the baseline run: the source pressure still changes over the last evaluated cycle by
+more than :data:`STEADY_CHANGE` (2 %) of its value, the strokes of the search are a transient
+(on the shipped ``swim`` scenario: 13.9 % in cycle 1, 1.3 % in cycle 10; the muscle's force, and
+the stroke, scale with the pressure). Then the search warns and its outputs say so; every output
+records the cycles evaluated (``summary.json``: ``cycles_evaluated``, ``steady``; the title of
+``trials.png``; ``best-gait.toml``'s gait runs those cycles and its description says so).
+
 The sampler is Optuna's TPE, seeded; trials are asked in batches of ``workers``, run on a thread
 pool (the engine's compiled kernel and MuJoCo's step release the GIL), and told in order, so a
 search is the same for the same seed and worker count. The study lives in an SQLite file: running
@@ -43,6 +52,7 @@ BOUNDS = {"drive_on": (0.0, 0.2), "drive_len": (0.2, 0.75), "palm_delay": (0.0, 
           "palm_lag": (-0.35, 0.1)}
 RECOVERY_BOUNDS = {"rec_gap": (0.0, 0.2), "rec_len": (0.1, 0.6)}
 LAST = 0.95          # every command of the period by 0.95 P
+STEADY_CHANGE = 0.02  # a gait is steady once the source pressure changes by less than this per cycle
 
 
 def check_objective(objective: str) -> str:
@@ -114,6 +124,26 @@ def objective_value(summary: dict, objective: str) -> float:
     return float(summary["distance_m"] / air) if air > 0 else -math.inf
 
 
+def steadiness(summary: dict) -> dict:
+    """How far a run's last cycle is from a steady gait: the source pressure's change over it
+    (gauge, relative to its value at the cycle's start), and whether that is below
+    :data:`STEADY_CHANGE`."""
+    p = summary["source_pressure_each_cycle_start_bar_gauge"]
+    change = (p[-1] - p[-2]) / abs(p[-2]) if p[-2] != 0 else math.inf
+    n = len(p) - 1
+    out = {"cycles_evaluated": n, "source_pressure_each_cycle_start_bar_gauge": p,
+           "source_change_last_cycle_percent": 100.0 * change,
+           "steady": abs(change) < STEADY_CHANGE,
+           "criterion": f"the source pressure changes by less than {100 * STEADY_CHANGE:g} % over the last "
+                        "evaluated cycle"}
+    if not out["steady"]:
+        out["warning"] = (f"the source pressure still changes by {100 * change:+.1f} % over the last of the {n} "
+                          f"cycle(s) evaluated ({p[-2]:.2f} -> {p[-1]:.2f} bar gauge; steady below "
+                          f"{100 * STEADY_CHANGE:g} %): the search optimises the first {n} stroke(s) from the "
+                          "initial source, not a steady gait; evaluate more cycles (--cycles)")
+    return out
+
+
 @dataclass
 class Evaluation:
     value: float
@@ -133,6 +163,22 @@ def evaluate(raw: dict, base_dir: str, gait: dict, objective: str) -> Evaluation
     except SimulationError as exc:
         return Evaluation(-math.inf, {}, str(exc), time.perf_counter() - t0)
     return Evaluation(objective_value(s, objective), s, "", time.perf_counter() - t0)
+
+
+def best_scenario_text(res: dict, search: "Search") -> str:
+    """best-gait.toml: the scenario with the best gait, for the cycles evaluated (so that
+    ``frogsim swim`` on it reproduces the best trial's figure); its description says what was
+    optimised (objective, cycles evaluated, whether that was a steady gait)."""
+    best, base = res["best"].value, res["baseline"].value
+    unit = OBJECTIVES[search.objective][1]
+    steady = res["steadiness"]
+    note = (f"Gait found by frogsim optimize-gait ({search.objective}: {best:.6g} {unit} against {base:.6g} "
+            f"{unit} for the scenario's own gait, evaluated over the first {search.cycles} cycle(s)"
+            + ("" if steady["steady"] else f"; not a steady gait: the source pressure still changed by "
+                                           f"{steady['source_change_last_cycle_percent']:+.1f} % over the last "
+                                           "evaluated cycle") + ")")
+    return scenario_text(search.raw, res["best_gait"],
+                         f"{search.rs.name}-best-{search.objective}", note)
 
 
 def scenario_text(raw: dict, gait: dict, name: str, note: str) -> str:
@@ -247,6 +293,9 @@ def run_search(search: Search, storage_path: Path, fresh: bool = False, progress
     baseline = evaluate(search.raw, search.base_dir, base_gait, search.objective)
     if baseline.failure:
         raise SimulationError(f"the scenario's own gait: {baseline.failure}")
+    steady = steadiness(baseline.summary)
+    if "warning" in steady and progress is not None:
+        progress(f"warning: {steady['warning']}")
     from concurrent.futures import ThreadPoolExecutor
 
     def done():
@@ -278,7 +327,7 @@ def run_search(search: Search, storage_path: Path, fresh: bool = False, progress
     wall = time.perf_counter() - t0
     best = study.best_trial
     return {"study": study, "baseline": baseline, "baseline_gait": base_gait, "best": best,
-            "best_gait": best.user_attrs["gait"], "ran": ran, "wall_s": wall}
+            "best_gait": best.user_attrs["gait"], "ran": ran, "wall_s": wall, "steadiness": steady}
 
 
 def trials_table(study, search: Search):
@@ -312,23 +361,35 @@ def _seconds(text: str) -> float:
     return float(text.split()[0])
 
 
-def plot_trials(table, search: Search, baseline: float, path) -> None:
+def plot_trials(table, search: Search, baseline: float, path, steady: dict | None = None) -> None:
+    """Objective per trial (whole trial numbers on the axis), the best so far, the baseline; the
+    steadiness warning written on the figure when the evaluated cycles are a transient."""
+    from matplotlib.ticker import MaxNLocator
+
     from frogsim._files import write_figure
     name, unit = OBJECTIVES[search.objective]
     col = [c for c in table.columns if c.startswith("objective_")][0]
 
     def draw(p):
         import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(7, 4))
+        fig, ax = plt.subplots(figsize=(7, 4.4 if steady and "warning" in steady else 4))
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ok = np.isfinite(table[col].to_numpy(float))
         ax.plot(table["trial"][ok], table[col][ok], "o", ms=4, color="0.5", label="trial")
         ax.step(table["trial"], table["best_so_far"], where="post", color="C0", label="best so far")
         ax.axhline(baseline, color="C3", ls="--", label="scenario's own gait")
         ax.set_xlabel("trial")
         ax.set_ylabel(f"{name} [{unit}]")
-        ax.set_title(f"gait search: {search.rs.name}, {search.cycles} cycles of {search.period:g} s")
+        ax.set_title(f"gait search: {search.rs.name}, objective over the first {search.cycles} cycle(s) "
+                     f"of {search.period:g} s", fontsize=10)
         ax.legend(loc="lower right")
-        fig.tight_layout()
+        if steady and "warning" in steady:
+            fig.text(0.01, 0.01, f"not a steady gait: source pressure {steady['source_change_last_cycle_percent']:+.1f} % "
+                                 f"over the last evaluated cycle (steady below {100 * STEADY_CHANGE:g} %); "
+                                 "evaluate more cycles", fontsize=7.5, color="C3", ha="left", va="bottom")
+            fig.tight_layout(rect=(0, 0.05, 1, 1))
+        else:
+            fig.tight_layout()
         fig.savefig(p, dpi=120)
         plt.close(fig)
     write_figure(path, draw)
@@ -344,6 +405,11 @@ def summary_of(res: dict, search: Search, files: dict) -> dict:
         "objective": search.objective,
         "objective_meaning": f"{name} [{unit}], maximised",
         "cycles": search.cycles,
+        "cycles_evaluated": search.cycles,
+        "objective_over": f"the first {search.cycles} cycle(s) of {search.period:g} s from the scenario's "
+                          "initial state",
+        "steady": res["steadiness"]["steady"],
+        "steadiness": res["steadiness"],
         "period_s": search.period,
         "trials": len([t for t in res["study"].trials if t.value is not None]),
         "trials_failed": len([t for t in res["study"].trials if t.state.name == "FAIL"]),

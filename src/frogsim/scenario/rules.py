@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING
 
+from frogsim._budget import ASK_ABOVE, Need, check as check_size
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.fields import shown
 from frogsim.scenario.motion import build_motions
@@ -20,6 +21,9 @@ if TYPE_CHECKING:   # annotations only
     from frogsim.scenario.core import Scenario
 
 MAX_OUTPUT_ROWS = 5_000_000
+#: [bytes] memory an output row takes at least: time, one muscle's state, the source, the exhaust
+#: and two valves (10 floats), held as the result's arrays and again as a table
+ROW_BYTES = 2 * 10 * 8
 
 
 def _meta(obj, name: str) -> dict:
@@ -44,8 +48,12 @@ def check(sc: Scenario) -> None:
 def _check_output_grid(sc) -> None:
     if sc.output_interval > sc.duration:
         raise _interval_err(sc, f"must not exceed the duration ({sc.duration:g} s)")
-    if sc.duration / sc.output_interval > MAX_OUTPUT_ROWS:
-        raise _interval_err(sc, "too fine for the duration (more than 5 million output rows)")
+    rows = sc.duration / sc.output_interval
+    if rows > MAX_OUTPUT_ROWS or rows * ROW_BYTES > ASK_ABOVE:
+        n = int(min(rows, 2**62)) + 1
+        check_size("output_interval", shown(sc.output_interval, sc.meta("output_interval")),
+                   Need(f"a run of {n:,} output rows ({sc.duration:g} s every {sc.output_interval:g} s)",
+                        n, "output rows", MAX_OUTPUT_ROWS, memory=n * ROW_BYTES))
 
 
 def _interval_err(sc, allowed: str) -> ScenarioError:

@@ -95,7 +95,10 @@ def _draw13(data: StudyData, path: str) -> None:
     b2.plot(d.time_s, d.hip_volume_cm3, color="tab:purple", lw=1, label="muscle volume")
     b2.set_ylabel("volume [cm$^3$]", color="tab:purple")
     b.set_xlabel("time [s]")
-    b.legend(loc="upper right")
+    lines, labels = b.get_legend_handles_labels()
+    more, more_labels = b2.get_legend_handles_labels()
+    b.legend(lines + more, labels + [f"{lb} (right axis)" for lb in more_labels], loc="center right",
+             fontsize=9)          # every curve of both axes; beside the flat stretch after 1.5 s
     save(fig, path, NOTE)
 
 
@@ -288,7 +291,7 @@ def _draw_aeration(data: StudyData, path: str) -> None:
     a.set_ylabel("aeration volume [L at standard state]")
     a.set_ylim(0, 0.6)
     a.set_title("Air charged per pressurise phase (ISO 8778 standard litres)")
-    a.legend(loc="lower right")
+    a.legend(loc="upper center", ncol=2)     # in the empty band above the bars and their labels
     save(fig, path, NOTE)
 
 

@@ -97,14 +97,22 @@ def _draw_leg(data: StudyData, path: str) -> None:
 
 
 # --- swim outputs -----------------------------------------------------------------------------------
+MAX_CONTROL_PANELS = 4      # closed-loop controllers drawn, one panel each (all are in summary.json)
+
+
 def plot_swim(result, path: str, summary: dict | None = None) -> None:
-    """Four panels against time: forward motion, water forces, joint angles, pressures."""
+    """Panels against time: forward motion, water forces, joint angles (the palms' opening on a
+    0-1 axis of its own), pressures (driving muscles solid, recovery muscles dashed), then one
+    panel per closed-loop controller (:func:`_draw_controller`)."""
     s = summary or result.summary()
     t = result.t
-    fig, ax = figure(4, 1, width=11.0, height=10.5, sharex=True)
+    controllers = [(n, c) for n, c in result.rs.pneumatic.controllers.items() if c.kind != "program"]
+    shown = controllers[:MAX_CONTROL_PANELS]
+    rows = 4 + len(shown)
+    fig, ax = figure(rows, 1, width=11.0, height=10.5 + 2.6 * len(shown), sharex=True)
     a, b, c, e = (ax[k, 0] for k in range(4))
     for x0, x1 in result.extension_windows():
-        for axis in (a, b, c, e):
+        for axis in ax[:, 0]:
             axis.axvspan(x0, x1, color="tab:orange", alpha=0.07, lw=0)
     a.plot(t, result.forward, color="k", lw=2, label="forward distance")
     a.set_ylabel("distance [m]")
@@ -119,23 +127,79 @@ def plot_swim(result, path: str, summary: dict | None = None) -> None:
     b.plot(t, result.hull_force, lw=1.2, label="hull")
     b.axhline(0, color="0.5", lw=0.6)
     b.set_ylabel("water force along heading [N]")
-    outside = {"loc": "upper left", "bbox_to_anchor": (1.01, 1.0), "fontsize": 8}   # hides no curve
+    outside = {"loc": "upper left", "bbox_to_anchor": (1.07, 1.0), "fontsize": 8}   # hides no curve
     b.legend(**outside)
     for j in ("hip", "knee", "ankle"):
         c.plot(t, np.degrees(result.joint_angles[:, result.joint_names.index(f"{j}_left")]),
                color=JOINT_COLORS[j], label=j)
-    c.plot(t, 40 * result.palm_opening[:, 0], color="0.5", ls=":", label="palm open (x 40)")
     c.set_ylabel("left leg joint angle [deg]")
-    c.legend(**outside)
+    c2 = c.twinx()
+    c2.plot(t, result.palm_opening[:, 0], color="0.45", ls=":", lw=1.2, label="left palm opening (right axis)")
+    c2.set_ylim(-0.05, 1.6)
+    c2.set_yticks([0, 1], ["fold", "open"])
+    c2.set_ylabel("palm", color="0.45")
+    h1, l1 = c.get_legend_handles_labels()
+    h2, l2 = c2.get_legend_handles_labels()
+    c.legend(h1 + h2, l1 + l2, **outside)
     e.plot(t, _gauge(result, result.source_pressure), "k", lw=2, label="source")
     e.plot(t, _gauge(result, result.exhaust_pressure), "k--", lw=1, label="exhaust")
     for j in ("hip", "knee", "ankle"):
         i = result.muscle_names.index(f"{j}_left")
         e.plot(t, _gauge(result, result.pressures[:, i]), color=JOINT_COLORS[j], lw=1, label=f"{j} driving")
-    e.set_ylabel("pressure [bar gauge]")
-    e.set_xlabel("time [s]")
+        if f"{j}_left_recovery" in result.muscle_names:
+            k = result.muscle_names.index(f"{j}_left_recovery")
+            e.plot(t, _gauge(result, result.pressures[:, k]), color=JOINT_COLORS[j], lw=1, ls="--",
+                   label=f"{j} recovery")
+    e.set_ylabel("left leg, pressure [bar gauge]")
     e.legend(**outside)
-    save(fig, path, NOTE)
+    for k, (name, ctl) in enumerate(shown):
+        _draw_controller(ax[4 + k, 0], result, name, ctl, s.get("control", {}).get(name, {}), outside)
+    ax[-1, 0].set_xlabel("time [s]")
+    note = NOTE
+    if len(controllers) > len(shown):
+        note += f"; {len(controllers) - len(shown)} more closed-loop controller(s) in summary.json"
+    save(fig, path, note)
+
+
+def _draw_controller(a, result, name: str, ctl, m: dict, outside: dict) -> None:
+    """One closed-loop controller: its setpoint and the tracked signal on one axis (a joint angle
+    [deg] or a muscle pressure [bar gauge]), a joint-angle controller's muscle and antagonist
+    pressures on the right axis, the time before ``settle`` hatched (not in the metrics) and the
+    tracking numbers of summary.json written in the panel."""
+    t = result.t
+    a.axvspan(t[0], ctl.settle, facecolor="none", edgecolor="0.75", hatch="//", lw=0)
+    if ctl.kind == "joint-angle":
+        j = result.joint_names.index(ctl.joint)
+        a.plot(t, np.degrees(result.setpoint(name)), "k--", lw=1.5, label=f"{ctl.joint} setpoint")
+        a.plot(t, np.degrees(result.joint_angles[:, j]), color="tab:purple", lw=1.5, label=f"{ctl.joint} angle")
+        a.set_ylabel(f"{name}: angle [deg]")
+        a2 = a.twinx()
+        for mu, ls in ((ctl.muscle, "-"), (ctl.antagonist, ":")):
+            i = result.muscle_names.index(mu)
+            role = "muscle" if mu == ctl.muscle else "antagonist"
+            a2.plot(t, _gauge(result, result.pressures[:, i]), color="tab:red", ls=ls, lw=1,
+                    label=f"{mu} ({role}) pressure, right axis")
+        a2.set_ylabel("pressure [bar gauge]", color="tab:red")
+        h1, l1 = a.get_legend_handles_labels()
+        h2, l2 = a2.get_legend_handles_labels()
+        a.legend(h1 + h2, l1 + l2, **outside)
+        unit, rms, mx = "deg", m.get("tracking_error_rms_deg"), m.get("tracking_error_max_deg")
+        extra = f", pressure target clipped at {m.get('samples_pressure_target_clipped', 0)} samples"
+    else:
+        i = result.muscle_names.index(ctl.muscle)
+        a.plot(t, _gauge(result, result.setpoint(name)), "k--", lw=1.5, label=f"{ctl.muscle} setpoint")
+        a.plot(t, _gauge(result, result.pressures[:, i]), color="tab:red", lw=1.5, label=f"{ctl.muscle} pressure")
+        a.set_ylabel(f"{name}: pressure [bar gauge]")
+        a.legend(**outside)
+        unit, rms, mx = "bar", m.get("tracking_error_rms_bar"), m.get("tracking_error_max_bar")
+        extra = ""
+
+    def num(x):
+        return "n/a" if x is None else f"{x:.3g}"
+    a.set_title(f"{name}: {ctl.kind} control; tracking error from {ctl.settle:g} s on (earlier: hatched, "
+                f"not counted) RMS {num(rms)} {unit}, max {num(mx)} {unit}\n"
+                f"{num(m.get('switchings_per_s'))} valve switchings/s, {num(m.get('air_used_L_std'))} L "
+                f"(standard) of air{extra}", fontsize=8.5)
 
 
 def write_outputs(result, out, animation: bool = True, progress=None) -> dict:

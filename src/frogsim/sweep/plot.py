@@ -1,9 +1,21 @@
 """Plots of a sweep's results: a metric against one swept parameter (line) or two (heatmap).
 
 Swept parameters not on an axis must be fixed with ``select`` (a value as written, e.g. "45 L/min",
-or a number in SI) or averaged over with ``reduce="mean"`` (NaN of unfinished or failed points
-skipped). Random, LHS and list sweeps are drawn as scatter plots over their points; ``select``
-there keeps the points with that value.
+or a number in SI) or averaged over with ``reduce="mean"``. Random, LHS and list sweeps are drawn
+as scatter plots over their points; ``select`` there keeps the points with that value.
+
+"Not reached" is never hidden. A metric is NaN at a point that ran to the end (``completed``, not
+``failed``) when the run never got there (a rise time while the pressure stays below its 90 %
+mark): such points are *not reached*. Unfinished and failed points are *not run* and are left out
+(counted in the figure's note).
+
+* line: a not-reached point is drawn as an "x" on the axis' bottom edge, with a legend entry;
+* ``reduce="mean"`` (line): the mean is drawn (filled markers, the line) only where every run
+  point of the averaged ones reached the metric; where only some did, the mean of those is drawn
+  as an open marker labelled "27 of 42 reached", and where none did, an "x" labelled "0 of 42
+  reached". :func:`reduced` returns these numbers;
+* heatmap: a cell whose value is NaN (not reached; with ``reduce="mean"``: not reached at one or
+  more of the averaged points) is hatched grey and the legend says so.
 """
 from __future__ import annotations
 
@@ -109,6 +121,62 @@ def _match(ds, path: str, text: str):
     return hit
 
 
+def _ran(ds):
+    """Points that ran to the end: completed and not failed."""
+    ran = ds["completed"].astype(bool)
+    return ran & ~ds["failed"].astype(bool) if "failed" in ds else ran
+
+
+def reduced(da, ran, dims) -> dict:
+    """The mean of ``da`` over ``dims`` honest about not-reached points (module docstring):
+    ``n_run`` points that ran, ``n_reached`` of them with a value, ``mean`` over all of them (NaN
+    unless every run point reached it, or none ran) and ``mean_reached`` over those that did."""
+    reached = da.notnull() & ran
+    n_run = ran.sum(dim=dims)
+    n_reached = reached.sum(dim=dims)
+    mean_reached = da.where(reached).mean(dim=dims, skipna=True)
+    mean = mean_reached.where((n_reached == n_run) & (n_run > 0))
+    return {"mean": mean, "mean_reached": mean_reached, "n_run": n_run, "n_reached": n_reached}
+
+
+def _mark_missed(a, xs, missed, label: str) -> None:
+    """An "x" on the bottom edge of the axes at every x whose point was not reached."""
+    missed = np.asarray(missed, bool)
+    if missed.any():
+        a.plot(np.asarray(xs)[missed], np.zeros(int(missed.sum())), "x", color="tab:red", ms=8, mew=2,
+               clip_on=False, transform=a.get_xaxis_transform(), label=label)
+
+
+def _draw_partial(a, xv, r: dict) -> None:
+    """Open markers (mean of the points that reached it) and "k of n reached" where only some
+    averaged points reached the metric; an "x" on the bottom edge where none did."""
+    n_run, n_reached = np.asarray(r["n_run"]), np.asarray(r["n_reached"])
+    some = (n_reached > 0) & (n_reached < n_run)
+    if some.any():
+        a.plot(np.asarray(xv)[some], np.asarray(r["mean_reached"])[some], "o", mfc="none", color="tab:red",
+               ms=8, label="mean of the points that reached it (k of n)")
+        for xk, yk, k, n in zip(np.asarray(xv)[some], np.asarray(r["mean_reached"])[some], n_reached[some],
+                                n_run[some]):
+            a.annotate(f"{k} of {n} reached", (xk, yk), textcoords="offset points", xytext=(6, 6),
+                       fontsize=7, color="tab:red")
+    none = (n_reached == 0) & (n_run > 0)
+    if none.any():
+        _mark_missed(a, xv, none, "no averaged point reached it")
+        for xk, n in zip(np.asarray(xv)[none], n_run[none]):
+            a.annotate(f"0 of {n} reached", (xk, 0.02), xycoords=a.get_xaxis_transform(),
+                       textcoords="offset points", xytext=(6, 6), fontsize=7, color="tab:red")
+
+
+def _hatch_nan(a, label: str) -> None:
+    """Hatch what shows through NaN cells (the axes' background) and say so in a legend."""
+    from matplotlib.patches import Patch
+    a.set_facecolor("0.85")
+    a.patch.set_hatch("//")
+    a.patch.set_edgecolor("0.55")
+    a.legend(handles=[Patch(facecolor="0.85", edgecolor="0.55", hatch="//", label=label)],
+             fontsize=8, loc="upper left", bbox_to_anchor=(0.0, -0.12), frameon=False)
+
+
 def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict | None = None,
                reduce: str | None = None) -> None:
     """Draw ``metric`` against swept parameter ``x`` (and ``y``: heatmap) into the PNG ``out``."""
@@ -133,12 +201,15 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
         if p in (x, y):
             raise ScenarioError("--select", p, "is on an axis already")
     mfactor, mlabel = _metric(ds, metric)
-    da = ds[metric].where(ds["completed"].astype(bool)) / mfactor
+    ran = _ran(ds)
+    da = ds[metric].where(ran) / mfactor
     grid = ds.attrs.get("sweep_method") == "grid"
     note = []
+    partial = None
     if grid:
         for p, text in select.items():
-            da = da.isel({p: int(np.argmax(_match(ds, p, text)))})
+            k = int(np.argmax(_match(ds, p, text)))
+            da, ran = da.isel({p: k}), ran.isel({p: k})
             note.append(f"{p} = {text}")
         rest = [d for d in da.dims if d not in (x, y)]
         if rest and reduce != "mean":
@@ -147,21 +218,34 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
             raise ScenarioError("--select", p, f"is swept too: fix it with --select '{p}=VALUE' "
                                                f"(values: {shown}) or average with --reduce mean")
         if rest:
-            da = da.mean(dim=rest, skipna=True)
-            note.append("mean over " + ", ".join(rest))
+            partial = reduced(da, ran, rest)
+            da = partial["mean"]
+            note.append("mean over " + ", ".join(rest) + " (only where every point reached it)")
     else:
         keep = np.ones(ds.sizes["point"], bool)
         for p, text in select.items():
             keep &= _match(ds, p, text)
             note.append(f"{p} = {text}")
-        da = da.isel(point=np.flatnonzero(keep))
+        da, ran = da.isel(point=np.flatnonzero(keep)), ran.isel(point=np.flatnonzero(keep))
+    n_ran = int(ran.sum())
+    n_not_run = int(ran.size - n_ran)
+    n_missed = int((ran & da.isnull()).sum()) if partial is None else None
+    if n_not_run:
+        note.append(f"{n_not_run} point(s) not run or failed, left out")
     xv, xlabel = _axis(ds, x)
     xlog, ylog = is_log(ds, x), (y is not None and is_log(ds, y))
     fig, ax = figure(1, 1, width=7.0, height=4.8)
     a = ax[0, 0]
     if grid and y is None:
         vals = da.transpose(x).values
-        a.plot(xv, vals, "o-")
+        if partial is None:
+            a.plot(xv, vals, "o-", label=metric if n_missed else None)
+            _mark_missed(a, xv, (ran & da.isnull()).transpose(x).values, "not reached (NaN)")
+        else:
+            a.plot(xv, vals, "o-", label="mean (every point reached it)")
+            _draw_partial(a, xv, {k: v.transpose(x).values for k, v in partial.items()})
+        if a.get_legend_handles_labels()[0]:
+            a.legend(fontsize=8, loc="best")
         a.set_xlabel(xlabel)
         a.set_ylabel(mlabel)
     elif grid:
@@ -180,13 +264,27 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
                 cs = a.contour(xv, yv, vals, colors="k", linewidths=0.6)
                 a.clabel(cs, fontsize=7)
         fig.colorbar(mesh, ax=a, label=mlabel)
+        if partial is None:
+            n_cells_missed, n_cells_not_run = int((ran & da.isnull()).sum()), int((~ran).sum())
+        else:
+            n_run, n_reached = partial["n_run"], partial["n_reached"]
+            n_cells_missed = int(((n_reached < n_run) & (n_run > 0)).sum())
+            n_cells_not_run = int((n_run == 0).sum())
+        if n_cells_missed or n_cells_not_run:
+            what = [f"{n_cells_missed} of {vals.size} cells not reached"
+                    + (" at one or more averaged points" if partial is not None else "")] * bool(n_cells_missed)
+            what += [f"{n_cells_not_run} of {vals.size} not run or failed"] * bool(n_cells_not_run)
+            _hatch_nan(a, "; ".join(what))
         a.set_xlabel(xlabel)
         a.set_ylabel(ylabel)
         a.grid(False)
     else:
         xs = xv[da["point"].values]
         if y is None:
-            a.plot(xs, da.values, "o", ms=3)
+            a.plot(xs, da.values, "o", ms=3, label=metric)
+            _mark_missed(a, xs, (ran & da.isnull()).values, "not reached (NaN)")
+            if n_missed:
+                a.legend(fontsize=8, loc="best")
             a.set_ylabel(mlabel)
         else:
             yv, ylabel = _axis(ds, y)
@@ -197,6 +295,8 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
         others = [p for p in params if p not in (x, y) and p not in select]
         if others:
             note.append("varying: " + ", ".join(others))
+        if y is not None and n_missed:
+            note.append(f"{n_missed} of {n_ran} points not reached (not drawn)")
     for on, axis, set_scale in ((xlog, a.xaxis, a.set_xscale), (ylog, a.yaxis, a.set_yscale)):
         if on:
             set_scale("log")

@@ -47,9 +47,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from frogsim._budget import check as check_size
 from frogsim._files import atomic_write
 from frogsim._parallel import map_pieces
-from frogsim.errors import ScenarioError, SimulationError
+from frogsim.errors import ScenarioError, Shown, SimulationError
 from frogsim.scenario.core import Scenario
 from frogsim.sweep.metrics import STATES
 from frogsim.sweep.spec import SweepSpec, _flatten_parameters, _toml_value, changed_inputs, dumps_toml, load_spec
@@ -631,6 +632,9 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
     a ScenarioError then means nothing was written.
     """
     spec = load_spec(spec_or_path)
+    out = Path(out) if out is not None else None
+    check_size("record.timeseries" if spec.timeseries else "sweep", Shown(f"{spec.n_points} points"),
+               spec.need(out))
     spec.validate_points()
     out = Path(out) if out is not None else None
     existing = None
@@ -659,6 +663,10 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
                                                            "another --out")
                 existing = None
         journal = _Journal(out)
+        if journal.dir.exists() and not journal.dir.is_dir():
+            raise ScenarioError("--out", str(out), f"its journal {journal.dir} is a file, not the folder a sweep "
+                                                   "keeps its finished chunks in; move or delete that file, or "
+                                                   "use another --out")
         jm = journal.manifest() if journal.dir.exists() else None
         if jm is not None and jm["hash"] != spec.hash and not overwrite:
             changed = _changed_inputs(jm.get("inputs"), spec)

@@ -51,14 +51,19 @@ from pathlib import Path
 
 import numpy as np
 
+from frogsim._budget import Need, check as check_size
 from frogsim.scenario.fields import parse_field, unknown_key_error, unwrap
-from frogsim.errors import MISSING, UNKNOWN, ScenarioError
+from frogsim.errors import MISSING, UNKNOWN, ScenarioError, Shown
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.load import merged_raw, read_toml, scenario_from_raw, with_overrides
 from frogsim.scenario.units import SI_UNITS, display_factor
 
 METHODS = ("grid", "list", "random", "lhs")
 MAX_POINTS = 2_000_000
+#: [bytes] memory a sweep holds per point beyond its numbers: the point's tuple of written values,
+#: its entry in the spec hash's JSON, and the store's and dataset's flags (an estimate, on the low side)
+POINT_OVERHEAD = 150
+POINT_BYTES_PER_VALUE = 40       # [bytes] per parameter of a point (SI value, written value, hash text)
 _SPEC_KEYS = ("name", "description", "base", "sweep", "record", "run")
 _PARAM_KEYS = ("values", "start", "stop", "num", "min", "max", "unit", "scale")
 _RANGE_KEYS = ("values", "start", "stop", "num", "min", "max")
@@ -499,6 +504,11 @@ class SweepSpec:
                        "sweep supply.mode or set supply.mode = 'none' or 'physical' to see the valve alone")
         return out
 
+    def need(self, out=None) -> Need:
+        """What running this sweep would take (memory; with ``out``, disk): see :func:`point_need`."""
+        n_ts = len(self.timeseries.states) * len(self.timeseries.times) if self.timeseries else 0
+        return point_need(self.n_points, len(self.parameters), len(self.metrics) + n_ts, out)
+
     def variant(self, k: int) -> Scenario:
         """The scenario of point k (validated)."""
         return self.scenario.replace(self.point(k))
@@ -662,6 +672,7 @@ def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
     for a, b in itertools.permutations(paths, 2):
         if b.startswith(a + "."):
             raise ScenarioError(f"sweep.parameters.{b}", UNKNOWN, f"lies inside another swept setting ({a})")
+    _check_point_count(flat, method, sweep, raw.get("record", {}))     # before any value is made
     params = [_parameter(p, v, method, scenario) for p, v in flat.items()]
     samples = seed = None
     if method in ("random", "lhs"):
@@ -671,8 +682,6 @@ def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
         seed = sweep.get("seed", 0)
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
             raise ScenarioError("sweep.seed", seed, "expected a whole number >= 0")
-        if samples > MAX_POINTS:
-            raise ScenarioError("sweep.samples", samples, f"must be <= {MAX_POINTS}")
         u = _sample(method, samples, seed, params)
         filled = []
         for j, p in enumerate(params):
@@ -694,9 +703,6 @@ def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
                                     f"values as {first.path} ({len(first.written)})")
             written = list(zip(*(p.written for p in params)))
         else:
-            total = math.prod(len(p.written) for p in params)
-            if total > MAX_POINTS:
-                raise ScenarioError("sweep.parameters", f"{total} points", f"a grid must have <= {MAX_POINTS} points")
             written = list(itertools.product(*(p.written for p in params)))
     if method == "grid":
         si = np.array(list(itertools.product(*(p.si for p in params))), float).reshape(len(written), len(params))
@@ -732,6 +738,47 @@ def load_spec(source, base_dir: str | os.PathLike | None = None) -> SweepSpec:
                      base_dir=scen_dir, scenario=scenario, parameters=tuple(params), written=tuple(written), si=si,
                      metrics=tuple(metrics), muscle=muscle, timeseries=timeseries,
                      chunk_size=chunk_size, samples=samples, seed=seed, text=text, raw=raw, inputs=inputs)
+
+
+def point_need(n: int, n_params: int, n_values: int, out=None) -> Need:
+    """What a sweep of ``n`` points would take: memory for its point table and results
+    (``n_values`` numbers per point: metrics and time-series samples, held twice: the store and
+    the dataset) and, with ``out``, disk for the results file and its journal (each value
+    written twice)."""
+    per_point = POINT_OVERHEAD + POINT_BYTES_PER_VALUE * n_params + 16 * n_values
+    disk = n * (8 * n_params + 8 * n_values + 2) * 2 if out is not None else 0.0
+    return Need(f"a sweep of {n:,} points", n, "points", MAX_POINTS, memory=float(n) * per_point,
+                disk=disk, disk_path=out)
+
+
+def _check_point_count(flat: dict, method: str, sweep: dict, record) -> None:
+    """The number of points the spec asks for, from the lengths and ``num`` of its parameters
+    (grid: their product) or ``samples``, refused by :func:`frogsim._budget.check` with the memory
+    it would need before any parameter's values are made."""
+    counts = {}
+    for path, raw in flat.items():
+        if isinstance(raw, dict) and "num" in raw:
+            num = raw["num"]
+            if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+                raise ScenarioError(f"sweep.parameters.{path}.num", num, "expected a whole number >= 1")
+            counts[f"sweep.parameters.{path}.num"] = num
+        elif isinstance(raw, (list, dict)):
+            values = raw if isinstance(raw, list) else raw.get("values", [])
+            counts[f"sweep.parameters.{path}"] = len(values) if isinstance(values, list) else 1
+    samples = sweep.get("samples")
+    if method in ("random", "lhs") and isinstance(samples, int) and not isinstance(samples, bool):
+        field, n = "sweep.samples", samples
+    elif method == "grid":
+        n = math.prod(counts.values())
+        field = next(iter(counts)) if len(counts) == 1 else "sweep.parameters"
+    else:
+        field, n = max(counts.items(), key=lambda kv: kv[1], default=("sweep.parameters", 0))
+    metrics = record.get("metrics") if isinstance(record, dict) else None
+    from frogsim.sweep.metrics import METRICS
+    n_metrics = len(metrics) if isinstance(metrics, list) else 1 if isinstance(metrics, str) else len(METRICS)
+    shown = flat[field[17:-4]]["num"] if field.endswith(".num") else n if field == "sweep.samples" \
+        else Shown(f"{n} points")
+    check_size(field, shown, point_need(n, len(flat), n_metrics))
 
 
 def _timeseries(ts, scenario, params, metrics) -> TimeSeries | None:
