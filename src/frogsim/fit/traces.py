@@ -23,7 +23,9 @@ from pathlib import Path
 import numpy as np
 
 from frogsim.errors import UNKNOWN, ScenarioError
+from frogsim.scenario.files import read_text
 from frogsim.scenario.motion import output_times
+from frogsim.scenario.tables import model_columns, read_table, split_header
 from frogsim.scenario.units import parse_quantity
 
 #: a sampling step larger than this many times the median step is a gap
@@ -31,6 +33,8 @@ GAP_FACTOR = 5.0
 _HEADER = re.compile(r"^\s*(?P<name>[^\[\]]*?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")
 _GAUGE = ("gauge", "g")
 _ABS = ("abs", "absolute", "a")
+#: a trace may run on past the scenario's end, to at most this many times its duration
+LENGTH_FACTOR = 2.0
 #: time may end this much before the scenario's duration (rounding of a logger's clock) [s]
 _TIME_SLACK = 1e-9
 
@@ -93,11 +97,11 @@ def _col_error(fname: str, col: str, allowed: str) -> ScenarioError:
 
 
 def _parse_header(fname: str, col: str) -> tuple[str, str]:
-    m = _HEADER.match(str(col))
-    if not m or not m.group("name") or not m.group("unit").strip():
+    name, unit = split_header(col)
+    if not name or not unit:
         raise _col_error(fname, str(col), "the header has no unit: write it as 'signal [unit]', "
                                           "e.g. 'hip_left pressure [bar gauge]' or 'time [s]'")
-    return m.group("name").strip(), m.group("unit").strip()
+    return name, unit
 
 
 def _unit_scale(fname: str, col: str, unit: str, kind: str, what: str) -> float:
@@ -118,22 +122,23 @@ def _pressure_unit(fname: str, col: str, unit: str, patm: float) -> tuple[float,
     return scale, (patm if words[-1].lower() in _GAUGE else 0.0)
 
 
-def _read_table(path: Path):
+def _read_table(path: Path, what: str = "trace"):
     import pandas as pd
     fname = path.name
-    if not path.is_file():
-        raise ScenarioError(f"trace {str(path)!r}", UNKNOWN, "file not found")
     if path.suffix.lower() in (".parquet", ".pq"):
+        if not path.is_file():
+            read_text(path, f"{what} file")     # says why: not found, a directory, a device, ...
         try:
             import pyarrow  # noqa: F401
         except ImportError:
-            raise ScenarioError(f"trace {fname!r}", UNKNOWN,
+            raise ScenarioError(f"{what} {fname!r}", UNKNOWN,
                                 "reading Parquet needs pyarrow (pip install pyarrow); or write the trace as CSV") from None
-        return pd.read_parquet(path)
-    try:
-        return pd.read_csv(path, skipinitialspace=True, comment="#")
-    except Exception as exc:  # pandas raises several types for unreadable text
-        raise ScenarioError(f"trace {fname!r}", UNKNOWN, f"not a readable CSV file ({type(exc).__name__})") from None
+        try:
+            return pd.read_parquet(path)
+        except Exception as exc:  # pyarrow raises several types for a file that is not Parquet
+            raise ScenarioError(f"{what} {fname!r}", UNKNOWN,
+                                f"not a readable Parquet file ({type(exc).__name__})") from None
+    return read_table(path, what, numbers=False)
 
 
 def read_trace(path, scenario, ignore_columns=()) -> Trace:
@@ -156,6 +161,7 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
         raise ScenarioError(f"trace {fname!r}", UNKNOWN,
                             f"ignore_columns names columns it does not have: {', '.join(map(repr, missing_ignored))}")
     known = model_signals(scenario)
+    others = {n for n, _ in model_columns(scenario.muscles)} - set(known)
     patm = scenario.air.atmospheric_pressure_abs
     time_col, cols, unknown, ignored = None, {}, [], []
     for col in df.columns:
@@ -170,7 +176,10 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
             time_col = (col, _unit_scale(fname, col, unit, "time", "a time unit such as s or ms"))
             continue
         if name not in known:
-            unknown.append(col)
+            if name in others:              # a frogsim output the fit does not use (volume, valve, ...)
+                ignored.append(col)
+            else:
+                unknown.append(col)
             continue
         if name in cols:
             raise _col_error(fname, col, f"signal {name!r} appears twice")
@@ -206,6 +215,10 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
     if t[-1] < scenario.duration - _TIME_SLACK * max(1.0, scenario.duration):
         raise _col_error(fname, time_col[0], f"ends at {t[-1]:g} s, before the end of the scenario "
                                              f"({scenario.duration:g} s)")
+    if t[-1] > LENGTH_FACTOR * scenario.duration + med:
+        raise _col_error(fname, time_col[0], f"ends at {t[-1]:g} s, more than {LENGTH_FACTOR:g} x the "
+                                             f"scenario's {scenario.duration:g} s: a trace of another run, "
+                                             "or a wrong time unit (ms written as s)?")
     signals = {name: numbers(col) * scale + offset for name, (col, scale, offset) in cols.items()}
     return Trace(path=str(path), time=t, signals=signals, columns={n: c[0] for n, c in cols.items()},
                  ignored=tuple(ignored), median_step=med)
