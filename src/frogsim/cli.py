@@ -485,9 +485,18 @@ def _writes(s, metavar: str = "DIR", workers: str | None = None, overwrite: bool
     _flag(s, "--quiet", action="store_true")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with frogsim's one-line refusal: "frogsim: error: ..." and exit 2, no usage block."""
+
+    def error(self, message):
+        from frogsim.errors import clip
+        where = self.prog if self.prog != "frogsim" else "frogsim"
+        self.exit(2, f"frogsim: error: {clip(message, 300)} (see: {where} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from frogsim import __version__
-    p = argparse.ArgumentParser(prog="frogsim", description=__doc__.split("\n\n")[0],
+    p = _Parser(prog="frogsim", description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[2:]).strip(),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"frogsim {__version__}")
