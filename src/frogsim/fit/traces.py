@@ -84,12 +84,23 @@ def numeric_column(df, fname: str, col: str) -> np.ndarray:
     try:
         x = np.asarray(df[col].to_numpy(), dtype=float)
     except (TypeError, ValueError):
-        raise _col_error(fname, col, "holds values that are not numbers") from None
+        cells = list(df[col])
+        k = next(k for k, v in enumerate(cells) if not _is_number(v))
+        raise _col_error(fname, col, f"holds values that are not numbers: {str(cells[k])[:40]!r} in data "
+                                     f"row {k + 1}") from None
     bad = np.flatnonzero(~np.isfinite(x))
     if bad.size:
         raise _col_error(fname, col, f"missing or non-finite value (NaN) in data row {bad[0] + 1} "
                                      f"({bad.size} in all)")
     return x
+
+
+def _is_number(v) -> bool:
+    try:
+        float(v)
+        return True
+    except (TypeError, ValueError):
+        return False
 
 
 def _col_error(fname: str, col: str, allowed: str) -> ScenarioError:
