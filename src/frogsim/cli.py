@@ -499,7 +499,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="frogsim", description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[2:]).strip(),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--version", action="version", version=f"frogsim {__version__}")
+    p.add_argument("--version", action="version", version=f"frogsim {__version__}",
+                   help="print frogsim's version and stop")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     s = sub.add_parser("studies", help="list the registered studies")
     s.set_defaults(func=cmd_studies)
