@@ -9,14 +9,17 @@ Signals are the ones the pneumatic model computes: ``<muscle> pressure``, ``sour
 ``exhaust pressure``. A pressure unit must say whether it is ``gauge`` or ``abs`` (``absolute``);
 gauge values are made absolute with the scenario's atmospheric pressure. Every unit goes through
 frogsim's own unit parser (:mod:`frogsim.scenario.units`). Columns the fit is not to use (a joint
-angle, a temperature) are named in the experiment's ``ignore_columns``; any other column the model
-has no signal for is refused, so that a misspelt signal is never silently dropped.
+angle, a temperature) are named in the experiment's ``ignore_columns``; the other columns frogsim
+simulate writes (temperatures, volumes, flows, valve states) are left out without being named, so
+a simulate folder's ``timeseries.csv`` is a trace as it is; any other column the model has no
+signal for is refused, so that a misspelt signal is never silently dropped. The file is read by
+:func:`frogsim.scenario.tables.read_table` (headers in any spelling frogsim wrote, every row as
+many fields as the header).
 
 Every refusal is a one-line :class:`frogsim.ScenarioError` naming the file and the column.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -30,7 +33,6 @@ from frogsim.scenario.units import parse_quantity
 
 #: a sampling step larger than this many times the median step is a gap
 GAP_FACTOR = 5.0
-_HEADER = re.compile(r"^\s*(?P<name>[^\[\]]*?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")
 _GAUGE = ("gauge", "g")
 _ABS = ("abs", "absolute", "a")
 #: a trace may run on past the scenario's end, to at most this many times its duration
@@ -159,7 +161,8 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
     unit of the wrong kind, a pressure neither gauge nor abs, a column for a signal the model does
     not have (all such columns listed), no time column, non-numeric or missing values (NaN), time
     not strictly increasing, a gap (a step more than 5 times the median step), a trace that does not
-    cover the scenario's run from 0 to its duration.
+    cover the scenario's run from 0 to its duration, a trace running on past
+    LENGTH_FACTOR times the duration.
     """
     path = Path(path)
     fname = path.name

@@ -127,7 +127,7 @@ def read_table(path, what: str = "table", numbers: bool = True, max_bytes: int |
     as text, for the caller to refuse if it uses it."""
     import pandas as pd
     kw = {} if max_bytes is None else {"max_bytes": max_bytes}
-    text = read_text(path, f"{what} file", **kw)
+    text = read_text(path, what if what.endswith("file") else f"{what} file", **kw)
     lines = [(k, line) for k, line in enumerate(text.splitlines(), start=1)
              if line.strip() and not line.lstrip().startswith("#")]
     if not lines:
