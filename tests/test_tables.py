@@ -157,3 +157,14 @@ def test_compare_refuses_a_damaged_run(run, tmp_path, capsys, damage, words):
     for w in words:
         assert w in err, (w, err)
     assert not out.exists()
+
+
+def test_the_fit_report_shows_overrides_in_their_units():
+    from frogsim.fit.report import overrides_text
+    v = frogsim.load_scenario("paper-cycle").variable_paths()
+    text = overrides_text({"source.initial_pressure_gauge": 4e5,             # 4e5 Pa = 4 bar
+                           "valves.charge.sonic_conductance": 8e-9,          # m^3/(s Pa) = 0.8 L/(s bar)
+                           "supply.mode": "physical"}, v)
+    assert text == ("source.initial_pressure_gauge = 4 bar, valves.charge.sonic_conductance = 0.8 L/(s*bar), "
+                    "supply.mode = 'physical'")
+    assert "SI" not in text and "{" not in text

@@ -60,7 +60,7 @@ def _checked_place(text: str, field: str) -> Path:
         _refuse_out(text, "is empty: name the output (a new folder, e.g. --out results)", field)
     if "\0" in text:
         _refuse_out(text, "holds a NUL character, which no file name may hold", field)
-    full = Path(os.path.abspath(os.path.expanduser(text)))
+    full = Path(os.path.abspath(text))
     if full == Path(full.anchor):
         _refuse_out(text, "is the filesystem root: name a folder of its own, e.g. --out results", field)
     if len(os.fsencode(str(full))) > PATH_MAX:
