@@ -177,3 +177,13 @@ def test_version():
     assert p.returncode == 0 and p.stdout.strip() == f"frogsim {frogsim.__version__}"
     import tomllib
     assert tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["version"] == frogsim.__version__
+
+
+@pytest.mark.parametrize("command, foreign", [("design", "fig13"), ("reproduce", "design-valve"),
+                                              ("control", "aeration"), ("design", "control-pressure")])
+def test_a_study_command_runs_only_its_own_studies(command, foreign, tmp_path, capsys):
+    out = tmp_path / "o"
+    assert main([command, foreign, "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"'{foreign}'" in err and "it is a study of `frogsim" in err, err
+    assert not out.exists()

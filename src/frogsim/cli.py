@@ -131,9 +131,13 @@ def _run_studies(args, group: str) -> int:
     from frogsim.io.outputs import scenario_record, shipped_inputs
     from frogsim.studies import STUDIES, studies_in
     names = list(dict.fromkeys(args.studies or studies_in(group)))
-    unknown = [n for n in names if n not in STUDIES]
+    own = studies_in(group) + (studies_in("robot") if group == "paper" else [])
+    unknown = [n for n in names if n not in own]
     if unknown:
-        return _err(f"study = {unknown[0]!r}: must be one of {', '.join(STUDIES)}", 2)
+        other = STUDIES[unknown[0]].group if unknown[0] in STUDIES else None
+        where = {"paper": "reproduce", "robot": "reproduce", "design": "design", "control": "control"}.get(other)
+        return _err(f"study = {unknown[0]!r}: must be one of {', '.join(own)}"
+                    + (f" (it is a study of `frogsim {where}`)" if where else ""), 2)
     out = out_folder(args.out)
     if args.workers is not None and args.workers < 1:
         return _err(f"--workers = {args.workers}: must be a whole number >= 1", 2)
