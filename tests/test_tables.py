@@ -134,6 +134,7 @@ def test_compare_overlays_differently_named_muscles(tmp_path, capsys):
     ("extra", ["line 2", "17 fields", "16"]),
     ("truncate", ["truncated"]),
     ("edit", ["manifest.json"]),
+    ("rows", ["ends at 0.249 s", "summary.json says 0.5 s", "truncated"]),
 ])
 def test_compare_refuses_a_damaged_run(run, tmp_path, capsys, damage, words):
     folder = tmp_path / "copy"
@@ -147,6 +148,9 @@ def test_compare_refuses_a_damaged_run(run, tmp_path, capsys, damage, words):
         (folder / "manifest.json").unlink()
     elif damage == "truncate":
         csv.write_text(text[: len(text) - 7])
+        (folder / "manifest.json").unlink()
+    elif damage == "rows":      # whole rows cut off at a line's end, the manifest gone too
+        csv.write_text("".join(lines[:251]))
         (folder / "manifest.json").unlink()
     else:
         csv.write_text(text.replace(lines[5].split(",")[1], "9.99", 1))

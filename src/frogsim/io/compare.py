@@ -21,7 +21,8 @@ Every input and the signal are checked before anything runs or is written (Scena
 table is read by :func:`frogsim.scenario.tables.read_table` (a row with a field too many or too
 few, a cell that is no number, a file ending mid-line are refused), its time must be in seconds
 and strictly increasing, and a run folder's ``timeseries.csv`` must be the file its manifest
-recorded (not changed or truncated since).
+recorded (not changed or truncated since), with every cell filled, up to the duration its
+``summary.json`` records.
 """
 from __future__ import annotations
 
@@ -156,7 +157,26 @@ def _read_run_table(text: str, csv: Path, manifest: Path | None):
     t = table[times[0]].to_numpy(float)
     if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
         raise ScenarioError(WHERE, text, f"{csv.name}: time must be finite numbers, strictly increasing")
+    if manifest is not None:                # a run folder: every cell written, up to the run's end
+        empty = np.flatnonzero(table.isna().to_numpy().any(axis=1))
+        if empty.size:
+            raise ScenarioError(WHERE, text, f"{csv.name}: data row {empty[0] + 1} has an empty cell: not as "
+                                             "frogsim wrote it")
+        end = _summary_duration(manifest.parent)
+        if end is not None and abs(t[-1] - end) > 1e-6 * max(1.0, end):
+            raise ScenarioError(WHERE, text, f"{csv.name} ends at {t[-1]:g} s but the run's summary.json says "
+                                             f"{end:g} s: a truncated file")
     return table
+
+
+def _summary_duration(folder: Path) -> float | None:
+    """The run's duration [s] as its summary.json records it, if it does."""
+    import json
+    try:
+        value = json.loads((folder / "summary.json").read_text()).get("duration_s")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
 
 
 def open_input(text: str, signal: str | None = None) -> Run:
