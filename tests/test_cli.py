@@ -70,7 +70,7 @@ def test_simulate_writes_csv_plot_summary(tmp_path):
     assert main(["simulate", str(scen), "--out", str(tmp_path / "o")]) == 0
     csv = (tmp_path / "o" / "timeseries.csv").read_text().splitlines()
     header = csv[0].split(",")
-    assert "hip_pressure_bar_gauge" in header and "time_s" in header
+    assert "hip pressure [bar gauge]" in header and "time [s]" in header
     assert len(csv) == 2001 + 1       # 0..2 s every 1 ms, plus the header
     assert (tmp_path / "o" / "pressures.png").read_bytes()[:4] == b"\x89PNG"
     s = json.loads((tmp_path / "o" / "summary.json").read_text())

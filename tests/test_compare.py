@@ -30,11 +30,15 @@ def scenarios(tmp_path):
 
 
 def test_signal_names():
-    assert signal_of("hip_left_pressure_bar_gauge") == ("hip_left pressure", "bar (gauge)")
-    assert signal_of("source_pressure_bar_gauge") == ("source pressure", "bar (gauge)")
-    assert signal_of("knee_right_discharge_flow_L_per_min_std") == ("knee_right discharge flow", "L/min (standard)")
+    # the older spellings (timeseries.csv of frogsim 0.1, compare CSVs' "bar (gauge)") read as the one written now
+    assert signal_of("hip_left_pressure_bar_gauge") == ("hip_left pressure", "bar gauge")
+    assert signal_of("source_pressure_bar_gauge") == ("source pressure", "bar gauge")
+    assert signal_of("knee_right_discharge_flow_L_per_min_std") == ("knee_right discharge flow", "L/min std")
     assert signal_of("hip_charge_valve") == ("hip charge valve", "1 = open")
-    assert signal_of("pump_on") == ("pump on", "1 = running")
+    assert signal_of("pump_on") == ("pump on", "1 = on")
+    assert signal_of("time_s") == ("time", "s")
+    assert signal_of("fast [bar gauge]") == ("fast", "bar gauge")
+    assert signal_of("hip_left pressure [bar gauge]") == ("hip_left pressure", "bar gauge")
 
 
 def test_compare_csv_equals_the_runs_own_time_series(tmp_path, capsys):
@@ -47,15 +51,15 @@ def test_compare_csv_equals_the_runs_own_time_series(tmp_path, capsys):
                  "--signal", "hip_left pressure", "--out", str(out)]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["hip_left-pressure.csv", "hip_left-pressure.png", "manifest.json"]
     table = pd.read_csv(out / "hip_left-pressure.csv")
-    assert list(table.columns) == ["time [s]", "run-high [bar (gauge)]", "run-low [bar (gauge)]", "low [bar (gauge)]"]
+    assert list(table.columns) == ["time [s]", "run-high [bar gauge]", "run-low [bar gauge]", "low [bar gauge]"]
     own_high = pd.read_csv(tmp_path / "run-high" / "timeseries.csv")
     own_low = pd.read_csv(tmp_path / "run-low" / "timeseries.csv")
-    assert np.array_equal(table["time [s]"].to_numpy(), own_high["time_s"].to_numpy())
-    assert np.array_equal(table["run-high [bar (gauge)]"].to_numpy(), own_high["hip_left_pressure_bar_gauge"].to_numpy())
-    assert np.array_equal(table["run-low [bar (gauge)]"].to_numpy(), own_low["hip_left_pressure_bar_gauge"].to_numpy())
+    assert np.array_equal(table["time [s]"].to_numpy(), own_high["time [s]"].to_numpy())
+    assert np.array_equal(table["run-high [bar gauge]"].to_numpy(), own_high["hip_left pressure [bar gauge]"].to_numpy())
+    assert np.array_equal(table["run-low [bar gauge]"].to_numpy(), own_low["hip_left pressure [bar gauge]"].to_numpy())
     # the scenario run here gives what frogsim simulate wrote for it
-    assert np.array_equal(table["low [bar (gauge)]"].to_numpy(), own_low["hip_left_pressure_bar_gauge"].to_numpy())
-    assert table["run-high [bar (gauge)]"].max() > table["run-low [bar (gauge)]"].max() + 1      # 6 vs 3 bar source
+    assert np.array_equal(table["low [bar gauge]"].to_numpy(), own_low["hip_left pressure [bar gauge]"].to_numpy())
+    assert table["run-high [bar gauge]"].max() > table["run-low [bar gauge]"].max() + 1      # 6 vs 3 bar source
     assert (out / "hip_left-pressure.png").read_bytes()[:4] == b"\x89PNG"
     m = json.loads((out / "manifest.json").read_text())
     assert m["command"] == "compare" and {f["name"] for f in m["files"]} == {"hip_left-pressure.csv",
@@ -80,7 +84,7 @@ def test_different_time_grids_share_one_time_column(tmp_path):
     assert main(["compare", str(high), str(low), "--signal", "source pressure", "--out", str(tmp_path / "c")]) == 0
     t = pd.read_csv(tmp_path / "c" / "source-pressure.csv")
     assert len(t) == 601 and t["time [s]"].iloc[-1] == 0.6
-    assert t["high [bar (gauge)]"].isna().sum() == 100 and t["low [bar (gauge)]"].notna().all()
+    assert t["high [bar gauge]"].isna().sum() == 100 and t["low [bar gauge]"].notna().all()
 
 
 def test_bad_inputs_exit_2_one_line_nothing_written(tmp_path, capsys):

@@ -72,8 +72,8 @@ def test_swim_writes_files_and_summary(tmp_path):
         assert (out / name).stat().st_size > 0, name
     assert not (out / "animation.gif").exists()
     header = (out / "timeseries.csv").read_text().splitlines()[0].split(",")
-    for col in ("time_s", "x_m", "forward_velocity_m_per_s", "thrust_N", "hip_left_angle_deg",
-                "hip_left_pressure_bar_gauge", "source_pressure_bar_gauge", "palm_left_opening_percent"):
+    for col in ("time [s]", "x [m]", "forward velocity [m/s]", "thrust [N]", "hip_left angle [deg]",
+                "hip_left pressure [bar gauge]", "source pressure [bar gauge]", "palm_left opening [%]"):
         assert col in header, col
     rows = (out / "timeseries.csv").read_text().splitlines()
     assert len(rows) == 1 + 101                         # 0..1 s every 10 ms, plus the header

@@ -44,14 +44,80 @@ def umask() -> int:
     return mask
 
 
-def out_folder(path) -> Path:
-    """An output folder given by the user: ScenarioError (the CLI's exit 2, nothing written) if the
-    path exists and is not a directory."""
+NAME_MAX = 255           # bytes of one file name (Linux, macOS)
+PATH_MAX = 4095          # bytes of a whole path
+
+
+def _refuse_out(text: str, why: str, field: str = "--out"):
     from frogsim.errors import ScenarioError
-    out = Path(path)
-    if out.exists() and not out.is_dir():
-        raise ScenarioError("--out", str(out), "exists and is not a directory")
-    return out
+    raise ScenarioError(field, text, why)
+
+
+def _checked_place(text: str, field: str) -> Path:
+    """The absolute path of an output given by the user, refused (ScenarioError) if it is empty,
+    holds a NUL, is a filesystem root or has a name longer than the system allows."""
+    if not isinstance(text, str) or not text.strip():
+        _refuse_out(text, "is empty: name the output (a new folder, e.g. --out results)", field)
+    if "\0" in text:
+        _refuse_out(text, "holds a NUL character, which no file name may hold", field)
+    full = Path(os.path.abspath(text))
+    if full == Path(full.anchor):
+        _refuse_out(text, "is the filesystem root: name a folder of its own, e.g. --out results", field)
+    if len(os.fsencode(str(full))) > PATH_MAX:
+        _refuse_out(text, f"is longer than the {PATH_MAX} bytes a path may have", field)
+    for part in full.parts[1:]:
+        if len(os.fsencode(part)) > NAME_MAX:
+            _refuse_out(text, f"has a name longer than the {NAME_MAX} bytes a file name may have", field)
+    return full
+
+
+def _check_writable(text: str, where: Path, field: str) -> None:
+    """Refuse (ScenarioError) unless ``where`` (an existing folder, or one its nearest existing
+    ancestor can hold) can be written: a folder is made in the nearest existing ancestor and
+    removed at once, so nothing stays behind."""
+    anc = where
+    while not os.path.lexists(anc):
+        anc = anc.parent
+    if not anc.is_dir():
+        _refuse_out(text, f"cannot be made: {str(anc)!r} is a file, not a folder", field)
+    try:
+        probe = tempfile.mkdtemp(prefix=".frogsim-probe-", dir=anc)
+    except OSError as exc:
+        _refuse_out(text, f"cannot be written: {str(anc)!r} refuses new files "
+                          f"({exc.strerror or exc.__class__.__name__})", field)
+    os.rmdir(probe)
+
+
+def out_folder(path, field: str = "--out") -> Path:
+    """An output folder given by the user, checked before anything is written: ScenarioError (the
+    CLI's exit 2, nothing written) if it is empty, a filesystem root, an existing file, or a place
+    no folder can be made or written (a read-only or virtual file system, a path under a file)."""
+    text = os.fspath(path) if isinstance(path, os.PathLike) else path
+    full = _checked_place(text, field)
+    if os.path.lexists(full) and not full.is_dir():
+        _refuse_out(text, "exists and is not a directory: name a folder for the outputs", field)
+    _check_writable(text, full, field)
+    return Path(text)
+
+
+def out_file(path, suffix: str, field: str = "--out", overwrite: bool = True) -> Path:
+    """An output file given by the user (a sweep's .nc, a plot's .png), checked like
+    :func:`out_folder`: its name must end in ``suffix``; an existing folder, device or other
+    non-regular file is refused, an existing file too unless ``overwrite``."""
+    text = os.fspath(path) if isinstance(path, os.PathLike) else path
+    full = _checked_place(text, field)
+    if full.is_dir():
+        _refuse_out(text, f"is a folder: name the {suffix} file to write, e.g. {full.name or 'out'}/out{suffix}",
+                    field)
+    if not full.name.lower().endswith(suffix) or len(full.name) <= len(suffix):
+        _refuse_out(text, f"must be a file name ending in {suffix}", field)
+    if os.path.lexists(full):
+        if not full.is_file():
+            _refuse_out(text, "exists and is not a regular file", field)
+        if not overwrite:
+            _refuse_out(text, "exists: use --overwrite to replace it, or another --out", field)
+    _check_writable(text, full.parent, field)
+    return Path(text)
 
 
 def user_cache_folder(*parts: str) -> str | None:

@@ -1,6 +1,7 @@
 """The ``frogsim`` command: a thin layer over the registries and the engine (no physics here).
 
     frogsim studies                         list the registered studies
+    frogsim scenarios                       list the shipped scenarios
     frogsim reproduce [STUDY ...] --out DIR reproduce the paper's studies (the pneumatic ones by
                                             default; name leg-in-air for the robot's in-air study)
     frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
@@ -10,11 +11,12 @@
                                             figure, summary.json, MJCF, animation
     frogsim params [NAME]                   show a parameter set with the source of every value
     frogsim sweep SPEC.toml --out RESULTS.nc run a parameter sweep (resumable; see docs/sweeps.md)
-    frogsim plot RESULTS.nc --x P --metric M a sweep's metric against one or two swept parameters
+    frogsim plot RESULTS.nc --x P --metric M --out FIG.png
+                                            a sweep's metric against one or two swept parameters
     frogsim fit FIT.toml --out DIR          calibrate parameters to measured traces (docs/fitting.md)
     frogsim optimize-gait SCENARIO --trials N --objective speed|distance-per-litre --out DIR
                                             search the gait's phase timing (resumable; docs/control.md)
-    frogsim compare RUN_OR_SCENARIO ... --signal NAME --out DIR
+    frogsim compare RUN[:SIGNAL] ... [--signal NAME] --out DIR
                                             overlay one signal of several runs or scenarios
 
 Output folders: a folder belongs to the command that first wrote it (its manifest.json says which:
@@ -23,6 +25,10 @@ command, or the same single-run command (simulate, swim, compare) again, refuses
 unless --overwrite, which first deletes the files of the run it replaces. reproduce and design may
 add studies to their own folder; a study already there is replaced only with --overwrite. Files
 are created with the user's umask.
+
+Every option means the same in every command that has it (README, "Flags"); --out is required
+wherever a command writes, and a bad --out (empty, the root, a file, a place that cannot be
+written) is refused before anything runs.
 
 Exit codes: 0 success, 1 simulation failure, 2 bad input (one-line message, nothing written).
 """
@@ -43,7 +49,13 @@ def _err(msg: str, code: int) -> int:
 
 
 def _progress(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
+    """A progress message on stderr (none with --quiet; warnings use _warn)."""
+    if not _QUIET:
+        print(msg, file=sys.stderr, flush=True)
+
+
+def _warn(msg: str) -> None:
+    print(f"warning: {msg}", file=sys.stderr, flush=True)
 
 
 def _folder(args, command: str, **kw):
@@ -76,6 +88,15 @@ def cmd_studies(args) -> int:
         print(f"# {command}")
         for name in studies_in(group):
             print(f"{name:<{width}}  {STUDIES[name].title}")
+    return 0
+
+
+def cmd_scenarios(args) -> int:
+    from frogsim.scenario.load import shipped_scenarios
+    rows = shipped_scenarios()
+    width = max(len(n) for n, _, _ in rows)
+    for name, command, about in rows:
+        print(f"{name:<{width}}  frogsim {command:<8}  {about}")
     return 0
 
 
@@ -112,9 +133,13 @@ def _run_studies(args, group: str) -> int:
     from frogsim.io.outputs import scenario_record, shipped_inputs
     from frogsim.studies import STUDIES, studies_in
     names = list(dict.fromkeys(args.studies or studies_in(group)))
-    unknown = [n for n in names if n not in STUDIES]
+    own = studies_in(group) + (studies_in("robot") if group == "paper" else [])
+    unknown = [n for n in names if n not in own]
     if unknown:
-        return _err(f"study = {unknown[0]!r}: must be one of {', '.join(STUDIES)}", 2)
+        other = STUDIES[unknown[0]].group if unknown[0] in STUDIES else None
+        where = {"paper": "reproduce", "robot": "reproduce", "design": "design", "control": "control"}.get(other)
+        return _err(f"study = {unknown[0]!r}: must be one of {', '.join(own)}"
+                    + (f" (it is a study of `frogsim {where}`)" if where else ""), 2)
     out = out_folder(args.out)
     if args.workers is not None and args.workers < 1:
         return _err(f"--workers = {args.workers}: must be a whole number >= 1", 2)
@@ -196,6 +221,7 @@ def cmd_simulate(args) -> int:
     from frogsim.io.outputs import scenario_inputs, scenario_record
     from frogsim.io.results import plot_run, run_summary
     from frogsim.scenario.load import load_scenario
+    from frogsim.scenario.tables import unit_headers
     out = out_folder(args.out)
     scenario = load_scenario(args.scenario)          # all validation happens here, before any write
     folder = _folder(args, "simulate", files=["timeseries.csv", "pressures.png", "summary.json"],
@@ -206,7 +232,7 @@ def cmd_simulate(args) -> int:
         t0 = time.perf_counter()
         result = simulate(scenario)
         _progress(f"      {result.stats['steps']} steps in {time.perf_counter() - t0:.2f} s")
-        write_csv(out / "timeseries.csv", result.to_dataframe(units="display"))
+        write_csv(out / "timeseries.csv", unit_headers(result.to_dataframe(units="display")))
         write_figure(out / "pressures.png", lambda p: plot_run(result, p))
         write_json(out / "summary.json", run_summary(result))
         folder.finish()
@@ -248,7 +274,7 @@ def _swim_into(args, folder, out: Path, rs) -> int:
               f"(standard) of air per cycle, source {s['source_pressure_after_cycles_bar_gauge']:.2f} bar gauge "
               f"after {s['cycles']} cycles")
     if "animation_skipped" in s:
-        _progress(f"warning: animation skipped: {s['animation_skipped']}")
+        _warn(f"animation skipped: {s['animation_skipped']}")
     _progress("wrote " + ", ".join(str(p) for p in files.values()))
     return 0
 
@@ -294,8 +320,10 @@ def cmd_sweep(args) -> int:
     import json
     from frogsim.sweep.runner import run_sweep
     if args.workers is not None and args.workers < 1:
-        return _err(f"--workers = {args.workers}: must be >= 1", 2)
+        return _err(f"--workers = {args.workers}: must be a whole number >= 1", 2)
+    from frogsim._files import out_file
     from frogsim.sweep.spec import load_spec
+    out_file(args.out, ".nc")
     t0 = time.perf_counter()
     spec = load_spec(args.spec)
     for note in spec.notes:
@@ -306,7 +334,7 @@ def cmd_sweep(args) -> int:
     _progress(f"{n} points in {time.perf_counter() - t0:.2f} s -> {args.out}")
     if failed:
         first = next(iter(json.loads(ds.attrs["failures"]).values()), "")
-        _progress(f"warning: {failed} points failed (their metrics are NaN); first: {first}")
+        _warn(f"{failed} points failed (their metrics are NaN); first: {first}")
     return 0
 
 
@@ -314,9 +342,12 @@ def cmd_plot(args) -> int:
     from frogsim.errors import ScenarioError
     from frogsim.sweep.plot import plot_sweep
     from frogsim.sweep.runner import read_results
+    from frogsim._files import out_file
     path = Path(args.results)
+    out = out_file(args.out, ".png", overwrite=args.overwrite)
     if not path.is_file():
-        return _err(f"results = {str(path)!r}: file not found", 2)
+        return _err(f"results = {str(path)!r}: " + ("is a directory, not a file" if path.is_dir()
+                                                      else "file not found"), 2)
     try:
         ds = read_results(path)
     except Exception as exc:  # xarray/netCDF4 raise many types for foreign files
@@ -327,8 +358,6 @@ def cmd_plot(args) -> int:
             raise ScenarioError("--select", item, "expected PARAM=VALUE, e.g. 'supply.branch_limit=45 L/min'")
         key, value = item.split("=", 1)
         select[key.strip()] = value.strip()
-    stem = f"{path.stem}-{args.metric}-{args.x}" + (f"-{args.y}" if args.y else "")
-    out = Path(args.out) if args.out else path.with_name(stem + ".png")
     plot_sweep(ds, args.x, args.metric, out, y=args.y, select=select, reduce=args.reduce)
     _progress(f"wrote {out}")
     return 0
@@ -338,7 +367,7 @@ def cmd_fit(args) -> int:
     from frogsim.fit import load_fit_spec
     from frogsim.fit.report import planned_files
     out_folder(args.out)
-    spec = load_fit_spec(args.spec, starts=args.starts, threads=args.threads)   # traces too: before any write
+    spec = load_fit_spec(args.spec, starts=args.starts, threads=args.workers)   # traces too: before any write
     folder = _folder(args, "fit", files=planned_files(spec))
     return _finishing(folder, lambda: _fit_into(args, folder, spec))
 
@@ -363,7 +392,7 @@ def _fit_into(args, folder, spec) -> int:
             f"{w['pressure_Pa_gauge'] / 1e5:g} bar {w['worst_abs_error_N']:.1f} N at {w['worst_at_contraction'] * 100:.3g} %"
             for w in c["worst"]))
     for w in res.warnings:
-        _progress(f"warning: {w}")
+        _warn(str(w))
     _progress(f"{res.model_runs} model runs in {res.wall_s:.1f} s; wrote "
               + ", ".join(str(p) for p in files.values()))
     return 0
@@ -418,22 +447,77 @@ def cmd_optimize_gait(args) -> int:
     return _finishing(folder, work)
 
 
+#: every option's meaning, the same in every command that has it (README, "Flags", lists them;
+#: tests/test_cli_flags.py checks the table against each command's --help)
+FLAGS = {
+    "--out": "where the command writes (required): a new or own folder, or for sweep and plot the "
+             "one file (RESULTS.nc, FIG.png)",
+    "--overwrite": "replace what --out holds from an earlier run or another command (its files "
+                   "deleted first)",
+    "--workers": "how many runs go side by side on this machine",
+    "--quiet": "no progress messages or bars on stderr (errors and warnings still shown)",
+    "--cycles": "gait cycles of each robot run",
+    "--signal": "the signal of every input without its own RUN:SIGNAL, e.g. 'hip_left pressure'",
+    "--no-animation": "skip the offscreen animation",
+    "--scheduler": "run the chunks on a Dask distributed scheduler, e.g. tcp://host:8786 (--workers: "
+                   "threads per Dask task, default 1)",
+    "--connect-timeout": "seconds to wait for the scheduler",
+    "--x": "swept parameter on the x axis (dotted path)",
+    "--y": "second swept parameter: a heatmap",
+    "--metric": "recorded metric, e.g. rise_time",
+    "--select": "fix another swept parameter (value as written, e.g. '45 L/min'); repeatable",
+    "--reduce": "average over the swept parameters neither on an axis nor selected",
+    "--starts": "least-squares starts",
+    "--trials": "trials in all (>= 1)",
+    "--objective": "speed or distance-per-litre",
+    "--seed": "sampler seed",
+}
+
+
+def _flag(s, name: str, default_text: str | None = None, **kw) -> None:
+    """Add option ``name`` to subparser ``s`` with its one meaning (FLAGS), plus its default."""
+    text = FLAGS[name] + (f" (default: {default_text})" if default_text else "")
+    s.add_argument(name, help=text, **kw)
+
+
+def _writes(s, metavar: str = "DIR", workers: str | None = None, overwrite: bool = True) -> None:
+    """The flags of a command that writes: --out (required), --overwrite, --quiet, --workers."""
+    _flag(s, "--out", required=True, metavar=metavar)
+    if overwrite:
+        _flag(s, "--overwrite", action="store_true")
+    if workers:
+        _flag(s, "--workers", workers, type=int, default=None, metavar="N")
+    _flag(s, "--quiet", action="store_true")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with frogsim's one-line refusal: "frogsim: error: ..." and exit 2, no usage block."""
+
+    def error(self, message):
+        from frogsim.errors import clip
+        where = self.prog if self.prog != "frogsim" else "frogsim"
+        self.exit(2, f"frogsim: error: {clip(message, 300)} (see: {where} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="frogsim", description=__doc__.split("\n\n")[0],
+    from frogsim import __version__
+    p = _Parser(prog="frogsim", description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[2:]).strip(),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--version", action="version", version=f"frogsim {__version__}",
+                   help="print frogsim's version and stop")
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND")
     s = sub.add_parser("studies", help="list the registered studies")
     s.set_defaults(func=cmd_studies)
+    s = sub.add_parser("scenarios", help="list the shipped scenarios: name, the command that runs it, "
+                                         "what it is")
+    s.set_defaults(func=cmd_scenarios)
     s = sub.add_parser("reproduce", help="reproduce the paper's studies: a PNG and a CSV per study, "
                                          "DIR/summary.json (the studies in DIR) and DIR/manifest.json")
     s.add_argument("studies", nargs="*", metavar="STUDY",
                    help="studies to run (default: the paper's pneumatic studies; name leg-in-air "
                         "for the robot's in-air study)")
-    s.add_argument("--out", default="results", metavar="DIR", help="output folder (default: results)")
-    s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
-    s.add_argument("--overwrite", action="store_true",
-                   help="replace studies this folder already holds (or another command's files)")
+    _writes(s, workers="one per core")
     s.set_defaults(func=cmd_reproduce)
     for name, what, func in (("design", "the design studies (main tubes, endurance, valves)", cmd_design),
                              ("control", "the closed-loop control studies (control-pressure, control-joint)",
@@ -441,43 +525,39 @@ def build_parser() -> argparse.ArgumentParser:
         s = sub.add_parser(name, help=f"run {what}: a PNG and a CSV per study, DIR/summary.json with written "
                                       "conclusions")
         s.add_argument("studies", nargs="*", metavar="STUDY", help=f"studies to run (default: all {name} studies)")
-        s.add_argument("--out", default=name, metavar="DIR", help=f"output folder (default: {name})")
-        s.add_argument("--workers", type=int, metavar="N", help="processes (default: one per core)")
-        s.add_argument("--overwrite", action="store_true",
-                       help="replace studies this folder already holds (or another command's files)")
+        _writes(s, workers="one per core")
         s.set_defaults(func=func)
     s = sub.add_parser("simulate", help="run one scenario: timeseries.csv, pressures.png, summary.json")
-    s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file, or a shipped name (paper-cycle)")
-    s.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    s.add_argument("--overwrite", action="store_true",
-                   help="replace the files of an earlier run in DIR (deleted first)")
+    s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file, or a shipped name "
+                                                        "(`frogsim scenarios` lists them)")
+    _writes(s)
     s.set_defaults(func=cmd_simulate)
     s = sub.add_parser("swim", help="run the robot in MuJoCo (swim, leg-in-air): timeseries.csv, swim.png, "
                                     "summary.json, frog.xml, animation.gif")
     s.add_argument("scenario", metavar="SCENARIO", help="robot scenario TOML file, or a shipped name "
-                                                        "(swim, leg-in-air)")
-    s.add_argument("--cycles", type=int, default=None, metavar="N", help="gait cycles (default: the scenario's)")
-    s.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    s.add_argument("--no-animation", action="store_true", help="skip the offscreen animation")
-    s.add_argument("--overwrite", action="store_true",
-                   help="replace the files of an earlier run in DIR (deleted first)")
+                                                        "(`frogsim scenarios` lists them)")
+    _flag(s, "--cycles", "the scenario's", type=int, default=None, metavar="N")
+    _flag(s, "--no-animation", action="store_true")
+    _writes(s)
     s.set_defaults(func=cmd_swim)
-    s = sub.add_parser("compare", help="overlay one signal of several runs (folders of frogsim simulate) or "
-                                       "scenarios (run here): SIGNAL.csv and SIGNAL.png in DIR",
+    s = sub.add_parser("compare", help="overlay one signal of several runs (folders of frogsim simulate or "
+                                       "swim, CSV tables) or scenarios (run here): SIGNAL.csv and SIGNAL.png in DIR",
                        description="Overlay one time series of several runs in one figure (PNG) and one CSV "
                                    "(time + one column per run, units in the header), labelled by run name "
-                                   "(a folder's name, a scenario file's stem, a shipped scenario's name).",
+                                   "(a folder's name, a file's stem, a shipped scenario's name).",
                        epilog="signals: 'source pressure', 'exhaust pressure', 'hip_left pressure', "
                               "'hip_left volume', 'hip_left charge flow', 'hip_left charged air', "
                               "'hip_left charge valve', 'pump on', ... or a column name of timeseries.csv; "
-                              "a wrong name lists those available. Example: frogsim compare runs/slow "
+                              "a wrong name lists those available. RUN:SIGNAL takes that run's own signal "
+                              "(muscles named differently): frogsim compare one-hip:'hip pressure' "
+                              "paper-cycle:'hip_left pressure' --out cmp. Example: frogsim compare runs/slow "
                               "runs/fast paper-cycle --signal 'hip_left pressure' --out cmp")
-    s.add_argument("inputs", nargs="+", metavar="RUN_OR_SCENARIO",
-                   help="a folder written by frogsim simulate (its timeseries.csv is read), or a scenario "
-                        "TOML file or shipped name (it is run)")
-    s.add_argument("--signal", required=True, metavar="NAME", help="e.g. 'hip_left pressure', 'source pressure'")
-    s.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    s.add_argument("--overwrite", action="store_true", help="replace the files of an earlier run in DIR")
+    s.add_argument("inputs", nargs="+", metavar="RUN[:SIGNAL]",
+                   help="a folder written by frogsim simulate or swim (its timeseries.csv is read), a CSV "
+                        "table with a 'time [s]' column, or a scenario TOML file or shipped name (it is "
+                        "run); ':SIGNAL' names the signal to take from it")
+    _flag(s, "--signal", default=None, metavar="NAME")
+    _writes(s)
     s.set_defaults(func=cmd_compare)
     s = sub.add_parser("params", help="show a parameter set with the source of every value")
     s.add_argument("name", nargs="?", default="fan2017", help="parameter set (default: fan2017)")
@@ -485,68 +565,63 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sweep", help="run a parameter sweep from a spec; results as NetCDF, written as it "
                                      "goes and resumed by running the same command again")
     s.add_argument("spec", metavar="SPEC", help="sweep spec TOML file (see docs/sweeps.md)")
-    s.add_argument("--out", required=True, metavar="RESULTS.nc", help="NetCDF results file")
-    s.add_argument("--workers", type=int, default=None, metavar="N",
-                   help="threads (default: all cores); with --scheduler: threads per Dask task (default 1)")
-    s.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="run the chunks on a Dask distributed scheduler, e.g. tcp://host:8786")
-    s.add_argument("--connect-timeout", type=float, default=5.0, metavar="S",
-                   help="seconds to wait for the scheduler (default 5)")
-    s.add_argument("--overwrite", action="store_true",
-                   help="replace results (or an interrupted run) of a different spec instead of refusing")
-    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    _flag(s, "--scheduler", default=None, metavar="ADDRESS")
+    _flag(s, "--connect-timeout", "5", type=float, default=5.0, metavar="S")
+    _writes(s, "RESULTS.nc", workers="one per core")
     s.set_defaults(func=cmd_sweep)
     s = sub.add_parser("plot", help="plot a sweep metric against one swept parameter (line) or two (heatmap)")
     s.add_argument("results", metavar="RESULTS.nc", help="results of frogsim sweep")
-    s.add_argument("--x", required=True, metavar="PARAM", help="swept parameter on the x axis (dotted path)")
-    s.add_argument("--y", default=None, metavar="PARAM", help="second swept parameter: a heatmap")
-    s.add_argument("--metric", required=True, metavar="NAME", help="recorded metric, e.g. rise_time")
-    s.add_argument("--select", action="append", default=[], metavar="PARAM=VALUE",
-                   help="fix another swept parameter (value as written, e.g. '45 L/min'); repeatable")
-    s.add_argument("--reduce", choices=["mean"], default=None,
-                   help="average over the swept parameters neither on an axis nor selected")
-    s.add_argument("--out", default=None, metavar="FIG.png",
-                   help="figure file (default: beside the results, named after the metric and axes)")
+    _flag(s, "--x", required=True, metavar="PARAM")
+    _flag(s, "--y", default=None, metavar="PARAM")
+    _flag(s, "--metric", required=True, metavar="NAME")
+    _flag(s, "--select", action="append", default=[], metavar="PARAM=VALUE")
+    _flag(s, "--reduce", choices=["mean"], default=None)
+    _writes(s, "FIG.png")
     s.set_defaults(func=cmd_plot)
     s = sub.add_parser("fit", help="fit parameters to measured traces and force tables: fitted-parameters.toml, figures, "
                                    "report.html, summary.json (see docs/fitting.md)")
     s.add_argument("spec", metavar="FIT.toml", help="fit spec: base scenario, experiments, parameters")
-    s.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    s.add_argument("--starts", type=int, default=None, metavar="N", help="least-squares starts (default: the spec's)")
-    s.add_argument("--threads", type=int, default=None, metavar="N", help="threads (default: all cores)")
-    s.add_argument("--quiet", action="store_true", help="no progress bars")
-    s.add_argument("--overwrite", action="store_true",
-                   help="replace the files of an earlier run in DIR (deleted first)")
+    _flag(s, "--starts", "the spec's", type=int, default=None, metavar="N")
+    _writes(s, workers="the spec's threads, else one per core")
+    s.add_argument("--threads", type=int, dest="workers", help=argparse.SUPPRESS)   # the older name
     s.set_defaults(func=cmd_fit)
     s = sub.add_parser("optimize-gait", help="search the gait's phase timing (Optuna TPE) for speed or distance "
                                              "per litre: best-gait.toml, trials.csv, trials.png, summary.json; "
                                              "running again continues the search")
     s.add_argument("scenario", metavar="SCENARIO", help="robot scenario TOML file or shipped name (swim)")
-    s.add_argument("--trials", type=int, required=True, metavar="N", help="trials in all (>= 1)")
-    s.add_argument("--objective", required=True, metavar="OBJ", help="speed or distance-per-litre")
-    s.add_argument("--cycles", type=int, default=None, metavar="N", help="gait cycles per trial "
-                                                                          "(default: the scenario's)")
-    s.add_argument("--workers", type=int, default=2, metavar="N", help="trials run side by side (default 2)")
-    s.add_argument("--seed", type=int, default=0, help="sampler seed (default 0)")
-    s.add_argument("--out", required=True, metavar="DIR", help="output folder (holds the study: rerun to continue)")
-    s.add_argument("--overwrite", action="store_true", help="start afresh, replacing what DIR holds")
-    s.set_defaults(func=cmd_optimize_gait)
+    _flag(s, "--trials", type=int, required=True, metavar="N")
+    _flag(s, "--objective", required=True, metavar="OBJ")
+    _flag(s, "--cycles", "the scenario's", type=int, default=None, metavar="N")
+    _flag(s, "--seed", "0", type=int, default=0, metavar="N")
+    _writes(s, workers="2; the trials of a batch are asked together, so N changes the search")
+    s.set_defaults(func=cmd_optimize_gait, workers=2)
     return p
 
 
+_QUIET = False
+
+
 def main(argv=None) -> int:
+    global _QUIET
     from frogsim.errors import ScenarioError, SimulationError
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
     args.argv = argv
+    _QUIET = bool(getattr(args, "quiet", False))
     try:
         return args.func(args)
     except ScenarioError as exc:
         return _err(str(exc), 2)
     except SimulationError as exc:
         return _err(str(exc), 1)
+    except OSError as exc:          # a write the checks could not foresee (disk full, a file vanished)
+        from frogsim.errors import clip
+        where = f"{exc.filename}: " if exc.filename else ""
+        return _err(clip(f"cannot write or read {where}{exc.strerror or exc}", 300), 2)
     except KeyboardInterrupt:
         return _err("interrupted", 130)
+    finally:
+        _QUIET = False
 
 
 if __name__ == "__main__":

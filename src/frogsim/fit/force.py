@@ -99,7 +99,7 @@ def read_force_table(path, scenario) -> ForceTable:
     """
     path = Path(path)
     fname = path.name
-    df = _read_table(path)
+    df = _read_table(path, "force table")
     if df.shape[0] < 1:
         raise ScenarioError(f"force table {fname!r}", UNKNOWN, "holds no rows of data")
     patm = scenario.air.atmospheric_pressure_abs

@@ -38,6 +38,17 @@ def _display(x: float, meta: dict, digits: int = 6) -> str:
     return f"{x:.{digits}g}"
 
 
+def overrides_text(overrides: dict, variables: dict) -> str:
+    """An experiment's overrides as a reader writes them: "source.initial_pressure_gauge = 4 bar"
+    (each SI value in its setting's display unit; a value without one as it is)."""
+    parts = []
+    for path, v in overrides.items():
+        meta = variables.get(path, {})
+        shown = _display(v, meta) if isinstance(v, (int, float)) and not isinstance(v, bool) else repr(v)
+        parts.append(f"{path} = {shown}")
+    return ", ".join(parts)
+
+
 def _ci_text(res: FitResult, j: int) -> str:
     meta = res.spec.parameters[j].meta
     conf = f"{res.spec.confidence * 100:g} % CI"
@@ -225,9 +236,10 @@ def _html(res: FitResult, s: dict, figures: list) -> str:
             f"<td>{'' if not np.isfinite(c) else f'{c:+.3f}'}</td>" for c in res.correlation[i]) + "</tr>"
         for i, p in enumerate(res.paths))
     warn = "".join(f"<li>{esc(w)}</li>" for w in res.warnings) or "<li>none</li>"
+    variables = res.spec.base.variable_paths()
     exps = "".join(f"<li>{esc(e['name'])}: <code>{esc(Path(e['trace']).name)}</code>, {e['trace_samples']} samples"
-                   + (f", overrides {esc(str(e['overrides_si']))} (SI)" if e['overrides_si'] else "") + "</li>"
-                   for e in s["experiments"])
+                   + (f", overrides {esc(overrides_text(e['overrides_si'], variables))}" if e['overrides_si'] else "")
+                   + "</li>" for e in s["experiments"])
     imgs = "".join(f"<figure><img alt=\"{esc(name)}\" src=\"data:image/png;base64,{b64}\"/>"
                    f"<figcaption>{esc(name)}</figcaption></figure>" for name, b64 in figures)
     meaning = esc(s["residual_variance_meaning"])

@@ -9,28 +9,34 @@ Signals are the ones the pneumatic model computes: ``<muscle> pressure``, ``sour
 ``exhaust pressure``. A pressure unit must say whether it is ``gauge`` or ``abs`` (``absolute``);
 gauge values are made absolute with the scenario's atmospheric pressure. Every unit goes through
 frogsim's own unit parser (:mod:`frogsim.scenario.units`). Columns the fit is not to use (a joint
-angle, a temperature) are named in the experiment's ``ignore_columns``; any other column the model
-has no signal for is refused, so that a misspelt signal is never silently dropped.
+angle, a temperature) are named in the experiment's ``ignore_columns``; the other columns frogsim
+simulate writes (temperatures, volumes, flows, valve states) are left out without being named, so
+a simulate folder's ``timeseries.csv`` is a trace as it is; any other column the model has no
+signal for is refused, so that a misspelt signal is never silently dropped. The file is read by
+:func:`frogsim.scenario.tables.read_table` (headers in any spelling frogsim wrote, every row as
+many fields as the header).
 
 Every refusal is a one-line :class:`frogsim.ScenarioError` naming the file and the column.
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from frogsim.errors import UNKNOWN, ScenarioError
+from frogsim.scenario.files import read_text
 from frogsim.scenario.motion import output_times
+from frogsim.scenario.tables import model_columns, read_table, split_header
 from frogsim.scenario.units import parse_quantity
 
 #: a sampling step larger than this many times the median step is a gap
 GAP_FACTOR = 5.0
-_HEADER = re.compile(r"^\s*(?P<name>[^\[\]]*?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")
 _GAUGE = ("gauge", "g")
 _ABS = ("abs", "absolute", "a")
+#: a trace may run on past the scenario's end, to at most this many times its duration
+LENGTH_FACTOR = 2.0
 #: time may end this much before the scenario's duration (rounding of a logger's clock) [s]
 _TIME_SLACK = 1e-9
 
@@ -80,7 +86,10 @@ def numeric_column(df, fname: str, col: str) -> np.ndarray:
     try:
         x = np.asarray(df[col].to_numpy(), dtype=float)
     except (TypeError, ValueError):
-        raise _col_error(fname, col, "holds values that are not numbers") from None
+        cells = list(df[col])
+        k = next(k for k, v in enumerate(cells) if not _is_number(v))
+        raise _col_error(fname, col, f"holds values that are not numbers: {str(cells[k])[:40]!r} in data "
+                                     f"row {k + 1}") from None
     bad = np.flatnonzero(~np.isfinite(x))
     if bad.size:
         raise _col_error(fname, col, f"missing or non-finite value (NaN) in data row {bad[0] + 1} "
@@ -88,16 +97,24 @@ def numeric_column(df, fname: str, col: str) -> np.ndarray:
     return x
 
 
+def _is_number(v) -> bool:
+    try:
+        float(v)
+        return True
+    except (TypeError, ValueError):
+        return False
+
+
 def _col_error(fname: str, col: str, allowed: str) -> ScenarioError:
     return ScenarioError(f"{fname}: column {col!r}", UNKNOWN, allowed)
 
 
 def _parse_header(fname: str, col: str) -> tuple[str, str]:
-    m = _HEADER.match(str(col))
-    if not m or not m.group("name") or not m.group("unit").strip():
+    name, unit = split_header(col)
+    if not name or not unit:
         raise _col_error(fname, str(col), "the header has no unit: write it as 'signal [unit]', "
                                           "e.g. 'hip_left pressure [bar gauge]' or 'time [s]'")
-    return m.group("name").strip(), m.group("unit").strip()
+    return name, unit
 
 
 def _unit_scale(fname: str, col: str, unit: str, kind: str, what: str) -> float:
@@ -118,22 +135,23 @@ def _pressure_unit(fname: str, col: str, unit: str, patm: float) -> tuple[float,
     return scale, (patm if words[-1].lower() in _GAUGE else 0.0)
 
 
-def _read_table(path: Path):
+def _read_table(path: Path, what: str = "trace"):
     import pandas as pd
     fname = path.name
-    if not path.is_file():
-        raise ScenarioError(f"trace {str(path)!r}", UNKNOWN, "file not found")
     if path.suffix.lower() in (".parquet", ".pq"):
+        if not path.is_file():
+            read_text(path, f"{what} file")     # says why: not found, a directory, a device, ...
         try:
             import pyarrow  # noqa: F401
         except ImportError:
-            raise ScenarioError(f"trace {fname!r}", UNKNOWN,
+            raise ScenarioError(f"{what} {fname!r}", UNKNOWN,
                                 "reading Parquet needs pyarrow (pip install pyarrow); or write the trace as CSV") from None
-        return pd.read_parquet(path)
-    try:
-        return pd.read_csv(path, skipinitialspace=True, comment="#")
-    except Exception as exc:  # pandas raises several types for unreadable text
-        raise ScenarioError(f"trace {fname!r}", UNKNOWN, f"not a readable CSV file ({type(exc).__name__})") from None
+        try:
+            return pd.read_parquet(path)
+        except Exception as exc:  # pyarrow raises several types for a file that is not Parquet
+            raise ScenarioError(f"{what} {fname!r}", UNKNOWN,
+                                f"not a readable Parquet file ({type(exc).__name__})") from None
+    return read_table(path, what, numbers=False)
 
 
 def read_trace(path, scenario, ignore_columns=()) -> Trace:
@@ -143,7 +161,8 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
     unit of the wrong kind, a pressure neither gauge nor abs, a column for a signal the model does
     not have (all such columns listed), no time column, non-numeric or missing values (NaN), time
     not strictly increasing, a gap (a step more than 5 times the median step), a trace that does not
-    cover the scenario's run from 0 to its duration.
+    cover the scenario's run from 0 to its duration, a trace running on past
+    LENGTH_FACTOR times the duration.
     """
     path = Path(path)
     fname = path.name
@@ -156,6 +175,7 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
         raise ScenarioError(f"trace {fname!r}", UNKNOWN,
                             f"ignore_columns names columns it does not have: {', '.join(map(repr, missing_ignored))}")
     known = model_signals(scenario)
+    others = {n for n, _ in model_columns(scenario.muscles)} - set(known)
     patm = scenario.air.atmospheric_pressure_abs
     time_col, cols, unknown, ignored = None, {}, [], []
     for col in df.columns:
@@ -170,7 +190,10 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
             time_col = (col, _unit_scale(fname, col, unit, "time", "a time unit such as s or ms"))
             continue
         if name not in known:
-            unknown.append(col)
+            if name in others:              # a frogsim output the fit does not use (volume, valve, ...)
+                ignored.append(col)
+            else:
+                unknown.append(col)
             continue
         if name in cols:
             raise _col_error(fname, col, f"signal {name!r} appears twice")
@@ -206,6 +229,10 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
     if t[-1] < scenario.duration - _TIME_SLACK * max(1.0, scenario.duration):
         raise _col_error(fname, time_col[0], f"ends at {t[-1]:g} s, before the end of the scenario "
                                              f"({scenario.duration:g} s)")
+    if t[-1] > LENGTH_FACTOR * scenario.duration + med:
+        raise _col_error(fname, time_col[0], f"ends at {t[-1]:g} s, more than {LENGTH_FACTOR:g} x the "
+                                             f"scenario's {scenario.duration:g} s: a trace of another run, "
+                                             "or a wrong time unit (ms written as s)?")
     signals = {name: numbers(col) * scale + offset for name, (col, scale, offset) in cols.items()}
     return Trace(path=str(path), time=t, signals=signals, columns={n: c[0] for n, c in cols.items()},
                  ignored=tuple(ignored), median_step=med)

@@ -100,15 +100,11 @@ def own_raw(source) -> tuple[dict, str]:
     import copy
     import os
 
-    from frogsim.scenario.load import SCENARIOS_DIR, read_toml
+    from frogsim.scenario.load import read_toml, scenario_path
     if isinstance(source, dict):
         raw = copy.deepcopy(source)
         return raw, str(raw.pop("base_dir", "."))
-    path = Path(source)
-    if not path.exists() and (SCENARIOS_DIR / f"{source}.toml").exists():
-        path = SCENARIOS_DIR / f"{source}.toml"
-    if not path.is_file():
-        raise ScenarioError("scenario", str(source), "no such file or shipped scenario")
+    path = scenario_path(source)
     raw = read_toml(path, "scenario")
     base = str(path.resolve().parent)
     params = raw.get("parameters")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import os
+import re
 import tomllib
 from pathlib import Path
 
@@ -145,12 +146,49 @@ def gauge_from_abs(table, cls, path: str, p_atm: float):
     return table if out is None else out
 
 
+def scenario_names() -> list[str]:
+    """Names of the scenarios shipped with frogsim."""
+    return sorted(p.stem for p in SCENARIOS_DIR.glob("*.toml"))
+
+
+def shipped_scenarios() -> list[tuple[str, str, str]]:
+    """(name, command that runs it, one line about it) of every shipped scenario: the command is
+    ``swim`` for a robot scenario (it has a [gait]), else ``simulate``; the line is the file's
+    ``description``, or else the first sentence of its opening comment."""
+    out = []
+    for name in scenario_names():
+        path = SCENARIOS_DIR / f"{name}.toml"
+        text = read_text(path, "scenario")
+        raw = tomllib.loads(text)
+        about = raw.get("description")
+        if not isinstance(about, str) or not about.strip():
+            lead = []
+            for line in text.splitlines():
+                if not line.startswith("#"):
+                    break
+                lead.append(line.lstrip("#").strip())
+            about = re.split(r"(?<=\.)\s+(?=[A-Z])", " ".join(lead), maxsplit=1)[0]
+        out.append((name, "swim" if "gait" in raw else "simulate", " ".join(about.split())))
+    return out
+
+
+def scenario_path(source) -> Path:
+    """The file of a scenario given as a path or a shipped name; ScenarioError listing the shipped
+    scenarios when it is neither."""
+    path = Path(source)
+    if os.path.lexists(path):
+        return path
+    if str(source) in scenario_names():
+        return SCENARIOS_DIR / f"{source}.toml"
+    raise ScenarioError("scenario", str(source), f"no such file, nor a shipped scenario (one of "
+                                                 f"{', '.join(scenario_names())}; `frogsim scenarios` "
+                                                 "lists them)")
+
+
 def merged_raw(source) -> tuple[dict, str]:
     """The scenario's raw dict with its parameter set merged in, and its base directory."""
     if isinstance(source, (str, os.PathLike)):
-        path = Path(source)
-        if not path.exists() and (SCENARIOS_DIR / f"{source}.toml").exists():
-            path = SCENARIOS_DIR / f"{source}.toml"
+        path = scenario_path(source)
         raw = read_toml(path, "scenario")
         base_dir = str(path.resolve().parent)
     elif isinstance(source, dict):

@@ -16,7 +16,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from frogsim.errors import ScenarioError
-from frogsim.scenario.files import read_text
 from frogsim.physics.muscle import braid_parameters, crank_muscle_length, muscle_volume
 
 if TYPE_CHECKING:   # annotations only
@@ -75,15 +74,11 @@ def _pchip_knots(t, Lv):
 
 
 def _joint_knots(mname, m, mt, L0, base_dir):
-    import io
-    import pandas as pd
+    from frogsim.scenario.tables import read_table
     path = Path(base_dir) / m.motion.file
     where = f"muscles.{mname}.motion.file"
-    text = read_text(path, where)         # a regular UTF-8 file, not a directory, device or FIFO
-    try:
-        df = pd.read_csv(io.StringIO(text))
-    except Exception as exc:  # pandas raises many parser errors
-        raise ScenarioError(where, m.motion.file, f"not a readable CSV ({exc})") from None
+    # a regular UTF-8 file, every row as many fields as the header (frogsim.scenario.tables)
+    df = read_table(path, where, numbers=False)
     for key in (m.motion.time_column, m.motion.column):
         if key not in df.columns:
             raise ScenarioError(f"muscles.{mname}.motion.column", key,

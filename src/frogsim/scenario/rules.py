@@ -13,7 +13,6 @@ from frogsim._budget import ASK_ABOVE, Need, check as check_size
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.fields import shown
 from frogsim.scenario.motion import build_motions
-from frogsim.scenario.files import read_text
 from frogsim.scenario.schema import MOTION_KINDS, SETPOINT_FIELDS
 from frogsim.scenario.view import Settings
 
@@ -136,25 +135,22 @@ def _check_duty_schedule(ds, base_dir: str, path: str) -> None:
 def setpoint_knots(sp, base_dir: str, path: str) -> tuple:
     """The rows ((t [s], p [Pa gauge]), ...) of a table setpoint's CSV file (times increasing);
     an angle setpoint's ((t [s], angle [rad]), ...) from degrees."""
-    import csv
-    import io
     import math
     from pathlib import Path
+
+    from frogsim.scenario.tables import read_table
     where = f"{path}.file"
-    text = read_text(Path(base_dir) / sp.file, where)
-    rows = list(csv.reader(io.StringIO(text)))
-    if not rows:
-        raise ScenarioError(where, sp.file, "is empty")
-    head = [h.strip() for h in rows[0]]
+    # a regular UTF-8 file, every row as many fields as the header (frogsim.scenario.tables)
+    table = read_table(Path(base_dir) / sp.file, where, numbers=False)
+    head = list(table.columns)
     for col in (sp.time_column, sp.column):
         if col not in head:
             raise ScenarioError(where, sp.file, f"has no column {col!r} (columns: {', '.join(head)})")
-    it, ip = head.index(sp.time_column), head.index(sp.column)
     out = []
-    for k, r in enumerate(rows[1:], start=2):
+    for k, (tv, pv) in enumerate(zip(table[sp.time_column], table[sp.column]), start=2):
         try:
-            t, p = float(r[it]), float(r[ip]) * sp.SCALE
-        except (ValueError, IndexError):
+            t, p = float(tv), float(pv) * sp.SCALE
+        except (ValueError, TypeError):
             raise ScenarioError(where, sp.file, f"line {k}: expected numbers in {sp.time_column} and "
                                                 f"{sp.column}") from None
         if not (math.isfinite(t) and math.isfinite(p)):

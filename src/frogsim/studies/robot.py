@@ -212,7 +212,8 @@ def write_outputs(result, out, animation: bool = True, progress=None) -> dict:
     from frogsim._files import atomic_write, write_csv, write_figure, write_json
     out = Path(out)
     files = {}
-    write_csv(out / "timeseries.csv", result.to_dataframe(units="display"))
+    from frogsim.scenario.tables import unit_headers
+    write_csv(out / "timeseries.csv", unit_headers(result.to_dataframe(units="display")))
     files["timeseries"] = out / "timeseries.csv"
     summary = result.summary()
     write_figure(out / "swim.png", lambda p: plot_swim(result, p, summary))
