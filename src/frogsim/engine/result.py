@@ -36,6 +36,7 @@ class Result:
     stats: dict = field(default_factory=dict)
     status: str = "ok"
     switchings: dict = field(default_factory=dict)   # closed-loop muscles: (charge, discharge) valve switchings
+    python_law: object = None      # the Python function that drove the closed-loop muscles, if one did
 
     # -- closed-loop control (docs/control.md) -------------------------------------------------------
     def _law_rows(self) -> dict:
@@ -64,18 +65,31 @@ class Result:
     def control_metrics(self) -> dict:
         """Per closed-loop controller (docs/control.md): tracking error RMS and max [bar] from its
         ``settle`` time on (true pressure against the setpoint, on the output grid), valve
-        switchings (charge, discharge, total) and per second of run, air used [L standard]."""
+        switchings (charge, discharge, total) and per second of run, air used [L standard].
+
+        A run driven by a Python law (``simulate(..., controller=fn)``) is labelled with the law's
+        ``label`` attribute (else "python:" and its name) and measured against the law's own
+        ``setpoint`` attribute (a function of t [s] giving Pa abs), if it has one; without it the
+        entry has no tracking error (the scenario's setpoint is not the law's)."""
         out = {}
         T = float(self.t[-1] - self.t[0]) if self.t.size > 1 else 0.0
+        law = self.python_law
         for name in self._law_rows():
             ctl = self.model.scenario.controllers[name]
             m = ctl.muscle
             sw_c, sw_d = self.switchings.get(m, (0, 0))
-            entry = {"kind": ctl.kind, "muscle": m}
-            if ctl.setpoint is not None:
-                e = self.setpoint(name) - self.muscle_pressure(m)
-                after = e[self.t >= ctl.settle]
-                entry["settle_s"] = ctl.settle
+            if law is None:
+                entry = {"kind": ctl.kind, "muscle": m}
+                sp = self.setpoint(name) if ctl.setpoint is not None else None
+            else:
+                entry = {"kind": getattr(law, "label", None) or f"python:{getattr(law, '__name__', 'law')}",
+                         "muscle": m}
+                fn = getattr(law, "setpoint", None)
+                sp = None if fn is None else np.array([fn(float(t)) for t in self.t], float)
+            if sp is not None:
+                e = sp - self.muscle_pressure(m)
+                after = e[self.t >= ctl.settle_time]
+                entry["settle_s"] = ctl.settle_time
                 entry["tracking_error_rms_bar"] = float(np.sqrt(np.mean(after ** 2)) / 1e5) if after.size else None
                 entry["tracking_error_max_bar"] = float(np.max(np.abs(after)) / 1e5) if after.size else None
             entry["switchings_charge_valve"] = int(sw_c)

@@ -345,8 +345,8 @@ class SwimResult:
             if ctl.kind == "program":
                 continue
             muscles = [ctl.muscle] + ([ctl.antagonist] if ctl.kind == "joint-angle" else [])
-            entry = {"kind": ctl.kind, "muscles": muscles, "settle_s": ctl.settle}
-            after = self.t >= ctl.settle
+            entry = {"kind": ctl.kind, "muscles": muscles, "settle_s": ctl.settle_time}
+            after = self.t >= ctl.settle_time
             if ctl.kind == "joint-angle":
                 j = self.joint_names.index(ctl.joint)
                 e = np.degrees(self.setpoint(name) - self.joint_angles[:, j])[after]

@@ -119,13 +119,10 @@ def controlled_muscles(raw_controllers, pairs: dict) -> set:
 def check_joint_setpoints(sc: Scenario, robot: RobotParams) -> None:
     """A joint-angle setpoint must stay inside its joint's range (0 at the flexed stop to the
     joint's range at full extension)."""
-    from frogsim.scenario.rules import setpoint_knots
     for cname, c in sc.controllers.items():
-        if c.kind != "joint-angle":
+        if c.NAMED != "joint":
             continue
-        sp = c.setpoint
-        knots = setpoint_knots(sp, sc.base_dir, f"controllers.{cname}.setpoint") if sp.kind == "table" else ()
-        lo, hi = sp.bounds(knots)
+        lo, hi = c.setpoint.bounds()
         top = robot.joints[c.joint.split("_")[0]].range
         if lo < 0.0 or hi > top:
             bad = lo if lo < 0.0 else hi
