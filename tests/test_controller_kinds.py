@@ -9,7 +9,6 @@ import os
 import shutil
 import subprocess
 import sys
-import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -94,6 +93,28 @@ def test_settle_must_lie_inside_the_run():
         sc.replace({"controllers.loop.settle": 0.3})
     with pytest.raises(ScenarioError, match="shorter than the run"):
         sc.replace({"duration": 0.05})
+
+
+# --- setpoint tables: read once, at load time ---------------------------------------------------------
+def test_a_table_setpoint_is_read_once_by_the_loader_and_hashed_for_the_manifest(tmp_path, monkeypatch):
+    import hashlib
+    from frogsim.sweep.spec import describe_inputs, input_files
+    csv = tmp_path / "sp.csv"
+    csv.write_bytes(b"time_s,pressure_bar\n0,1\n0.1,3\n")
+    monkeypatch.chdir(tmp_path)
+    sc = frogsim.load_scenario(closed_loop({"kind": "bang-bang", "setpoint": {"kind": "table", "file": "sp.csv"},
+                                            "settle": "0.05 s"}, 0.2))
+    sp = sc.controllers["loop"].setpoint
+    assert sp.knots == ((0.0, 1e5), (0.1, 3e5))             # bar gauge -> Pa gauge
+    sha = hashlib.sha256(b"time_s,pressure_bar\n0,1\n0.1,3\n").hexdigest()
+    assert sp.digest == sha
+    described = {d["role"]: d["sha256"] for d in describe_inputs(input_files(sc))}
+    assert described["controllers.loop.setpoint.file"] == sha
+    csv.unlink()              # nothing reads the file again: not the rules, the model or a variant
+    r = frogsim.simulate(sc.replace({"controllers.loop.band": 0.2e5}))
+    # the run follows the table: 1 bar gauge at first, 3 bar gauge from 0.1 s on (within the band)
+    p = r.muscle_pressure("hip") - P_ATM
+    assert abs(p[-1] - 3e5) < 0.2e5
 
 
 # --- a Python law's metrics ---------------------------------------------------------------------------
@@ -206,13 +227,14 @@ pts = [float(x) for x in ds["air_used"].values]
 single = []
 for v in (0.2, 0.6):
     r = frogsim.simulate(frogsim.load_scenario("one-hip.toml").replace({"controllers.loop.duty": v}))
-    single.append(float((r.charged_mass("hip")[-1] - r.charged_mass("hip")[0]) / r.reference_density * 1e3))
+    single.append(float((r.charged_mass("hip")[-1] - r.charged_mass("hip")[0]) / r.reference_density))
 out["sweep"] = pts
 out["single"] = single
 print(json.dumps(out))
 '''
 
 
+@pytest.mark.slow          # compiles the engine afresh in the copy (about a minute)
 def test_a_new_kind_is_one_module_and_its_dispatch_entry(tmp_path):
     """In a copy of the package, a fixed-duty kind added as one new module plus its entry in the
     compiled dispatch (an import and one branch of sample_controllers) runs in simulate and in a
@@ -239,6 +261,6 @@ def test_a_new_kind_is_one_module_and_its_dispatch_entry(tmp_path):
     assert out["charge_fraction"] == pytest.approx(0.3, abs=0.01)
     assert not out["vent_and_charge_together"]
     assert abs(out["switchings"][0] - 2 * 50) <= 1      # 50 periods of 10 ms: it opens and closes once in each
-    # the sweep's points are the single runs (air charged over the run, L standard)
+    # the sweep's points are the single runs (air charged over the run, a standard volume [m^3])
     np.testing.assert_allclose(out["sweep"], out["single"], rtol=1e-12)
     assert out["sweep"][1] > out["sweep"][0] > 0.0     # more duty, more air

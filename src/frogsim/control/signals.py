@@ -197,7 +197,7 @@ def sense_joint(laws, c, cs, b, k, dt):
     return th, w
 
 
-# --- the relay the laws share ---------------------------------------------------------------------------------------------
+# --- the relay the laws share ---------------------------------------------------------------------------
 @jit
 def bang_bang(p, sp, band):
     """Three-position relay: charge below sp - band/2, vent above sp + band/2, else hold."""

@@ -9,8 +9,9 @@ constants for Numba) and assembles the table; :func:`build_table` is registered 
 :mod:`frogsim.scenario.kinds`, through which :func:`frogsim.circuit.model.build_model` calls it
 (the circuit layer does not import this one). A row is L_SIZE columns plus the setpoint's knots
 (t_j [s], p_j [Pa abs]) in pairs from column L_SP0 on; the table is as wide as its widest row.
-The valves' ISO 6358 constants are not in it: a law reads them from the model's muscle rows
-``mp`` (:mod:`frogsim.circuit.layout`, M_CC..M_DRL).
+Only the sliding-mode kind, whose law models the valves, writes their ISO 6358 constants into its
+row (L_CC..L_DRL); they are also in the model's muscle rows ``mp``, which the compiled sample
+does not receive.
 
 Pressures are absolute [Pa] inside; times [s]; the PWM period and minimum pulse in controller
 samples (the commands change only on the controller's grid).

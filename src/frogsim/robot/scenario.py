@@ -33,6 +33,7 @@ from frogsim.scenario.fields import build, choice, flag, quantity, unwrap
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.schema import Motion, Muscle, Program
 from frogsim.control.gait import Gait, muscle_programs
+from frogsim.scenario.kinds import KINDS
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.load import merged_raw, scenario_from_raw
 from frogsim.robot.geometry import Layout, layout
@@ -108,11 +109,14 @@ def controlled_muscles(raw_controllers, pairs: dict) -> set:
     for c in raw_controllers.values():
         if not isinstance(c, dict):
             continue
-        kind = unwrap(c.get("kind"))
-        if kind == "joint-angle":
-            out.update(m for m in pairs.get(unwrap(c.get("joint")), ()) if m)
-        elif kind not in (None, "program") and isinstance(unwrap(c.get("muscle")), str):
-            out.add(unwrap(c.get("muscle")))
+        cls = KINDS.get(unwrap(c.get("kind")))
+        if cls is None or not cls.closed_loop:
+            continue
+        named = unwrap(c.get(cls.NAMED))
+        if cls.NAMED == "joint":
+            out.update(m for m in pairs.get(named, ()) if m)
+        elif isinstance(named, str):
+            out.add(named)
     return out
 
 

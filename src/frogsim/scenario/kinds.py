@@ -56,16 +56,13 @@ class ControllerSettings:
     does not read)."""
     KIND: ClassVar[str] = ""
     NAMED: ClassVar[str] = "muscle"     # the setting that names what the controller drives
+    #: True when the controller takes its muscles' valves (they then have no program)
+    closed_loop: ClassVar[bool] = True
     muscle: str = ""
 
     @property
     def kind(self) -> str:
         return self.KIND
-
-    @property
-    def closed_loop(self) -> bool:
-        """True when the controller takes its muscles' valves (they then have no program)."""
-        return True
 
     def driven(self) -> tuple:
         """The muscles whose valves the controller commands."""

@@ -4,31 +4,23 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from frogsim._jit import jit
-from frogsim.control.kinds.common import SensedLoop
+from frogsim.control.kinds.common import PressureTracking
 from frogsim.control.signals import B_SP, bang_bang, setpoint
 from frogsim.control.table import L_BAND, valve_row, with_setpoint
-from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.fields import quantity
 from frogsim.scenario.kinds import register
-from frogsim.scenario.rules import check_pressure_setpoint
-from frogsim.scenario.schema import BAR, GAUGE_MAX, Setpoint
+from frogsim.scenario.schema import BAR, GAUGE_MAX
 
 CODE = 2.0      # the table's kind column
 
 
 @register
 @dataclass(frozen=True)
-class BangBangSettings(SensedLoop):
+class BangBangSettings(PressureTracking):
     """Charge below setpoint - band/2, vent above setpoint + band/2, hold between."""
     KIND = "bang-bang"
-    setpoint: Setpoint | None = None
     band: float = quantity("pressure", gt=0.0, le=GAUGE_MAX, display="bar", default=0.1 * BAR,
                            doc="charge below setpoint - band/2, vent above setpoint + band/2")
-
-    def check(self, sc, path: str, p_top: float) -> None:
-        if self.setpoint is None:
-            raise ScenarioError(f"{path}.setpoint", MISSING, f"required for kind {self.KIND!r}")
-        check_pressure_setpoint(sc, self.setpoint, f"{path}.setpoint", p_top)
 
     def write_rows(self, name: str, ctx) -> list:
         row = valve_row(ctx, CODE, self.muscle, self.sensor)

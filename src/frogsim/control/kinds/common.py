@@ -3,9 +3,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.fields import quantity
 from frogsim.scenario.kinds import ControllerSettings
-from frogsim.scenario.schema import Sensor
+from frogsim.scenario.rules import check_pressure_setpoint
+from frogsim.scenario.schema import Sensor, Setpoint
 
 DEFAULT_SETTLE = 0.2     # [s] the metrics' settle time when none is written
 
@@ -22,3 +24,14 @@ class SensedLoop(ControllerSettings):
     def settle_time(self) -> float:
         """[s] the time from which the tracking metrics count."""
         return DEFAULT_SETTLE if self.settle is None else self.settle
+
+
+@dataclass(frozen=True)
+class PressureTracking(SensedLoop):
+    """A sensed controller that needs a pressure setpoint the valves can reach."""
+    setpoint: Setpoint | None = None
+
+    def check(self, sc, path: str, p_top: float) -> None:
+        if self.setpoint is None:
+            raise ScenarioError(f"{path}.setpoint", MISSING, f"required for kind {self.KIND!r}")
+        check_pressure_setpoint(sc, self.setpoint, f"{path}.setpoint", p_top)

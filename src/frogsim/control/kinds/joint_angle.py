@@ -2,7 +2,6 @@
 giving the pair's pressure targets, each muscle's pressure following its target by a relay."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 from frogsim._jit import jit
@@ -104,7 +103,7 @@ def joint_angle_mode(laws, c, cs, b, y, p, ts, th, w):
     p0 - dp/2 (flexor), each clipped to [atmosphere, source pressure]; a sample at which either is
     clipped counts in cs[b + B_CLIPS] and adds nothing to the integral (anti-windup; both rows
     decide the same, as they see the same inputs). Inner loop: this muscle's sensed pressure p
-    follows its target through :func:`bang_bang` with the row's band."""
+    follows its target through :func:`frogsim.control.signals.bang_bang` with the row's band."""
     sp, dsp = setpoint(laws, c, ts)
     cs[b + B_SP] = sp
     e = sp - th

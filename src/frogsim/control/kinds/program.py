@@ -11,10 +11,7 @@ from frogsim.scenario.kinds import ControllerSettings, register
 class ProgramSettings(ControllerSettings):
     """The muscle runs its open-loop program (it must have one); nothing else to set."""
     KIND = "program"
-
-    @property
-    def closed_loop(self) -> bool:
-        return False
+    closed_loop = False
 
     def write_rows(self, name: str, ctx) -> list:
         return []

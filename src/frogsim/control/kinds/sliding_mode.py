@@ -7,36 +7,28 @@ from dataclasses import dataclass
 
 from frogsim._jit import jit
 from frogsim.circuit.layout import Y_PE, Y_PS
-from frogsim.control.kinds.common import SensedLoop
+from frogsim.control.kinds.common import PressureTracking
 from frogsim.control.signals import B_MODE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, setpoint
 from frogsim.control.table import (L_BRANCH, L_CB, L_CC, L_CM, L_CRL, L_DB, L_DC, L_DEAD_C, L_DEAD_D, L_DM,
                                    L_DRL, L_GAIN, L_HORIZON, L_PENALTY, L_RHOREF, L_TAMB, L_TREF, valve_row,
                                    with_setpoint)
-from frogsim.errors import MISSING, ScenarioError
 from frogsim.physics.flow import iso6358_mass_flow
 from frogsim.scenario.fields import quantity
 from frogsim.scenario.kinds import register
-from frogsim.scenario.rules import check_pressure_setpoint
-from frogsim.scenario.schema import BAR, GAUGE_MAX, Setpoint
+from frogsim.scenario.schema import BAR, GAUGE_MAX
 
 CODE = 4.0      # the table's kind column
 
 
 @register
 @dataclass(frozen=True)
-class SlidingModeSettings(SensedLoop):
+class SlidingModeSettings(PressureTracking):
     """Sliding surface s = e + lambda de/dt; the mode minimising s^2 + rho^2 [opening a valve]."""
     KIND = "sliding-mode"
-    setpoint: Setpoint | None = None
     horizon: float = quantity("time", gt=0.0, le=1.0, display="ms", default=2e-3,
                               doc="lambda of s = e + lambda de/dt")
     penalty: float = quantity("pressure", ge=0.0, le=GAUGE_MAX, display="bar", default=0.05 * BAR,
                               doc="switching penalty rho (cost s^2 + rho^2 per change)")
-
-    def check(self, sc, path: str, p_top: float) -> None:
-        if self.setpoint is None:
-            raise ScenarioError(f"{path}.setpoint", MISSING, f"required for kind {self.KIND!r}")
-        check_pressure_setpoint(sc, self.setpoint, f"{path}.setpoint", p_top)
 
     def write_rows(self, name: str, ctx) -> list:
         row = valve_row(ctx, CODE, self.muscle, self.sensor)
