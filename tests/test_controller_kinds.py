@@ -17,17 +17,10 @@ import pytest
 import frogsim
 from frogsim.errors import ScenarioError
 from tests.conftest import P_ATM
+from tests.test_control import closed_loop
 
 PACKAGE = Path(__file__).resolve().parent.parent / "src" / "frogsim"
 BAR = 1e5
-
-
-def closed_loop(controller: dict, duration: float = 0.3, **extra) -> dict:
-    d = {"name": "loop", "duration": f"{duration!r} s", "output_interval": "1 ms",
-         "muscles": {"hip": {"type": "hip", "motion": {"kind": "constant"}}},
-         "controllers": {"loop": {"muscle": "hip", **controller}}}
-    d.update(extra)
-    return d
 
 
 # --- units by dimension ------------------------------------------------------------------------------
@@ -119,7 +112,7 @@ def test_a_table_setpoint_is_read_once_by_the_loader_and_hashed_for_the_manifest
 
 # --- a Python law's metrics ---------------------------------------------------------------------------
 def test_python_law_metrics_carry_its_label_and_its_setpoint():
-    sc = frogsim.load_scenario(closed_loop({"kind": "bang-bang", "setpoint": "3 bar", "settle": "0.1 s"}))
+    sc = frogsim.load_scenario(closed_loop({"kind": "bang-bang", "setpoint": "3 bar", "settle": "0.1 s"}, 0.3))
 
     def vent(t, obs):
         return {"hip": "vent"}
