@@ -11,6 +11,7 @@ Public API::
     run = frogsim.swim("swim", cycles=10)                     # the robot in MuJoCo -> SwimResult
     run.summary()["mean_speed_m_per_s"]                       # m/s; see frogsim.engine.swim
 """
+import frogsim.control  # noqa: F401  (registers the controller kinds before any scenario is loaded)
 from frogsim.circuit.model import build_model
 from frogsim.engine.pneumatic import simulate
 from frogsim.engine.result import Result

@@ -8,9 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from frogsim.circuit import layout as L
-from frogsim.circuit.laws import controller_rows, laws_table
+from frogsim.scenario import kinds
 from frogsim.scenario.core import Scenario
-from frogsim.scenario.rules import setpoint_knots
 from frogsim.scenario.motion import command_time, muscle_knots, output_times
 from frogsim.scenario.schema import VALVE_STATES
 from frogsim.scenario.view import Settings
@@ -171,8 +170,8 @@ def _schedule_stage(sc, laws, motion):
         # leaves them alone (NaN: "not set here", see frogsim.engine.integrator.advance)
         sched_u = sched_u.copy()
         for c in sc.controllers.values():
-            if c.kind != "program":
-                for m in (c.muscle, c.antagonist) if c.kind == "joint-angle" else (c.muscle,):
+            if c.closed_loop:
+                for m in c.driven():
                     i = names.index(m)
                     sched_u[:, 2 * i:2 * i + 2] = np.nan
     return sched_u
@@ -193,7 +192,7 @@ PARTS = (
     ("motion", ("muscles", "muscle_types", "controller", "valves", "base_dir"), (), _motion_stage),
     ("volumes", (), ("motion",), _volumes_stage),
     ("g", ("air", "source", "exhaust", "pump", "supply", "valves"), (), _globals_stage),
-    ("laws", ("valves", "controllers", "base_dir", "controller", "joints"), ("g", "volumes"), _laws_stage),
+    ("laws", ("valves", "controllers", "controller", "joints"), ("g", "volumes"), _laws_stage),
     ("sched_u", ("controllers",), ("laws", "motion"), _schedule_stage),
     ("state", ("air", "source", "exhaust", "muscles", "solver"), ("volumes",), _state_stage),
     ("out_t", ("duration", "output_interval"), (), _output_stage),
@@ -214,21 +213,11 @@ def assemble(scenario: Scenario, parts: dict) -> PneumaticModel:
 
 
 def _laws(sc: Scenario, g: np.ndarray, names: tuple, volumes: tuple) -> np.ndarray:
-    """The table of sampled laws (:mod:`frogsim.circuit.laws`): the pump's band, then one row per
-    closed-loop controller. The controllers' model of a muscle is its volume at the start."""
-    names = list(names)
-    vc, vd = sc.valves.charge, sc.valves.discharge
-    valves = {"values": (vc.sonic_conductance, vc.critical_ratio, vc.subsonic_index, vc.laminar_ratio,
-                         vd.sonic_conductance, vd.critical_ratio, vd.subsonic_index, vd.laminar_ratio),
-              "branch_limit": (g[L.G_BRANCH_LIMIT] if int(g[L.G_SUPPLY_MODE]) == L.SUPPLY_PAPER else np.inf)}
-    knots = {c: setpoint_knots(ctl.setpoint, sc.base_dir, f"controllers.{c}.setpoint")
-             for c, ctl in sc.controllers.items()
-             if ctl.kind != "program" and ctl.setpoint is not None and ctl.setpoint.kind == "table"}
-    knots.update({c: setpoint_knots(ctl.duty_schedule, sc.base_dir, f"controllers.{c}.duty_schedule")
-                  for c, ctl in sc.controllers.items()
-                  if ctl.kind == "pwm" and ctl.duty_schedule is not None and ctl.duty_schedule.kind == "table"})
-    rows = controller_rows(sc, g, valves, names, dict(zip(names, volumes)), knots)
-    return laws_table(g, rows)
+    """The table of sampled laws: the pump's band, then the closed-loop controllers' rows, made by
+    :mod:`frogsim.control.table` (registered with :mod:`frogsim.scenario.kinds`, so this layer
+    does not import the control layer). The controllers' model of a muscle is its volume at the
+    start."""
+    return kinds.build_table(sc, g, names, volumes)
 
 
 def _file_key(base_dir: str, m) -> tuple | None:

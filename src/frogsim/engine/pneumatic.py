@@ -22,7 +22,7 @@ from frogsim.circuit import layout as L
 from frogsim.circuit.model import PneumaticModel, build_model
 from frogsim.physics.muscle import muscle_volume
 from frogsim.scenario.core import Scenario
-from frogsim.circuit.laws import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM, L_SIZE
+from frogsim.control.table import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM, L_SIZE
 from frogsim.control.sampled import (B_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE, KIND_EXTERNAL, KIND_PUMP_BAND,
                                      command_from_python, next_control_time)
 from frogsim.engine.integrator import (D_OUT, D_PAUSE, D_T, EPS, STATUS_NONPHYSICAL, STATUS_OK, STATUS_PAUSED,
@@ -283,4 +283,6 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
         if n % 1000 == 0 and time.perf_counter() - wall0 > limit:
             raise SimulationError(f"scenario {sc.name!r}: stopped at t = {ds[D_T]:.6g} s of {T:g} s after "
                                   f"{limit:g} s of wall time (solver.max_wall_time)")
-    return _finish(model, status, ds, y, out_y, out_u, stats, cs)
+    result = _finish(model, status, ds, y, out_y, out_u, stats, cs)
+    result.python_law = fn
+    return result

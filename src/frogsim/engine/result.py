@@ -21,6 +21,20 @@ def valve_switchings(model, cs) -> dict:
     return {model.names[int(model.laws[c, L_MUSCLE])]: v for c, v in counts.items()}
 
 
+def label_and_setpoint(ctl, law, t: np.ndarray, own) -> tuple:
+    """(the label, the setpoint on the output times or None) a controller's metrics carry.
+
+    The scenario's controller ``ctl`` is labelled with its kind and measured against its own
+    setpoint (``own()``, when it has one); a run driven by a Python ``law`` instead is labelled
+    with the law's ``label`` attribute (else "python:" and its name) and measured against the
+    law's ``setpoint`` attribute (a function of t [s], in the controller's unit), or nothing."""
+    if law is None:
+        return ctl.kind, (own() if ctl.setpoint is not None else None)
+    label = getattr(law, "label", None) or f"python:{getattr(law, '__name__', type(law).__name__)}"
+    fn = getattr(law, "setpoint", None)
+    return label, (None if fn is None else np.array([fn(float(x)) for x in t], float))
+
+
 @dataclass
 class Result:
     """Time series of one pneumatic run (SI inside).
@@ -36,15 +50,16 @@ class Result:
     stats: dict = field(default_factory=dict)
     status: str = "ok"
     switchings: dict = field(default_factory=dict)   # closed-loop muscles: (charge, discharge) valve switchings
+    python_law: object = None      # the Python function that drove the closed-loop muscles, if one did
 
     # -- closed-loop control (docs/control.md) -------------------------------------------------------
     def _law_rows(self) -> dict:
         """{controller name: its row in the model's table of laws} of the closed-loop controllers."""
         rows = {}
         c = int(self.model.laws.shape[0]) - sum(1 for k in self.model.scenario.controllers.values()
-                                                 if k.kind != "program")
+                                                 if k.closed_loop)
         for name, ctl in self.model.scenario.controllers.items():
-            if ctl.kind != "program":
+            if ctl.closed_loop:
                 rows[name] = c
                 c += 1
         return rows
@@ -64,18 +79,24 @@ class Result:
     def control_metrics(self) -> dict:
         """Per closed-loop controller (docs/control.md): tracking error RMS and max [bar] from its
         ``settle`` time on (true pressure against the setpoint, on the output grid), valve
-        switchings (charge, discharge, total) and per second of run, air used [L standard]."""
+        switchings (charge, discharge, total) and per second of run, air used [L standard].
+
+        A run driven by a Python law (``simulate(..., controller=fn)``) carries the law's label
+        and is measured against the law's own setpoint (Pa abs), or has no tracking error
+        (:func:`label_and_setpoint`)."""
         out = {}
         T = float(self.t[-1] - self.t[0]) if self.t.size > 1 else 0.0
+        law = self.python_law
         for name in self._law_rows():
             ctl = self.model.scenario.controllers[name]
             m = ctl.muscle
             sw_c, sw_d = self.switchings.get(m, (0, 0))
-            entry = {"kind": ctl.kind, "muscle": m}
-            if ctl.setpoint is not None:
-                e = self.setpoint(name) - self.muscle_pressure(m)
-                after = e[self.t >= ctl.settle]
-                entry["settle_s"] = ctl.settle
+            label, sp = label_and_setpoint(ctl, law, self.t, lambda: self.setpoint(name))
+            entry = {"kind": label, "muscle": m}
+            if sp is not None:
+                e = sp - self.muscle_pressure(m)
+                after = e[self.t >= ctl.settle_time]
+                entry["settle_s"] = ctl.settle_time
                 entry["tracking_error_rms_bar"] = float(np.sqrt(np.mean(after ** 2)) / 1e5) if after.size else None
                 entry["tracking_error_max_bar"] = float(np.max(np.abs(after)) / 1e5) if after.size else None
             entry["switchings_charge_valve"] = int(sw_c)

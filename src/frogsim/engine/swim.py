@@ -31,6 +31,7 @@ import numpy as np
 
 from frogsim.circuit import layout as CL
 from frogsim.engine import coupled as C
+from frogsim.engine.result import label_and_setpoint
 
 DELAY_FRACTION = 0.05
 
@@ -43,6 +44,7 @@ class SwimResult:
     stats: dict = field(default_factory=dict)
     wall_s: float = 0.0           # [s] wall time of the steps (compilation excluded)
     compile_s: float = 0.0        # [s] compiling (or loading from the cache) the loop, before the steps
+    python_law: object = None     # the Python function that drove the closed-loop muscles, if one did
 
     # -- basic series ---------------------------------------------------------------------------
     @property
@@ -346,22 +348,26 @@ class SwimResult:
         rho = self.reference_density
         out = {}
         for name, ctl in self.rs.pneumatic.controllers.items():
-            if ctl.kind == "program":
+            if not ctl.closed_loop:
                 continue
-            muscles = [ctl.muscle] + ([ctl.antagonist] if ctl.kind == "joint-angle" else [])
-            entry = {"kind": ctl.kind, "muscles": muscles, "settle_s": ctl.settle}
-            after = self.t >= ctl.settle
-            if ctl.kind == "joint-angle":
-                j = self.joint_names.index(ctl.joint)
-                e = np.degrees(self.setpoint(name) - self.joint_angles[:, j])[after]
+            muscles = list(ctl.driven())
+            label, sp = label_and_setpoint(ctl, self.python_law, self.t, lambda: self.setpoint(name))
+            entry = {"kind": label, "muscles": muscles, "settle_s": ctl.settle_time}
+            after = self.t >= ctl.settle_time
+            angle = ctl.NAMED == "joint"        # the controller tracks its joint's angle
+            if angle:
                 entry["joint"] = ctl.joint
+            if sp is not None and angle:
+                j = self.joint_names.index(ctl.joint)
+                e = np.degrees(sp - self.joint_angles[:, j])[after]
                 entry["tracking_error_rms_deg"] = float(np.sqrt(np.mean(e ** 2))) if e.size else None
                 entry["tracking_error_max_deg"] = float(np.max(np.abs(e))) if e.size else None
+            if angle:
                 b = int(CS_SIZE + rows[ctl.muscle] * cs[CS_BLOCK])
                 entry["samples_pressure_target_clipped"] = int(cs[b + B_CLIPS])
-            else:
+            elif sp is not None:
                 i = self.muscle_names.index(ctl.muscle)
-                e = (self.setpoint(name) - self.pressures[:, i])[after]
+                e = (sp - self.pressures[:, i])[after]
                 entry["tracking_error_rms_bar"] = float(np.sqrt(np.mean(e ** 2)) / 1e5) if e.size else None
                 entry["tracking_error_max_bar"] = float(np.max(np.abs(e)) / 1e5) if e.size else None
             sw = {mu: dict(zip(("charge", "discharge"), counts.get(rows[mu], (0, 0)))) for mu in muscles}
@@ -477,4 +483,4 @@ def swim(scenario, cycles: int | None = None, progress=None, controller=None) ->
     else:
         out = run_coupled(cm, progress=progress)
     return SwimResult(rec=out["rec"], model=cm, stats=out["stats"], wall_s=out["wall_s"],
-                      compile_s=out.get("compile_s", 0.0))
+                      compile_s=out.get("compile_s", 0.0), python_law=controller)

@@ -33,6 +33,7 @@ from frogsim.scenario.fields import build, choice, flag, quantity, unwrap
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.schema import Motion, Muscle, Program
 from frogsim.control.gait import Gait, muscle_programs
+from frogsim.scenario.kinds import KINDS
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.load import merged_raw, scenario_from_raw
 from frogsim.robot.geometry import Layout, layout
@@ -108,24 +109,24 @@ def controlled_muscles(raw_controllers, pairs: dict) -> set:
     for c in raw_controllers.values():
         if not isinstance(c, dict):
             continue
-        kind = unwrap(c.get("kind"))
-        if kind == "joint-angle":
-            out.update(m for m in pairs.get(unwrap(c.get("joint")), ()) if m)
-        elif kind not in (None, "program") and isinstance(unwrap(c.get("muscle")), str):
-            out.add(unwrap(c.get("muscle")))
+        cls = KINDS.get(unwrap(c.get("kind")))
+        if cls is None or not cls.closed_loop:
+            continue
+        named = unwrap(c.get(cls.NAMED))
+        if cls.NAMED == "joint":
+            out.update(m for m in pairs.get(named, ()) if m)
+        elif isinstance(named, str):
+            out.add(named)
     return out
 
 
 def check_joint_setpoints(sc: Scenario, robot: RobotParams) -> None:
     """A joint-angle setpoint must stay inside its joint's range (0 at the flexed stop to the
     joint's range at full extension)."""
-    from frogsim.scenario.rules import setpoint_knots
     for cname, c in sc.controllers.items():
-        if c.kind != "joint-angle":
+        if c.NAMED != "joint":
             continue
-        sp = c.setpoint
-        knots = setpoint_knots(sp, sc.base_dir, f"controllers.{cname}.setpoint") if sp.kind == "table" else ()
-        lo, hi = sp.bounds(knots)
+        lo, hi = c.setpoint.bounds()
         top = robot.joints[c.joint.split("_")[0]].range
         if lo < 0.0 or hi > top:
             bad = lo if lo < 0.0 else hi

@@ -20,8 +20,9 @@ from dataclasses import dataclass, field
 from frogsim.errors import UNKNOWN, ScenarioError
 from frogsim.scenario import rules
 from frogsim.scenario.fields import check_value, quantity, unknown_key_error
+from frogsim.scenario.kinds import ControllerSettings
 from frogsim.scenario.schema import (MOTION_KINDS, Air, Chamber, Controller, Motion, Muscle, MuscleType,
-                                     Program, Pump, Solver, Supply, Valves, ValveController)
+                                     Program, Pump, Solver, Supply, Valves)
 
 _LEAF_KEYS = ("kind", "integer", "boolean", "choices", "choices_from")
 
@@ -48,7 +49,7 @@ class Scenario:
     muscle_types: dict[str, MuscleType] = field(default_factory=dict)
     muscles: dict[str, Muscle] = field(default_factory=dict)
     programs: dict[str, Program] = field(default_factory=dict)
-    controllers: dict[str, ValveController] = field(default_factory=dict)
+    controllers: dict[str, ControllerSettings] = field(default_factory=dict)
     joints: dict = field(default_factory=dict)      # robot: joint -> (extensor, flexor or None)
     base_dir: str = "."
     raw: dict = field(default_factory=dict, repr=False, compare=False)
@@ -111,7 +112,7 @@ def _unused(obj, name: str) -> str:
     """Why a leaf field of obj has no effect here ("" if it has one)."""
     if isinstance(obj, Program) and name != "steps" and not obj.is_cycle:
         return "this program is written as steps, not as a cycle"
-    if hasattr(obj, "unused"):      # controllers and setpoints say which settings their kind reads
+    if hasattr(obj, "unused"):      # setpoints say which settings their kind reads
         return obj.unused(name)
     if isinstance(obj, Motion) and name != "kind":
         required, optional = MOTION_KINDS[obj.kind]

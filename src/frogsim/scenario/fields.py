@@ -12,6 +12,7 @@ import difflib
 import functools
 import math
 import operator
+import types
 import typing
 
 import numpy as np
@@ -187,7 +188,7 @@ def build(cls, raw, path: str = ""):
 def build_value(hint, raw, meta, path):
     """Build one value of the type hint: a dataclass, dict[str, dataclass], optional or a leaf."""
     origin = typing.get_origin(hint)
-    if origin is typing.Union:
+    if origin is typing.Union or origin is types.UnionType:      # Optional[X], X | None
         args = [a for a in typing.get_args(hint) if a is not type(None)]
         return build_value(args[0], raw, meta, path)
     if dataclasses.is_dataclass(hint):

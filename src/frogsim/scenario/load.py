@@ -18,8 +18,10 @@ from frogsim.scenario.files import check_raw, read_text
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.rules import check
 from frogsim.scenario.schema import (
-    Air, Chamber, Controller, Muscle, MuscleType, Program, Pump, Solver, Supply, Valves, ValveController,
+    Air, Chamber, Controller, Muscle, MuscleType, Program, Pump, Solver, Supply, Valves, Setpoint,
+    with_table,
 )
+from frogsim.scenario.kinds import ControllerSettings
 from frogsim.errors import MISSING, ScenarioError, Shown
 
 PARAMS_DIR = Path(__file__).resolve().parent.parent / "params"
@@ -275,10 +277,11 @@ def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None 
     controllers_raw = raw.get("controllers", {})
     if not isinstance(controllers_raw, dict):
         raise ScenarioError("controllers", controllers_raw, "expected a table of named controllers")
-    controllers = {c: ValveController.from_raw(v, f"controllers.{c}") for c, v in controllers_raw.items()}
+    controllers = {c: _read_tables(ControllerSettings.from_raw(v, f"controllers.{c}"), base_dir, f"controllers.{c}")
+                   for c, v in controllers_raw.items()}
     joints = dict(joints or {})
     for c, ctl in controllers.items():
-        if ctl.kind == "joint-angle" and ctl.joint in joints:
+        if ctl.NAMED == "joint" and ctl.joint in joints:
             ext, flex = joints[ctl.joint]
             controllers[c] = dataclasses.replace(ctl, muscle=ext, antagonist=flex or "")
     scenario = Scenario(name=name, parameters=raw["parameters"], duration=duration,
@@ -288,6 +291,13 @@ def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None 
                         base_dir=base_dir, raw=raw, **sections)
     check(scenario)
     return scenario
+
+
+def _read_tables(ctl, base_dir: str, path: str):
+    """The controller with every table setpoint's file read, once, here (:func:`with_table`)."""
+    tables = {f.name: with_table(getattr(ctl, f.name), base_dir, f"{path}.{f.name}")
+              for f in dataclasses.fields(ctl) if isinstance(getattr(ctl, f.name), Setpoint)}
+    return dataclasses.replace(ctl, **tables) if tables else ctl
 
 
 def with_overrides(raw: dict, overrides: dict, share: bool = False) -> dict:

@@ -13,7 +13,7 @@ from frogsim._budget import ASK_ABOVE, Need, check as check_size
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.fields import shown
 from frogsim.scenario.motion import build_motions
-from frogsim.scenario.schema import MOTION_KINDS, SETPOINT_FIELDS
+from frogsim.scenario.schema import MOTION_KINDS
 from frogsim.scenario.view import Settings
 
 if TYPE_CHECKING:   # annotations only
@@ -119,116 +119,40 @@ def _check_motions(sc) -> None:
     build_motions(sc)      # overlapping strokes, joint-angle files
 
 
-def _check_duty_schedule(ds, base_dir: str, path: str) -> None:
-    """A duty schedule's settings are there and every duty it takes lies in 0..1."""
-    for key in SETPOINT_FIELDS[ds.kind]:
-        if key not in ("start", "time_column", "column") and getattr(ds, key) in (None, ()):
-            raise ScenarioError(f"{path}.{key}", MISSING, f"required for kind {ds.kind!r}")
-    knots = setpoint_knots(ds, base_dir, path) if ds.kind == "table" else ()
-    lo, hi = ds.bounds(knots)
-    if lo < 0.0 or hi > 1.0:
-        shown = f"{lo:g}..{hi:g} (lowest..highest duty)"
-        raise ScenarioError(path, shown, "a duty lies in 0..1 (0 %..100 %): for a sine mean - amplitude >= 0 "
-                                         "and mean + amplitude <= 1")
-
-
-def setpoint_knots(sp, base_dir: str, path: str) -> tuple:
-    """The rows ((t [s], p [Pa gauge]), ...) of a table setpoint's CSV file (times increasing);
-    an angle setpoint's ((t [s], angle [rad]), ...) from degrees."""
-    import math
-    from pathlib import Path
-
-    from frogsim.scenario.tables import read_table
-    where = f"{path}.file"
-    # a regular UTF-8 file, every row as many fields as the header (frogsim.scenario.tables)
-    table = read_table(Path(base_dir) / sp.file, where, numbers=False)
-    head = list(table.columns)
-    for col in (sp.time_column, sp.column):
-        if col not in head:
-            raise ScenarioError(where, sp.file, f"has no column {col!r} (columns: {', '.join(head)})")
-    out = []
-    for k, (tv, pv) in enumerate(zip(table[sp.time_column], table[sp.column]), start=2):
-        try:
-            t, p = float(tv), float(pv) * sp.SCALE
-        except (ValueError, TypeError):
-            raise ScenarioError(where, sp.file, f"line {k}: expected numbers in {sp.time_column} and "
-                                                f"{sp.column}") from None
-        if not (math.isfinite(t) and math.isfinite(p)):
-            raise ScenarioError(where, sp.file, f"line {k}: must be finite numbers")
-        if out and t <= out[-1][0]:
-            raise ScenarioError(where, sp.file, f"line {k}: times must increase")
-        out.append((t, p))
-    if not out:
-        raise ScenarioError(where, sp.file, "has no rows")
-    return tuple(out)
-
-
 def check_controllers(sc: Scenario) -> None:
-    """[controllers.NAME]: a muscle that exists, one controller per muscle, the settings the kind
-    needs, a setpoint the source can reach, a PWM period of at least two valve dead times (and two
-    controller samples); a muscle under a closed-loop controller has no program, every other
-    muscle has one."""
+    """[controllers.NAME]: the muscles a controller drives exist, each is under one controller at
+    most, a muscle under a closed-loop controller has no program and every other muscle has one,
+    the metrics' settle time lies inside the run; then each kind's own checks
+    (:meth:`frogsim.scenario.kinds.ControllerSettings.check`)."""
     driven = {}
-    dead = max(sc.valves.charge.dead_time, sc.valves.discharge.dead_time)
-    dt = 1.0 / sc.controller.rate
     p_top = sc.source.initial_pressure_gauge
     if sc.pump.enabled and sc.pump.displacement > 0:
         p_top = max(p_top, sc.pump.off_above_gauge)
     for cname, c in sc.controllers.items():
         path = f"controllers.{cname}"
-        if c.kind == "joint-angle":
-            _check_joint_controller(sc, cname, c, driven, p_top)
-            continue
-        if c.muscle not in sc.muscles:
-            raise ScenarioError(f"{path}.muscle", c.muscle,
-                                f"must name a muscle of this scenario ({', '.join(sc.muscles)})")
-        if c.muscle in driven:
-            raise ScenarioError(f"{path}.muscle", c.muscle, f"already under controllers.{driven[c.muscle]}")
-        driven[c.muscle] = cname
-        m = sc.muscles[c.muscle]
-        if c.kind == "program":
-            if not m.program.steps:
-                raise ScenarioError(f"muscles.{c.muscle}.program", MISSING,
-                                    f"{path} is of kind 'program': the muscle needs a program")
-            continue
-        if m.program.steps:
-            raise ScenarioError(f"muscles.{c.muscle}.program", "(a program)",
-                                f"refused: the muscle is under the closed-loop {path} ({c.kind}), "
-                                "which drives its valves; remove its program")
-        if c.kind == "pwm":
-            given = [k for k in ("duty", "duty_schedule", "setpoint") if getattr(c, k) is not None]
-            if len(given) != 1:
-                raise ScenarioError(f"{path}.duty", MISSING if not given else f"{' and '.join(given)} given",
-                                    "a pwm controller takes one of: a duty or a duty_schedule (open loop), or "
-                                    "a setpoint")
-            if c.duty_schedule is not None:
-                _check_duty_schedule(c.duty_schedule, sc.base_dir, f"{path}.duty_schedule")
-            period = 1.0 / c.frequency
-            if period < 2.0 * dead:
-                raise _err(f"{path}.frequency", c, "frequency",
-                           f"the period {period * 1e3:g} ms must be at least twice the valve dead time "
-                           f"({dead * 1e3:g} ms): at most {1.0 / (2.0 * dead):g} Hz")
-            if period < 2.0 * dt - 1e-12:
-                raise _err(f"{path}.frequency", c, "frequency",
-                           f"the period must span at least two controller samples (at most "
-                           f"{sc.controller.rate / 2:g} Hz at controller.rate = {sc.controller.rate:g} Hz)")
-        elif c.setpoint is None:
-            raise ScenarioError(f"{path}.setpoint", MISSING, f"required for kind {c.kind!r}")
-        sp = c.setpoint
-        if sp is None:
-            continue
-        for key in SETPOINT_FIELDS[sp.kind]:
-            if key not in ("start", "time_column", "column") and getattr(sp, key) in (None, ()):
-                raise ScenarioError(f"{path}.setpoint.{key}", MISSING, f"required for setpoint kind {sp.kind!r}")
-        knots = setpoint_knots(sp, sc.base_dir, f"{path}.setpoint") if sp.kind == "table" else ()
-        lo, hi = sp.bounds(knots)
-        if hi > p_top:
-            raise ScenarioError(f"{path}.setpoint", f"{hi / 1e5:g} bar (highest value)",
-                                f"must not exceed the source pressure ({p_top / 1e5:g} bar gauge): "
-                                "the charge valve cannot reach it")
-        if lo < -sc.air.atmospheric_pressure_abs:
-            raise ScenarioError(f"{path}.setpoint", f"{lo / 1e5:g} bar (lowest value)",
-                                "must be above absolute zero")
+        c.check_target(sc, path)
+        for m in c.driven():
+            where, what = c.where(path)
+            if m not in sc.muscles:
+                raise ScenarioError(where, what, f"must name a muscle of this scenario ({', '.join(sc.muscles)})"
+                                    if c.NAMED == "muscle" else f"its muscle {m!r} is not in this scenario")
+            if m in driven:
+                raise ScenarioError(where, what, f"already under controllers.{driven[m]}" if c.NAMED == "muscle"
+                                    else f"its muscle {m!r} is already under controllers.{driven[m]}")
+            driven[m] = cname
+            has_program = bool(sc.muscles[m].program.steps)
+            if not c.closed_loop and not has_program:
+                raise ScenarioError(f"muscles.{m}.program", MISSING,
+                                    f"{path} is of kind {c.kind!r}: the muscle needs a program")
+            if c.closed_loop and has_program:
+                raise ScenarioError(f"muscles.{m}.program", "(a program)",
+                                    f"refused: the muscle is under the closed-loop {path} ({c.kind}), "
+                                    "which drives its valves; remove its program")
+        settle = getattr(c, "settle", None)
+        if settle is not None and settle >= sc.duration:
+            raise _err(f"{path}.settle", c, "settle", f"must be shorter than the run (duration "
+                                                     f"{sc.duration:g} s): the metrics count from it on")
+        c.check(sc, path, p_top)
     for mname, m in sc.muscles.items():
         if not m.program.steps and mname not in driven:
             raise ScenarioError(f"muscles.{mname}.program", MISSING,
@@ -236,39 +160,29 @@ def check_controllers(sc: Scenario) -> None:
                                 "[controllers] section)")
 
 
-def _check_joint_controller(sc: Scenario, cname: str, c, driven: dict, p_top: float) -> None:
-    """A joint-angle controller: a joint of the robot with an antagonistic pair, both muscles free
-    of programs and of other controllers, a setpoint, a co-contraction the source can reach. The
-    setpoint's range against the joint's is checked by the robot's loader, which knows it."""
-    path = f"controllers.{cname}"
-    if not sc.joints:
-        raise ScenarioError(f"{path}.kind", c.kind, "a joint-angle controller needs a robot scenario "
-                                                    "([robot] and [gait]; frogsim.load_robot_scenario)")
-    if c.joint not in sc.joints:
-        raise ScenarioError(f"{path}.joint", c.joint, f"must name a joint of the robot ({', '.join(sc.joints)})")
-    if not c.antagonist:
-        raise ScenarioError(f"{path}.joint", c.joint, "has no antagonistic pair (robot.recovery = \"spring\"): "
-                                                      "a joint-angle controller needs robot.recovery = \"muscle\"")
-    for m in (c.muscle, c.antagonist):
-        if m not in sc.muscles:
-            raise ScenarioError(f"{path}.joint", c.joint, f"its muscle {m!r} is not in this scenario")
-        if m in driven:
-            raise ScenarioError(f"{path}.joint", c.joint, f"its muscle {m!r} is already under "
-                                                          f"controllers.{driven[m]}")
-        driven[m] = cname
-        if sc.muscles[m].program.steps:
-            raise ScenarioError(f"muscles.{m}.program", "(a program)",
-                                f"refused: the muscle is under the closed-loop {path} (joint-angle)")
-    if c.setpoint is None:
-        raise ScenarioError(f"{path}.setpoint", MISSING, "required for kind 'joint-angle'")
-    sp = c.setpoint
-    for key in SETPOINT_FIELDS[sp.kind]:
-        if key not in ("start", "time_column", "column") and getattr(sp, key) in (None, ()):
-            raise ScenarioError(f"{path}.setpoint.{key}", MISSING, f"required for setpoint kind {sp.kind!r}")
-    if c.co_contraction > p_top:
-        raise _err(f"{path}.co_contraction", c, "co_contraction",
-                   f"must not exceed the source pressure ({p_top / 1e5:g} bar gauge): the charge valve "
-                   "cannot reach it")
+def check_pressure_setpoint(sc: Scenario, sp, path: str, p_top: float) -> None:
+    """A pressure setpoint has the settings its kind needs and stays where the valves can take
+    the muscle: at most the source pressure ``p_top`` [Pa gauge], above absolute zero."""
+    sp.check_complete(path)
+    lo, hi = sp.bounds()
+    if hi > p_top:
+        raise ScenarioError(path, f"{hi / 1e5:g} bar (highest value)",
+                            f"must not exceed the source pressure ({p_top / 1e5:g} bar gauge): "
+                            "the charge valve cannot reach it")
+    if lo < -sc.air.atmospheric_pressure_abs:
+        raise ScenarioError(path, f"{lo / 1e5:g} bar (lowest value)", "must be above absolute zero")
+
+
+def check_below_source(obj, name: str, path: str, p_top: float) -> None:
+    """A gauge pressure setting the charge valve must reach: at most the source pressure."""
+    if getattr(obj, name) > p_top:
+        raise _err(path, obj, name, f"must not exceed the source pressure ({p_top / 1e5:g} bar gauge): "
+                                    "the charge valve cannot reach it")
+
+
+def err(path: str, obj, name: str, allowed: str) -> ScenarioError:
+    """ScenarioError for setting ``name`` of obj, its value shown in its display unit."""
+    return _err(path, obj, name, allowed)
 
 
 #: The cross-field rules in the order they are checked: (top-level settings it reads, rule).
@@ -279,7 +193,7 @@ RULES = (
     (("valves",), _check_valves),
     (("muscle_types",), _check_muscle_types),
     (("muscles", "muscle_types"), _check_muscles),
-    (("valves", "controller", "source", "pump", "controllers", "muscles", "air", "base_dir", "joints"),
+    (("valves", "controller", "source", "pump", "controllers", "muscles", "air", "joints", "duration"),
      check_controllers),
     (("controller", "muscles", "muscle_types", "base_dir"), _check_motions),
 )

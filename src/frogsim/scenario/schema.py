@@ -14,6 +14,7 @@ from typing import ClassVar
 from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, quantity, unknown_key_error,
                                      unwrap)
 from frogsim.errors import MISSING, ScenarioError, Shown
+from frogsim.scenario.files import read_text
 from frogsim.physics.muscle import braid_parameters, muscle_volume
 
 BAR = 1e5
@@ -377,19 +378,10 @@ class Solver:
                                     doc="wall-clock seconds one run may take (frogsim.simulate)")
 
 
-# --- closed-loop controllers ([controllers.NAME]) ---------------------------------------------------------
-CONTROLLER_KINDS = ("program", "pwm", "bang-bang", "sliding-mode", "joint-angle")
+# --- closed-loop controllers ([controllers.NAME]): the shared setpoint and sensor types ---------------------
+# (each controller kind's settings live in its own module, frogsim.control.kinds, found through
+# the registry frogsim.scenario.kinds)
 SETPOINT_KINDS = ("constant", "steps", "sine", "table")
-#: settings each controller kind reads (besides kind and muscle)
-CONTROLLER_FIELDS = {
-    "program": (),
-    "bang-bang": ("setpoint", "band", "sensor", "settle"),
-    "pwm": ("setpoint", "frequency", "duty", "duty_schedule", "proportional_band", "minimum_pulse", "rest", "sensor",
-            "settle"),
-    "sliding-mode": ("setpoint", "horizon", "penalty", "sensor", "settle"),
-    "joint-angle": ("joint", "setpoint", "co_contraction", "proportional_gain", "derivative_gain",
-                    "integral_gain", "band", "sensor", "angle_sensor", "settle"),
-}
 SETPOINT_FIELDS = {"constant": ("value",), "steps": ("steps",), "sine": ("mean", "amplitude", "frequency", "start"),
                    "table": ("file", "time_column", "column")}
 
@@ -406,6 +398,10 @@ class Setpoint:
                 (mean before start, mean + amplitude sin(2 pi f (t - start)) from it)
       table     { kind = "table", file = "sp.csv", time_column = "time_s", column = "pressure_bar" }
                 (a CSV of times [s] and gauge pressures [bar], linear between rows, constant outside)
+
+    A table's file is read once, by the loader (:func:`with_table`): its rows are ``knots``
+    ((t [s], value [SI]), ...) and ``digest`` the SHA-256 of the file's bytes (for a run's
+    manifest); nothing reads the file again.
     """
     SCALE: ClassVar[float] = BAR        # a table's column (bar gauge) in SI
     kind: str = choice(SETPOINT_KINDS, default="constant")
@@ -418,20 +414,32 @@ class Setpoint:
     file: str | None = None
     time_column: str = "time_s"
     column: str = "pressure_bar"
+    knots: tuple = ()
+    digest: str = ""
 
     def unused(self, name: str) -> str:
         if name == "kind" or name in SETPOINT_FIELDS[self.kind]:
             return ""
         return f"not used by setpoint kind {self.kind!r} (it uses: {', '.join(SETPOINT_FIELDS[self.kind])})"
 
-    def bounds(self, knots=()) -> tuple[float, float]:
-        """Lowest and highest value [Pa gauge] the setpoint takes (``knots``: a table's rows)."""
+    def bounds(self) -> tuple[float, float]:
+        """Lowest and highest value [SI: Pa gauge, rad, duty] the setpoint takes."""
         if self.kind == "constant":
             return self.value, self.value
         if self.kind == "sine":
             return self.mean - self.amplitude, self.mean + self.amplitude
-        vals = [p for _, p in (self.steps if self.kind == "steps" else knots)]
+        vals = [p for _, p in self.points()]
         return min(vals), max(vals)
+
+    def points(self) -> tuple:
+        """((t [s], value [SI]), ...): the steps, or a table's rows."""
+        return self.steps if self.kind == "steps" else self.knots
+
+    def check_complete(self, path: str, word: str = "setpoint kind") -> None:
+        """Every setting the setpoint's kind needs is there (a variant may have left one out)."""
+        for key in SETPOINT_FIELDS[self.kind]:
+            if key not in ("start", "time_column", "column") and getattr(self, key) in (None, ()):
+                raise ScenarioError(f"{path}.{key}", MISSING, f"required for {word} {self.kind!r}")
 
     @classmethod
     def from_raw(cls, raw, path: str) -> "Setpoint":
@@ -467,12 +475,12 @@ class Setpoint:
 @dataclass(frozen=True)
 class Sensor:
     """The pressure sensor between the muscle and its controller: first-order lag, then Gaussian
-    noise (seeded: the same seed gives the same run), then an ADC of ``bits`` over 0..full_scale
-    gauge (0 bits: no quantisation)."""
+    noise (seeded: the same seed gives the same run), then an ADC of ``bits`` (at least 1) over
+    0..full_scale gauge (no bits written: no quantisation)."""
     noise: float = quantity("pressure", ge=0.0, le=GAUGE_MAX, display="bar", default=0.0,
                             doc="standard deviation of the noise")
     seed: int = integer(ge=0, le=2**31 - 1, default=0)
-    bits: int = integer(ge=0, le=24, default=0)
+    bits: int | None = integer(ge=1, le=24, default=None, doc="ADC resolution (none: no quantisation)")
     full_scale: float = quantity("pressure", gt=0.0, le=GAUGE_MAX, display="bar", default=10.0 * BAR)
     lag: float = quantity("time", ge=0.0, le=1.0, display="ms", default=0.0)
 
@@ -504,98 +512,48 @@ class DutySchedule(Setpoint):
 @dataclass(frozen=True)
 class AngleSensor:
     """The joint-angle sensor of a joint-angle controller (an encoder): first-order lag, then
-    Gaussian noise (seeded), then ``bits`` of resolution over 0..full_scale (0 bits: none). The
-    velocity the law reads goes through the same lag (no noise, no quantisation)."""
+    Gaussian noise (seeded), then ``bits`` (at least 1) of resolution over 0..full_scale (no bits
+    written: none). The velocity the law reads goes through the same lag (no noise, no
+    quantisation)."""
     noise: float = quantity("angle", ge=0.0, le=math.pi, display="deg", default=0.0,
                             doc="standard deviation of the noise")
     seed: int = integer(ge=0, le=2**31 - 1, default=0)
-    bits: int = integer(ge=0, le=24, default=0)
+    bits: int | None = integer(ge=1, le=24, default=None, doc="encoder resolution (none: no quantisation)")
     full_scale: float = quantity("angle", gt=0.0, le=2.0 * math.pi, display="deg", default=0.5 * math.pi)
     lag: float = quantity("time", ge=0.0, le=1.0, display="ms", default=0.0)
 
 
-@dataclass(frozen=True)
-class ValveController:
-    """A closed-loop controller of one muscle's two valves (see docs/control.md).
+def with_table(sp: Setpoint, base_dir: str, path: str) -> Setpoint:
+    """A table setpoint with its file read (``knots``, ``digest``); other setpoints as they are.
 
-    Every sample it commands charge (charge valve open, discharge shut), hold (both shut) or vent
-    (discharge open, charge shut); both valves open at once is never commanded. The commands act
-    one valve dead time after the sample. kind "program" leaves the muscle to its open-loop
-    program; the others take the muscle's valves (the muscle then has no program).
-    """
-    kind: str = choice(CONTROLLER_KINDS)
-    muscle: str = ""
-    setpoint: Setpoint | None = None
-    band: float = quantity("pressure", gt=0.0, le=GAUGE_MAX, display="bar", default=0.1 * BAR,
-                           doc="bang-bang: charge below setpoint - band/2, vent above setpoint + band/2")
-    frequency: float = quantity("frequency", gt=0.0, le=1e4, display="Hz", default=20.0, doc="pwm: carrier")
-    duty: float | None = quantity("dimensionless", ge=0.0, le=1.0, display="%", default=None,
-                                  doc="pwm: open-loop duty (no setpoint)")
-    duty_schedule: DutySchedule | None = None     # pwm: open-loop duty as a function of time
-    proportional_band: float = quantity("pressure", gt=0.0, le=GAUGE_MAX, display="bar", default=1.0 * BAR,
-                                        doc="pwm with a setpoint: the error giving 100 % duty")
-    minimum_pulse: float = quantity("time", ge=0.0, le=1.0, display="ms", default=0.0)
-    rest: str = choice(("vent", "hold"), default="vent", doc="pwm open loop: valve state between pulses")
-    horizon: float = quantity("time", gt=0.0, le=1.0, display="ms", default=2e-3,
-                              doc="sliding mode: lambda of s = e + lambda de/dt")
-    penalty: float = quantity("pressure", ge=0.0, le=GAUGE_MAX, display="bar", default=0.05 * BAR,
-                              doc="sliding mode: switching penalty rho (cost s^2 + rho^2 per change)")
-    settle: float = quantity("time", ge=0.0, display="s", default=0.2,
-                             doc="tracking metrics count from this time on")
-    sensor: Sensor = field(default_factory=Sensor)
-    # joint-angle: a cascade on an antagonistic pair (docs/control.md); ``muscle`` is the extensor
-    # (its pressure raises the joint angle) and ``antagonist`` the flexor, both derived from the
-    # joint by the robot scenario's loader
-    joint: str = ""
-    antagonist: str = ""
-    co_contraction: float = quantity("pressure", ge=0.0, le=GAUGE_MAX, display="bar", default=2.0 * BAR,
-                                     doc="joint-angle: p0, the pair's common gauge pressure (stiffness)")
-    proportional_gain: float = quantity("pressure_per_angle", ge=0.0, display="bar/rad", default=10.0 * BAR,
-                                        doc="joint-angle: pressure difference per radian of angle error")
-    derivative_gain: float = quantity("pressure_time_per_angle", ge=0.0, display="bar*s/rad", default=0.0,
-                                      doc="joint-angle: pressure difference per rad/s of rate error")
-    integral_gain: float = quantity("pressure_per_angle_time", ge=0.0, display="bar/(rad*s)", default=0.0,
-                                    doc="joint-angle: pressure difference per rad*s of integrated error")
-    angle_sensor: AngleSensor = field(default_factory=AngleSensor)
+    The rows ((t [s], value [SI]), ...) of the CSV (times increasing; the column times
+    ``sp.SCALE``: bar gauge -> Pa, degrees -> rad, duty fractions as they are)."""
+    if sp is None or sp.kind != "table" or sp.knots:
+        return sp
+    import hashlib
+    from pathlib import Path
 
-    def unused(self, name: str) -> str:
-        if name in ("kind",) or name in CONTROLLER_FIELDS[self.kind]:
-            return ""
-        return f"not used by controller kind {self.kind!r}"
-
-    @classmethod
-    def from_raw(cls, raw, path: str) -> "ValveController":
-        if not isinstance(raw, dict) or "kind" not in raw:
-            raise ScenarioError(path, raw, f"expected a table with kind = one of {', '.join(CONTROLLER_KINDS)}")
-        fields = {f.name: f.metadata for f in dataclasses.fields(cls)}
-        kind = parse_field(raw["kind"], fields["kind"], f"{path}.kind")
-        # a joint-angle controller names its joint; its two muscles come from the joint
-        named = "joint" if kind == "joint-angle" else "muscle"
-        allowed = set(CONTROLLER_FIELDS[kind]) | {"kind", named}
-        for key in raw:
-            if key not in allowed:
-                raise unknown_key_error(path, key, allowed)
-        if named not in raw:
-            raise ScenarioError(f"{path}.{named}", MISSING, "required setting is missing")
-        what = unwrap(raw[named])
-        if not isinstance(what, str) or not what:
-            raise ScenarioError(f"{path}.{named}", what, f"expected the name of a {named}")
-        kw = {"kind": kind, named: what}
-        for key, val in raw.items():
-            if key in ("kind", named):
-                continue
-            if key == "setpoint":
-                sp_cls = AngleSetpoint if kind == "joint-angle" else Setpoint
-                kw[key] = sp_cls.from_raw(val, f"{path}.setpoint")
-            elif key == "duty_schedule":
-                kw[key] = DutySchedule.from_raw(val, f"{path}.duty_schedule")
-            elif key == "duty" and isinstance(unwrap(val), dict):
-                raise ScenarioError(f"{path}.duty", "(a table)", "a constant duty (0..1 or a percentage); "
-                                    "for a duty that changes with time write duty_schedule = { kind = ... }")
-            elif key == "sensor":
-                kw[key] = build(Sensor, unwrap(val), f"{path}.sensor")
-            elif key == "angle_sensor":
-                kw[key] = build(AngleSensor, unwrap(val), f"{path}.angle_sensor")
-            else:
-                kw[key] = parse_field(val, fields[key], f"{path}.{key}")
-        return cls(**kw)
+    from frogsim.scenario.tables import read_table
+    where = f"{path}.file"
+    file = Path(base_dir) / sp.file
+    # a regular UTF-8 file, every row as many fields as the header (frogsim.scenario.tables)
+    table = read_table(file, where, numbers=False)
+    text = read_text(file, where)
+    head = list(table.columns)
+    for col in (sp.time_column, sp.column):
+        if col not in head:
+            raise ScenarioError(where, sp.file, f"has no column {col!r} (columns: {', '.join(head)})")
+    out = []
+    for k, (tv, pv) in enumerate(zip(table[sp.time_column], table[sp.column]), start=2):
+        try:
+            t, p = float(tv), float(pv) * sp.SCALE
+        except (ValueError, TypeError):
+            raise ScenarioError(where, sp.file, f"line {k}: expected numbers in {sp.time_column} and "
+                                                f"{sp.column}") from None
+        if not (math.isfinite(t) and math.isfinite(p)):
+            raise ScenarioError(where, sp.file, f"line {k}: must be finite numbers")
+        if out and t <= out[-1][0]:
+            raise ScenarioError(where, sp.file, f"line {k}: times must increase")
+        out.append((t, p))
+    digest = hashlib.sha256(text.encode()).hexdigest()
+    return dataclasses.replace(sp, knots=tuple(out), digest=digest)

@@ -59,11 +59,39 @@ SI_UNITS = {
 }
 
 
+class AngleMismatch(ValueError):
+    """A unit whose angle does not match its kind's ("30 bar" for a gain in bar/rad)."""
+
+
+def angle_power(units) -> int:
+    """The power of the angle in a pint unit ("bar/rad" -> -1, "deg" -> 1, "bar" -> 0).
+
+    pint counts the radian as dimensionless, so "30 bar" converts to bar/rad without a word; the
+    angle's power is read from the units as written (each unit's root units) instead."""
+    ureg = registry()
+    power = 0
+    for name, exponent in units.items():
+        _, root = ureg.get_root_units(name)
+        power += exponent * dict(root._units).get("radian", 0)
+    return power
+
+
+@functools.lru_cache(maxsize=None)
+def _kind_angle_power(kind: str) -> int:
+    unit, _ = SI_UNITS[kind]
+    return angle_power(registry().Unit(unit)._units) if unit else 0
+
+
 @functools.lru_cache(maxsize=4096)
 def parse_quantity(text: str, kind: str) -> float:
-    """Parse text such as "6 bar" into an SI float of the given kind; raise ValueError if not."""
+    """Parse text such as "6 bar" into an SI float of the given kind; raise ValueError if not.
+
+    Units are checked by dimension, the angle counted as one (see :func:`angle_power`): a gain
+    in bar/rad refuses "30 bar", an angle refuses a plain "25", a percentage refuses "0.3 rad"."""
     unit, _ = SI_UNITS[kind]
     q = registry().Quantity(text)
+    if angle_power(q._units) != _kind_angle_power(kind):
+        raise AngleMismatch(text)
     if kind == "dimensionless":
         return float(q.to("dimensionless").magnitude)
     return float(q.to(unit).magnitude)
@@ -112,6 +140,11 @@ def to_si(value, kind: str, field: str) -> float:
         raise ScenarioError(field, value, f"expected {what}: {problem}")
     try:
         return parse_quantity(value.strip(), kind)
+    except AngleMismatch:
+        expected = _kind_angle_power(kind)
+        need = {0: "must not hold an angle", 1: "must be an angle (rad, deg)",
+                -1: "must be per angle (per rad or per deg)"}.get(expected, f"must hold angle^{expected}")
+        raise ScenarioError(field, value, f"expected {what}: the unit {need}") from None
     except Exception:  # pint raises several error types for bad text or dimensions
         raise ScenarioError(field, value, f"expected {what}") from None
 

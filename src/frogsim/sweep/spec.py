@@ -376,7 +376,8 @@ def _get(raw: dict, path: str):
 def input_files(scenario: Scenario, source=None) -> list[tuple[str, Path]]:
     """(role, path) of every file a loaded scenario was read from or reads when it runs: the
     scenario file (``source``: a path or a shipped name; none for a dict), its parameter set,
-    and each muscle's joint-angle table."""
+    each muscle's joint-angle table and each controller's setpoint table (with the SHA-256 of
+    the content the loader read, as a third item)."""
     from frogsim.scenario.load import PARAMS_DIR, SCENARIOS_DIR, parameter_set_names
     out = []
     if isinstance(source, (str, os.PathLike)):
@@ -391,6 +392,11 @@ def input_files(scenario: Scenario, source=None) -> list[tuple[str, Path]]:
     for name, m in getattr(scenario, "muscles", {}).items():
         if getattr(m.motion, "kind", None) == "joint_angles" and m.motion.file:
             out.append((f"muscles.{name}.motion.file", Path(scenario.base_dir) / m.motion.file))
+    for name, c in getattr(scenario, "controllers", {}).items():
+        for f in dataclasses.fields(c):
+            sp = getattr(c, f.name)
+            if getattr(sp, "digest", ""):       # a table setpoint: read, and hashed, by the loader
+                out.append((f"controllers.{name}.{f.name}.file", Path(scenario.base_dir) / sp.file, sp.digest))
     return out
 
 
@@ -407,8 +413,10 @@ def file_sha256(path) -> str | None:
 
 
 def describe_inputs(files) -> list[dict]:
-    """[{"role", "path", "sha256"}] of (role, path) pairs (paths made absolute)."""
-    return [{"role": role, "path": str(Path(path).resolve()), "sha256": file_sha256(path)} for role, path in files]
+    """[{"role", "path", "sha256"}] of (role, path) pairs (paths made absolute; a third item is
+    the content's SHA-256 when it is known, else the file is hashed here)."""
+    return [{"role": f[0], "path": str(Path(f[1]).resolve()), "sha256": f[2] if len(f) > 2 else file_sha256(f[1])}
+            for f in files]
 
 
 def inputs_sha256(inputs) -> str:

@@ -1,0 +1,142 @@
+"""Kind "pwm": pulses on the controller grid, open loop (a duty, or a duty schedule) or closed
+loop (the duty from the pressure error)."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from frogsim._jit import jit
+from frogsim.control.kinds.common import SensedLoop
+from frogsim.control.signals import B_PHASE, B_PULSE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, setpoint
+from frogsim.control.table import (DUTY_CLOSED, DUTY_SCHEDULED, L_DUTY, L_MINPULSE_N, L_PBAND, L_PERIOD_N,
+                                   L_REST, valve_row, with_setpoint)
+from frogsim.errors import MISSING, ScenarioError
+from frogsim.scenario.fields import choice, quantity, unwrap
+from frogsim.scenario.kinds import register
+from frogsim.scenario.rules import check_pressure_setpoint, err
+from frogsim.scenario.schema import BAR, GAUGE_MAX, DutySchedule, Setpoint
+
+CODE = 3.0      # the table's kind column
+
+
+@register
+@dataclass(frozen=True)
+class PwmSettings(SensedLoop):
+    """Pulses of round(duty N) samples at the start of each period of N = rate / frequency samples."""
+    KIND = "pwm"
+    setpoint: Setpoint | None = None
+    frequency: float = quantity("frequency", gt=0.0, le=1e4, display="Hz", default=20.0, doc="carrier")
+    duty: float | None = quantity("dimensionless", ge=0.0, le=1.0, display="%", default=None,
+                                  doc="open-loop duty (no setpoint)")
+    duty_schedule: DutySchedule | None = None     # open-loop duty as a function of time
+    proportional_band: float = quantity("pressure", gt=0.0, le=GAUGE_MAX, display="bar", default=1.0 * BAR,
+                                        doc="with a setpoint: the error giving 100 % duty")
+    minimum_pulse: float = quantity("time", ge=0.0, le=1.0, display="ms", default=0.0,
+                                    doc="shorter pulses are dropped, shorter gaps filled; below the period")
+    rest: str = choice(("vent", "hold"), default="vent", doc="open loop: valve state between pulses")
+
+    @classmethod
+    def parse_value(cls, key: str, raw, hint, meta, path: str):
+        if key == "duty" and isinstance(unwrap(raw), dict):
+            raise ScenarioError(path, "(a table)", "a constant duty (0..1 or a percentage); for a duty that "
+                                                   "changes with time write duty_schedule = { kind = ... }")
+        return super().parse_value(key, raw, hint, meta, path)
+
+    def check(self, sc, path: str, p_top: float) -> None:
+        given = [k for k in ("duty", "duty_schedule", "setpoint") if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ScenarioError(f"{path}.duty", MISSING if not given else f"{' and '.join(given)} given",
+                                "a pwm controller takes one of: a duty or a duty_schedule (open loop), or "
+                                "a setpoint")
+        if self.duty_schedule is not None:
+            _check_duty_schedule(self.duty_schedule, f"{path}.duty_schedule")
+        dead = max(sc.valves.charge.dead_time, sc.valves.discharge.dead_time)
+        dt = 1.0 / sc.controller.rate
+        period = 1.0 / self.frequency
+        if period < 2.0 * dead:
+            raise err(f"{path}.frequency", self, "frequency",
+                      f"the period {period * 1e3:g} ms must be at least twice the valve dead time "
+                      f"({dead * 1e3:g} ms): at most {1.0 / (2.0 * dead):g} Hz")
+        if period < 2.0 * dt - 1e-12:
+            raise err(f"{path}.frequency", self, "frequency",
+                      f"the period must span at least two controller samples (at most "
+                      f"{sc.controller.rate / 2:g} Hz at controller.rate = {sc.controller.rate:g} Hz)")
+        if self.minimum_pulse >= period:
+            raise err(f"{path}.minimum_pulse", self, "minimum_pulse",
+                      f"must be shorter than the period ({period * 1e3:g} ms at {self.frequency:g} Hz): "
+                      "every pulse would be dropped or fill its period")
+        if self.setpoint is not None:
+            check_pressure_setpoint(sc, self.setpoint, f"{path}.setpoint", p_top)
+
+    def write_rows(self, name: str, ctx) -> list:
+        row = valve_row(ctx, CODE, self.muscle, self.sensor)
+        dt = 1.0 / ctx.sc.controller.rate
+        row[L_PERIOD_N] = max(1, round(1.0 / (self.frequency * dt)))
+        row[L_DUTY] = (self.duty if self.duty is not None else
+                       DUTY_SCHEDULED if self.duty_schedule is not None else DUTY_CLOSED)
+        row[L_PBAND] = self.proportional_band
+        row[L_MINPULSE_N] = math.ceil(self.minimum_pulse / dt - 1e-9)
+        row[L_REST] = 1.0 if self.rest == "vent" else 0.0
+        if self.duty_schedule is not None:
+            # open loop: the setpoint columns carry the duty schedule (fractions, no offset)
+            return [with_setpoint(row, self.duty_schedule, 0.0)]
+        if self.setpoint is not None:
+            return [with_setpoint(row, self.setpoint, ctx.patm)]
+        return [row]
+
+
+def _check_duty_schedule(ds, path: str) -> None:
+    """A duty schedule's settings are there and every duty it takes lies in 0..1."""
+    ds.check_complete(path, "kind")
+    lo, hi = ds.bounds()
+    if lo < 0.0 or hi > 1.0:
+        shown = f"{lo:g}..{hi:g} (lowest..highest duty)"
+        raise ScenarioError(path, shown, "a duty lies in 0..1 (0 %..100 %): for a sine mean - amplitude >= 0 "
+                                         "and mean + amplitude <= 1")
+
+
+@jit
+def law(laws, c, cs, b, y, p, ts):
+    """The PWM's mode at ts (the setpoint or the duty schedule read at ts)."""
+    sp, _ = setpoint(laws, c, ts)
+    cs[b + B_SP] = sp
+    return pwm_mode(laws, c, cs, b, p, sp)
+
+
+@jit
+def pwm_mode(laws, c, cs, b, p, sp):
+    """PWM on the controller grid: each period of N samples starts with a pulse of n samples,
+    n = round(duty N) (open loop: the constant duty, or the schedule's duty sp at the period's first
+    sample) or round(min(|e|/proportional_band, 1) N) with e = sp - p
+    (closed loop: a charge pulse for e > 0, a vent pulse for e < 0, hold after it); pulses shorter
+    than the minimum are dropped, a gap after the pulse shorter than it is filled."""
+    N = int(laws[c, L_PERIOD_N])
+    phase = int(cs[b + B_PHASE])
+    duty = laws[c, L_DUTY]
+    open_loop = duty >= 0.0 or duty == DUTY_SCHEDULED
+    if phase == 0:
+        sign = 1.0
+        if duty >= 0.0:
+            d = duty
+        elif duty == DUTY_SCHEDULED:
+            d = sp              # the schedule's duty at this sample (checked 0..1 by the loader)
+        else:
+            d = (sp - p) / laws[c, L_PBAND]
+            if d < 0.0:
+                sign = -1.0
+                d = -d
+            d = min(d, 1.0)
+        n_on = math.floor(d * N + 0.5)
+        nmin = laws[c, L_MINPULSE_N]
+        if 0 < n_on < nmin:
+            n_on = 0.0
+        elif n_on < N and N - n_on < nmin:
+            n_on = float(N)
+        cs[b + B_PULSE] = sign * n_on
+    cs[b + B_PHASE] = float((phase + 1) % N)
+    pulse = cs[b + B_PULSE]
+    if phase < abs(pulse):
+        return MODE_CHARGE if pulse > 0 else MODE_VENT
+    if open_loop and laws[c, L_REST] > 0.5:
+        return MODE_VENT
+    return MODE_HOLD

@@ -1,0 +1,210 @@
+"""What every compiled valve law shares: the controller's memory layout (``cs``), the modes a law
+returns, the setpoint generators, the sensor models and the three-position relay.
+
+The driver (:mod:`frogsim.control.sampled`) and each kind's law (:mod:`frogsim.control.kinds`)
+import these; a law reads its parameters from its row of the table (:mod:`frogsim.control.table`)
+and keeps its memory in its block of ``cs`` (offsets B_*; a kind with memory of its own names
+its slots here).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from frogsim._jit import jit, jit_step
+from frogsim.control.table import (L_A_BITS, L_A_FS, L_A_LAG, L_A_NOISE, L_A_SEED, L_BITS, L_FS, L_LAG,
+                                   L_NOISE, L_PATM, L_SEED, L_SP0, L_SP_A, L_SP_B, L_SP_C, L_SP_D,
+                                   L_SP_KIND, L_SP_N, L_STREAM, SP_CONSTANT, SP_SINE, SP_STEPS)
+
+MODE_VENT = -1.0
+MODE_HOLD = 0.0
+MODE_CHARGE = 1.0
+
+# --- controller state cs[:] ------------------------------------------------------------------------------
+CS_SAMPLE = 0    # index k of the last sample taken
+CS_PUMP = 1      # the pump's switch: 1 running, 0 stopped
+CS_DT = 2        # the controller period [s]
+CS_BLOCK = 3     # length of each law's block of memory
+CS_Q = 4         # capacity of each valve's queue of pending commands
+CS_SIZE = 5      # law c's block starts at CS_SIZE + c * cs[CS_BLOCK]
+# a valve law's block (offsets)
+B_MODE = 0       # the mode last commanded (MODE_*)
+B_CMD_C = 1      # the charge valve's last commanded state (queued or applied)
+B_CMD_D = 2      # the discharge valve's
+B_SW_C = 3       # switchings of the charge valve so far (applied)
+B_SW_D = 4       # switchings of the discharge valve
+B_FILT = 5       # sensor lag: filtered gauge pressure [Pa]
+B_FILT_ON = 6    # 1 once the filter holds a value
+B_PHASE = 7      # pwm: sample index within the period
+B_PULSE = 8      # pwm: this period's pulse, samples (sign: +charge, -vent)
+B_QC_HEAD = 9    # charge queue: first entry, number of entries
+B_QC_N = 10
+B_QD_HEAD = 11   # discharge queue
+B_QD_N = 12
+B_SENSED = 13    # the pressure the law read at the last sample [Pa abs]
+B_SP = 14        # the setpoint at the last sample [Pa abs; joint-angle: rad]
+# joint-angle laws (frogsim.control.kinds.joint_angle) and external rows with a joint
+B_ANGLE = 15     # observation: the joint angle [rad] (written by the coupled engine, observe_joints)
+B_OMEGA = 16     # observation: the joint's angular velocity [rad/s]
+B_A_FILT = 17    # angle sensor lag: filtered angle [rad], filtered velocity [rad/s]
+B_W_FILT = 18
+B_A_FILT_ON = 19
+B_A_SENSED = 20  # the angle and velocity the law read at the last sample
+B_W_SENSED = 21
+B_INT = 22       # integral of the angle error [rad s]
+B_TARGET = 23    # this muscle's pressure target at the last sample [Pa abs]
+B_CLIPS = 24     # samples at which the pair's targets p0 +- dp/2 were clipped to [atmosphere, source]
+B_Q0 = 25        # queues: charge (due, state) x Q, then discharge (due, state) x Q
+TOL = 1e-9       # [s] a due time this close to a sample is that sample
+
+
+@jit
+def pump_band(x, on, low, high):
+    """Hysteresis switch: on (1) below ``low``, off (0) above ``high``, else unchanged (``on``).
+
+    The pump's pressure band on the source pressure x [Pa abs]: it starts when the reservoir has
+    fallen below the lower limit and stops when it is above the upper one.
+    """
+    if x < low:
+        return 1.0
+    if x > high:
+        return 0.0
+    return on
+
+
+# --- setpoints and the sensor ------------------------------------------------------------------------------
+@jit
+def setpoint(laws, c, t):
+    """Law c's setpoint at time t: (p [Pa abs], dp/dt [Pa/s])."""
+    kind = laws[c, L_SP_KIND]
+    if kind == SP_CONSTANT:
+        return laws[c, L_SP_A], 0.0
+    if kind == SP_SINE:
+        if t < laws[c, L_SP_D]:
+            return laws[c, L_SP_A], 0.0
+        w = 2.0 * math.pi * laws[c, L_SP_C]
+        ph = w * (t - laws[c, L_SP_D])
+        return laws[c, L_SP_A] + laws[c, L_SP_B] * math.sin(ph), laws[c, L_SP_B] * w * math.cos(ph)
+    n = int(laws[c, L_SP_N])
+    if kind == SP_STEPS:
+        p = laws[c, L_SP0 + 1]
+        for j in range(1, n):
+            if t >= laws[c, L_SP0 + 2 * j] - TOL:
+                p = laws[c, L_SP0 + 2 * j + 1]
+        return p, 0.0
+    # table: linear between the rows, constant outside
+    if t <= laws[c, L_SP0]:
+        return laws[c, L_SP0 + 1], 0.0
+    for j in range(1, n):
+        t1 = laws[c, L_SP0 + 2 * j]
+        if t < t1:
+            t0 = laws[c, L_SP0 + 2 * j - 2]
+            p0 = laws[c, L_SP0 + 2 * j - 1]
+            slope = (laws[c, L_SP0 + 2 * j + 1] - p0) / (t1 - t0)
+            return p0 + slope * (t - t0), slope
+    return laws[c, L_SP0 + 2 * n - 1], 0.0
+
+
+@jit_step
+def _mix64(z):
+    """splitmix64's finaliser (Steele, Lea and Flood 2014): a well-mixed 64-bit hash of z."""
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return z ^ (z >> np.uint64(31))
+
+
+@jit_step
+def _uniform(seed, k, stream):
+    """A uniform number in (0, 1) that depends only on (seed, sample k, stream): counter-based, so a
+    run's noise is the same however it is advanced and on whichever thread."""
+    z = (np.uint64(seed) * np.uint64(0x9E3779B97F4A7C15) + np.uint64(k) * np.uint64(0xD1B54A32D192ED03)
+         + np.uint64(stream) * np.uint64(0x8CB92BA72F3D8DD7))
+    return (float(_mix64(z) >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0)
+
+
+@jit_step
+def normal_noise(seed, k, stream):
+    """Standard normal noise of sample k (Box-Muller on the counter-based uniforms of streams
+    ``stream`` and ``stream + 1``)."""
+    u1 = _uniform(seed, k, stream)
+    u2 = _uniform(seed, k, stream + 1)
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+@jit
+def sensor_noise(seed, k):
+    """Standard normal noise of sample k (streams 1 and 2: the pressure sensor's)."""
+    return normal_noise(seed, k, 1)
+
+
+@jit_step
+def sensor_chain(x, k, noise, seed, stream, bits, fs):
+    """The sensor model's noise and ADC on a (lagged) reading x at sample k: noise of standard
+    deviation ``noise`` (counter-based, streams ``stream`` and ``stream + 1``), then ``bits``
+    over 0..fs (rounded to fs / (2^bits - 1), clipped to the range)."""
+    if noise > 0.0:
+        x += noise * normal_noise(int(seed), k, stream)
+    if bits > 0.0:
+        lsb = fs / (2.0 ** bits - 1.0)
+        x = min(max(math.floor(x / lsb + 0.5) * lsb, 0.0), fs)
+    return x
+
+
+@jit
+def sense(laws, c, p, cs, b, k, dt):
+    """The pressure [Pa abs] law c reads at sample k when the muscle's is p [Pa abs]: first-order
+    lag, then noise, then the ADC (gauge pressure rounded to full_scale / (2^bits - 1), clipped
+    to 0..full_scale)."""
+    patm = laws[c, L_PATM]
+    x = p - patm
+    lag = laws[c, L_LAG]
+    if lag > 0.0:
+        if cs[b + B_FILT_ON] < 0.5:
+            cs[b + B_FILT] = x
+            cs[b + B_FILT_ON] = 1.0
+        else:
+            cs[b + B_FILT] += (1.0 - math.exp(-dt / lag)) * (x - cs[b + B_FILT])
+        x = cs[b + B_FILT]
+    stream = max(1, int(laws[c, L_STREAM]))
+    x = sensor_chain(x, k, laws[c, L_NOISE], laws[c, L_SEED], stream, laws[c, L_BITS], laws[c, L_FS])
+    return x + patm
+
+
+@jit
+def sense_joint(laws, c, cs, b, k, dt):
+    """The joint angle [rad] and velocity [rad/s] law c reads at sample k from the observation
+    in cs (:func:`observe_joints`): both through the angle sensor's first-order lag, then the
+    angle through its noise (streams 5, 6) and encoder (bits over 0..full scale). Kept in
+    cs[b + B_A_SENSED], cs[b + B_W_SENSED]."""
+    th = cs[b + B_ANGLE]
+    w = cs[b + B_OMEGA]
+    lag = laws[c, L_A_LAG]
+    if lag > 0.0:
+        if cs[b + B_A_FILT_ON] < 0.5:
+            cs[b + B_A_FILT] = th
+            cs[b + B_W_FILT] = w
+            cs[b + B_A_FILT_ON] = 1.0
+        else:
+            a = 1.0 - math.exp(-dt / lag)
+            cs[b + B_A_FILT] += a * (th - cs[b + B_A_FILT])
+            cs[b + B_W_FILT] += a * (w - cs[b + B_W_FILT])
+        th = cs[b + B_A_FILT]
+        w = cs[b + B_W_FILT]
+    th = sensor_chain(th, k, laws[c, L_A_NOISE], laws[c, L_A_SEED], 5, laws[c, L_A_BITS], laws[c, L_A_FS])
+    cs[b + B_A_SENSED] = th
+    cs[b + B_W_SENSED] = w
+    return th, w
+
+
+# --- the relay the laws share ---------------------------------------------------------------------------
+@jit
+def bang_bang(p, sp, band):
+    """Three-position relay: charge below sp - band/2, vent above sp + band/2, else hold."""
+    if p < sp - 0.5 * band:
+        return MODE_CHARGE
+    if p > sp + 0.5 * band:
+        return MODE_VENT
+    return MODE_HOLD
+
+

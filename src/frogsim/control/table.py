@@ -1,0 +1,196 @@
+"""The table of sampled laws ``laws[c, :]`` a run's controllers are compiled from: its columns and
+its assembly, written and read in this layer only.
+
+One row per sampled law: the pump's pressure band (first, when the pump is enabled) and the rows
+of the scenario's closed-loop controllers (``[controllers.NAME]``), each written by its kind's
+module (:mod:`frogsim.control.kinds`, ``write_rows``) and read by that module's compiled law and
+the driver (:mod:`frogsim.control.sampled`). This module fixes the columns (compile-time
+constants for Numba) and assembles the table; :func:`build_table` is registered with
+:mod:`frogsim.scenario.kinds`, through which :func:`frogsim.circuit.model.build_model` calls it
+(the circuit layer does not import this one). A row is L_SIZE columns plus the setpoint's knots
+(t_j [s], p_j [Pa abs]) in pairs from column L_SP0 on; the table is as wide as its widest row.
+Only the sliding-mode kind, whose law models the valves, writes their ISO 6358 constants into its
+row (L_CC..L_DRL); they are also in the model's muscle rows ``mp``, which the compiled sample
+does not receive.
+
+Pressures are absolute [Pa] inside; times [s]; the PWM period and minimum pulse in controller
+samples (the commands change only on the controller's grid).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from frogsim.circuit.layout import (G_BRANCH_LIMIT, G_K, G_PATM, G_PUMP_ENABLED, G_PUMP_OFF, G_PUMP_ON, G_R,
+                                    G_RHOREF, G_SUPPLY_MODE, G_TAMB, G_TREF, SUPPLY_PAPER, Y_PS)
+from frogsim.scenario import kinds as registry
+
+# --- kinds of sampled law (a controller kind's code is its module's CODE) ------------------------------
+KIND_PUMP_BAND = 1.0
+#: a muscle whose valves a Python function drives (frogsim.simulate(..., controller=fn)): the
+#: compiled sample only senses its pressure; the commands come from Python
+KIND_EXTERNAL = 5.0
+
+# --- setpoint generators -----------------------------------------------------------------------------
+DUTY_CLOSED = -1.0
+DUTY_SCHEDULED = -2.0
+SP_CONSTANT = 0.0
+SP_STEPS = 1.0
+SP_SINE = 2.0
+SP_TABLE = 3.0
+
+# --- columns ---------------------------------------------------------------------------------------------
+L_KIND = 0       # KIND_*
+L_INPUT = 1      # pump band: index of the state entry the rule reads (Y_PS)
+L_LOW = 2        # pump band: switch on below this value
+L_HIGH = 3       # pump band: switch off above this value
+L_MUSCLE = 4     # muscle index i (valves u[2i] charge, u[2i+1] discharge; pressure y[Y_MUSCLE0+2i+1])
+L_DEAD_C = 5     # charge valve dead time [s]
+L_DEAD_D = 6     # discharge valve dead time [s]
+L_BAND = 7       # bang-bang: width of the hold band [Pa]
+L_PERIOD_N = 8   # pwm: period [controller samples]
+L_DUTY = 9       # pwm: open-loop duty [-]; DUTY_CLOSED: closed loop (duty from the pressure error);
+                 # DUTY_SCHEDULED: open loop, the duty from the schedule in the setpoint columns
+L_PBAND = 10     # pwm closed loop: proportional band [Pa] (error giving 100 % duty)
+L_MINPULSE_N = 11  # pwm: minimum pulse [controller samples]
+L_REST = 12      # pwm open loop: 1 vent, 0 hold between the charge pulses
+L_HORIZON = 13   # sliding mode: lambda [s] of s = e + lambda de/dt
+L_PENALTY = 14   # sliding mode: switching penalty rho [Pa] (J = s^2 + rho^2 per mode change)
+L_GAIN = 15      # sliding mode: k R T_amb / V_nominal [Pa/kg]: pressure rate per mass flow
+L_PATM = 16      # atmospheric pressure [Pa]: the sensor reads gauge pressure
+L_NOISE = 17     # sensor noise standard deviation [Pa]
+L_SEED = 18      # sensor noise seed
+L_BITS = 19      # ADC bits (0: no quantisation)
+L_FS = 20        # ADC full scale [Pa gauge] (the range is 0..full scale)
+L_LAG = 21       # sensor first-order lag time constant [s] (0: none)
+L_CC = 22        # the controller's valve model (Eq. 8): charge C, b, m, r_lam
+L_CB = 23
+L_CM = 24
+L_CRL = 25
+L_DC = 26        # discharge C, b, m, r_lam
+L_DB = 27
+L_DM = 28
+L_DRL = 29
+L_RHOREF = 30
+L_TREF = 31
+L_TAMB = 32
+L_BRANCH = 33    # charge-flow limit of the supply [kg/s] (inf: none)
+L_SP_KIND = 34   # SP_*
+L_SP_A = 35      # constant: value; sine: mean [Pa abs]
+L_SP_B = 36      # sine: amplitude [Pa]
+L_SP_C = 37      # sine: frequency [Hz]
+L_SP_D = 38      # sine: start time [s]
+L_SP_N = 39      # steps / table: number of knots
+L_JOINT1 = 40    # joint-angle: 1 + index of the joint whose angle the law reads (0: none)
+L_SIGN = 41      # joint-angle: +1 the extensor (target p0 + dp/2), -1 the flexor (p0 - dp/2)
+L_P0 = 42        # joint-angle: co-contraction level p0 [Pa abs]
+L_KP = 43        # joint-angle: proportional gain [Pa/rad]
+L_KD = 44        # joint-angle: derivative gain [Pa s/rad]
+L_KI = 45        # joint-angle: integral gain [Pa/(rad s)]
+L_STREAM = 46    # first noise stream of the pressure sensor (0: stream 1)
+L_A_NOISE = 47   # angle sensor: noise standard deviation [rad]
+L_A_SEED = 48    # angle sensor: noise seed
+L_A_BITS = 49    # angle sensor: encoder bits (0: no quantisation)
+L_A_FS = 50      # angle sensor: full scale [rad] (the range is 0..full scale)
+L_A_LAG = 51     # angle sensor: first-order lag time constant [s] (0: none)
+L_SIZE = 52
+L_SP0 = L_SIZE   # knots (t_j, p_j) from here on
+
+
+def pump_row(g) -> np.ndarray:
+    """The pump band's row: switch on below G_PUMP_ON, off above G_PUMP_OFF, on the source pressure."""
+    row = np.zeros(L_SIZE)
+    row[L_KIND] = KIND_PUMP_BAND
+    row[L_INPUT] = Y_PS
+    row[L_LOW] = g[G_PUMP_ON]
+    row[L_HIGH] = g[G_PUMP_OFF]
+    return row
+
+
+def setpoint_columns(sp, patm: float) -> tuple[dict, list]:
+    """Columns of a setpoint generator (a :class:`frogsim.scenario.schema.Setpoint`) and its knots
+    [(t, p_abs)] (steps: the step times and values; table: the file's rows, read by the loader)."""
+    cols = {L_SP_KIND: {"constant": SP_CONSTANT, "steps": SP_STEPS, "sine": SP_SINE,
+                        "table": SP_TABLE}[sp.kind]}
+    pts = []
+    if sp.kind == "constant":
+        cols[L_SP_A] = patm + sp.value
+    elif sp.kind == "sine":
+        cols[L_SP_A] = patm + sp.mean
+        cols[L_SP_B] = sp.amplitude
+        cols[L_SP_C] = sp.frequency
+        cols[L_SP_D] = sp.start
+    else:
+        pts = [(t, patm + p) for t, p in sp.points()]
+    cols[L_SP_N] = len(pts)
+    return cols, pts
+
+
+class RowContext(NamedTuple):
+    """What a kind's ``write_rows`` reads besides its settings: the scenario, the globals g, the
+    muscle names in the model's order and each muscle's volume at the start [m^3] (the
+    controller's model of it)."""
+    sc: object
+    g: np.ndarray
+    names: list
+    volumes: dict
+
+    @property
+    def patm(self) -> float:
+        """The atmospheric pressure [Pa abs]: a gauge setpoint's offset."""
+        return float(self.g[G_PATM])
+
+
+def valve_row(ctx: RowContext, code: float, muscle: str, sensor) -> np.ndarray:
+    """The columns every valve law has: its kind code, its muscle, the valves' dead times, the
+    atmosphere, the pressure sensor, the controller's gas model of the muscle (gain k R T_amb / V,
+    reference density and temperature, the supply's branch limit)."""
+    sc, g = ctx.sc, ctx.g
+    row = np.zeros(L_SIZE)
+    row[L_KIND] = code
+    row[L_MUSCLE] = ctx.names.index(muscle)
+    row[L_DEAD_C] = sc.valves.charge.dead_time
+    row[L_DEAD_D] = sc.valves.discharge.dead_time
+    row[L_GAIN] = g[G_K] * g[G_R] * g[G_TAMB] / ctx.volumes[muscle]
+    row[L_PATM] = g[G_PATM]
+    s = sensor
+    row[L_NOISE], row[L_SEED], row[L_BITS], row[L_FS], row[L_LAG] = (
+        s.noise, s.seed, s.bits or 0, s.full_scale, s.lag)
+    row[L_RHOREF], row[L_TREF], row[L_TAMB] = g[G_RHOREF], g[G_TREF], g[G_TAMB]
+    row[L_BRANCH] = g[G_BRANCH_LIMIT] if int(g[G_SUPPLY_MODE]) == SUPPLY_PAPER else np.inf
+    return row
+
+
+def with_setpoint(row: np.ndarray, sp, offset: float) -> np.ndarray:
+    """The row with setpoint ``sp``'s generator columns and its knots appended (values plus
+    ``offset``: the atmosphere for a gauge pressure, 0 for an angle or a duty)."""
+    cols, pts = setpoint_columns(sp, offset)
+    for col, val in cols.items():
+        row[col] = val
+    return np.concatenate([row, np.array([v for pt in pts for v in pt], float)])
+
+
+def build_table(sc, g, names: tuple, volumes: tuple) -> np.ndarray:
+    """The table of laws of scenario ``sc``: the pump's band, then each controller's rows from its
+    kind (``write_rows``) in the scenario's order."""
+    ctx = RowContext(sc, g, list(names), dict(zip(names, volumes)))
+    rows = [r for cname, c in sc.controllers.items() for r in c.write_rows(cname, ctx)]
+    return laws_table(g, rows)
+
+
+registry.register_table(build_table)
+
+
+def laws_table(g, rows: list) -> np.ndarray:
+    """The pump band's row (when the pump is enabled) then the controllers' rows, zero-padded to
+    the widest. Without controllers: the 1-D open-loop form of
+    :func:`frogsim.control.sampled.sampled_laws` (the pump's row, or an empty row)."""
+    if not rows:
+        return pump_row(g) if g[G_PUMP_ENABLED] >= 0.5 else np.zeros(0)
+    allrows = ([pump_row(g)] if g[G_PUMP_ENABLED] >= 0.5 else []) + list(rows)
+    width = max([L_SIZE] + [r.size for r in allrows])
+    laws = np.zeros((len(allrows), width))
+    for c, r in enumerate(allrows):
+        laws[c, :r.size] = r
+    return laws
