@@ -85,3 +85,30 @@ def study():
             cache[name] = run_study(name)
         return cache[name]
     return get
+
+
+# --- CSV headers ----------------------------------------------------------------------------------
+#: every unit a frogsim CSV may name in a header, as a reader of the file would decode it: SI and
+#: display units, pressures gauge or abs, "std" the ISO 8778 standard state, "1 = open"-style 0/1
+#: states, "-" a pure number, "period" a fraction of the gait period, "1/min" a rate
+CSV_UNITS = {"s", "K", "m", "mm", "m/s", "N", "kg", "kg/s", "deg", "deg/s", "rad/s", "%", "cm^3", "L",
+             "L/min", "L std", "L/min std", "bar gauge", "Pa abs", "L/(s bar)", "1/min", "-", "period",
+             "m/L", "1 = open", "1 = on", "1 = yes"}
+#: the unitless label columns frogsim documents (docs/metrics.md, "CSV columns")
+CSV_LABELS = {"mode", "experiment", "controller", "joint", "trial", "state", "failure"}
+
+
+def assert_unit_headers(path):
+    """Check a CSV frogsim wrote: read by read_table, every header ``name [unit]`` in the one
+    convention with a unit of CSV_UNITS and a column of numbers, or a label column; the table."""
+    from frogsim.scenario.tables import read_table, split_header
+    table = read_table(path, numbers=False)
+    for col in table.columns:
+        name, unit = split_header(col)
+        if col in CSV_LABELS:
+            assert unit == "", col
+            continue
+        assert col == f"{name} [{unit}]", f"{path.name}: {col!r} is not written as 'name [unit]'"
+        assert unit in CSV_UNITS, f"{path.name}: {col!r} has an unknown unit {unit!r}"
+        assert table[col].dtype.kind == "f", f"{path.name}: {col!r} holds text"
+    return table

@@ -11,6 +11,7 @@ import pytest
 
 pytest.importorskip("optuna")
 
+from conftest import assert_unit_headers  # noqa: E402
 from frogsim.cli import main  # noqa: E402
 from frogsim.control.gait import Gait  # noqa: E402
 from frogsim.optimize import gait as G  # noqa: E402
@@ -64,8 +65,9 @@ def test_search_writes_a_gait_that_swim_reproduces_and_resumes(tmp_path, capsys)
     assert s["trials"] == 4 and s["objective"] == "distance-per-litre"
     assert s["margin"] == pytest.approx(s["best_value"] - s["baseline_value"])
     rows = list(csv.DictReader((out / "trials.csv").open()))
+    assert_unit_headers(out / "trials.csv")             # every column: name [unit] or a label
     assert len(rows) == 4 and (out / "trials.png").stat().st_size > 0
-    best = max(float(r[next(k for k in r if k.startswith("objective_"))]) for r in rows)
+    best = max(float(r[next(k for k in r if k.startswith("objective "))]) for r in rows)
     assert best == pytest.approx(s["best_value"], rel=1e-7)      # the CSV keeps 8 digits
     # the written scenario reproduces the best trial's figure
     swim_out = tmp_path / "swim"

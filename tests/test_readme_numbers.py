@@ -75,7 +75,8 @@ def test_design_table(study):
     tubes = study("design-tubes")
     s = tubes.summary["design_tubes"]
     d = tubes.table
-    one4 = d[(d.main_tube_count == 1) & (d.inner_diameter_mm == 4.0)].set_index("mode").rise_time_90_s
+    one4 = d[(d["main tube count [-]"] == 1) & (d["main tube inner diameter [mm]"] == 4.0)].set_index("mode")[
+        "hip rise time 90 % [s]"]
     check(rows["`design-tubes`"][2], [
         (r"valves alone: " + NUM + " s", s["valve_only_rise_time_90_s"]),
         (r"one 4 mm tube: " + NUM + " s in the paper", one4["paper"]),

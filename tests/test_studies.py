@@ -54,9 +54,9 @@ def test_fig15_saturated_curves_identical_before_balance(study):
     # paper Sec. 4.3: under saturation "the pressurizing process was identical before the balanced
     # state": the flow is capped by the branch limit, not by the source pressure
     d = study("fig15").table
-    early = d.time_s <= 0.1
-    p3 = d.loc[early, "hip_pressure_bar_gauge_3bar_saturated"].to_numpy()
-    p6 = d.loc[early, "hip_pressure_bar_gauge_6bar_saturated"].to_numpy()
+    early = d["time [s]"] <= 0.1
+    p3 = d.loc[early, "hip pressure 3 bar source saturated [bar gauge]"].to_numpy()
+    p6 = d.loc[early, "hip pressure 6 bar source saturated [bar gauge]"].to_numpy()
     assert np.max(np.abs(p3 - p6)) < 0.01 * p6.max()
 
 
@@ -105,11 +105,13 @@ def test_tube_modes_physical_exceeds_eq9_and_is_shared(summaries):
     assert t["physical"]["six_branches_L_per_min"] > 2 * limit
 
 
-def test_every_study_is_finite_and_documented(tmp_path):
-    # contract over the registry: deterministic, finite, with a title, a table and a drawing
+def test_every_study_is_finite_and_documented(tmp_path, study):
+    # contract over the registry: deterministic (the session's run and a fresh one), finite, with a
+    # title, a table and a drawing
+    computed = study
     for name, study in STUDIES.items():
         assert study.title
-        a = study.compute()
+        a = computed(name)
         b = study.compute()
         assert len(a.table) > 0
         num = a.table.select_dtypes("number")
@@ -117,8 +119,8 @@ def test_every_study_is_finite_and_documented(tmp_path):
         for col in num.columns:
             bad = ~np.isfinite(num[col].to_numpy())
             if bad.any():
-                assert col.endswith("rise_time_90_s") and "rise_reached_percent" in num, (name, col)
-                assert np.all(num["rise_reached_percent"].to_numpy()[bad] < 90), (name, col)
+                assert col.endswith("rise time 90 % [s]") and "hip rise reached [%]" in num, (name, col)
+                assert np.all(num["hip rise reached [%]"].to_numpy()[bad] < 90), (name, col)
         num = num.to_numpy()
         assert np.array_equal(num, b.table.select_dtypes("number").to_numpy(), equal_nan=True), name
 

@@ -7,6 +7,7 @@ import sys
 
 import pytest
 
+from conftest import assert_unit_headers
 from frogsim.cli import main
 
 # a small robot scenario (the leg in air for half a second), as TOML tables of literal values
@@ -75,6 +76,7 @@ def test_swim_writes_files_and_summary(tmp_path):
     for col in ("time [s]", "x [m]", "forward velocity [m/s]", "thrust [N]", "hip_left angle [deg]",
                 "hip_left pressure [bar gauge]", "source pressure [bar gauge]", "palm_left opening [%]"):
         assert col in header, col
+    assert_unit_headers(out / "timeseries.csv")         # every column: name [unit], a known unit
     rows = (out / "timeseries.csv").read_text().splitlines()
     assert len(rows) == 1 + 101                         # 0..1 s every 10 ms, plus the header
     s = json.loads((out / "summary.json").read_text())

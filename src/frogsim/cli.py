@@ -118,12 +118,13 @@ def _study_task(name: str, out: str) -> tuple:
     Runs in a worker process, so the costly first-run compilations of different engines (the
     pneumatic one, the coupled MuJoCo one) proceed side by side on the machine's cores.
     """
-    from frogsim._files import write_csv, write_figure
+    from frogsim._files import write_figure
     from frogsim.studies import STUDIES
+    from frogsim.studies.registry import write_table
     t0 = time.perf_counter()
     study = STUDIES[name]
     data = study.compute()
-    write_csv(Path(out) / f"{name}.csv", data.table)
+    write_table(name, data, out)
     write_figure(Path(out) / f"{name}.png", lambda p: study.draw(data, p))
     return name, data.summary, time.perf_counter() - t0
 

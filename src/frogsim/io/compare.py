@@ -35,7 +35,7 @@ import numpy as np
 from frogsim.errors import ScenarioError
 from frogsim.scenario.tables import header, model_columns, read_table, split_header, unit_headers
 
-TIME = "time [s]"
+TIME = header("time", "s")
 CSV_FORMAT = "%.8g"             # frogsim._files.write_csv
 WHERE = "RUN_OR_SCENARIO"
 
@@ -266,17 +266,16 @@ def table(runs: list[Run], signal: str):
     """The comparison table: time and one column per run, units in the header."""
     import pandas as pd
     sig = runs[0].signal(signal)
-    unit = f" [{sig.unit}]" if sig.unit else ""
     merged = None
     same_grid = all(len(r.table) == len(runs[0].table) and
                     np.array_equal(r.table[r.time].to_numpy(), runs[0].table[runs[0].time].to_numpy()) for r in runs)
     for r in runs:
-        col = r.signal(signal).column
-        part = pd.DataFrame({TIME: r.table[r.time].to_numpy(float), f"{r.label}{unit}": r.table[col].to_numpy(float)})
+        col, name = r.signal(signal).column, header(r.label, sig.unit)
+        part = pd.DataFrame({TIME: r.table[r.time].to_numpy(float), name: r.table[col].to_numpy(float)})
         if merged is None:
             merged = part
         elif same_grid:
-            merged[f"{r.label}{unit}"] = part[f"{r.label}{unit}"].to_numpy()
+            merged[name] = part[name].to_numpy()
         else:
             merged = merged.merge(part, on=TIME, how="outer")
     return merged.sort_values(TIME, kind="stable").reset_index(drop=True)

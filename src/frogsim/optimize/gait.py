@@ -327,26 +327,30 @@ def run_search(search: Search, storage_path: Path, fresh: bool = False, progress
 
 
 def trials_table(study, search: Search):
-    """One row per trial: number, state, objective, best so far, the searched fractions and the
-    resulting times [s], speed, distance, air."""
+    """One row per trial: number, state, objective, best so far, the searched fractions [period]
+    and the resulting times [s], speed, distance, air, failure; headers in the one convention
+    (:mod:`frogsim.scenario.tables`), "trial", "state" and "failure" being labels."""
     import pandas as pd
+
+    from frogsim.scenario.tables import header
+    unit = OBJECTIVES[search.objective][1]
     rows, best = [], -math.inf
     for t in sorted(study.trials, key=lambda t: t.number):
         v = t.value if t.value is not None else math.nan
         if t.value is not None:
             best = max(best, t.value)
         row = {"trial": t.number, "state": t.state.name,
-               f"objective_{search.objective}_{OBJECTIVES[search.objective][1].replace('/', '_per_')}": v,
-               "best_so_far": best if math.isfinite(best) else math.nan}
-        row.update({f"{k}_fraction_of_period": t.params.get(k, math.nan) for k in search_bounds(search.rs)})
+               header(f"objective {search.objective}", unit): v,
+               header("best so far", unit): best if math.isfinite(best) else math.nan}
+        row.update({header(k, "period"): t.params.get(k, math.nan) for k in search_bounds(search.rs)})
         g = t.user_attrs.get("gait")
         if g:
-            row["drive_charge_at_s"] = _seconds(g["drive"][0]["at"])
-            row["drive_vent_at_s"] = _seconds(g["drive"][1]["at"])
-            row["palms_open_at_s"] = _seconds(g["palms"][0]["at"])
-            row["palms_fold_at_s"] = _seconds(g["palms"][1]["at"])
-        for k, col in (("mean_speed_m_per_s", "mean_speed_m_per_s"), ("distance_m", "distance_m"),
-                       ("air_used_L_std", "air_used_L_std")):
+            row[header("drive charge at", "s")] = _seconds(g["drive"][0]["at"])
+            row[header("drive vent at", "s")] = _seconds(g["drive"][1]["at"])
+            row[header("palms open at", "s")] = _seconds(g["palms"][0]["at"])
+            row[header("palms fold at", "s")] = _seconds(g["palms"][1]["at"])
+        for k, col in (("mean_speed_m_per_s", header("mean speed", "m/s")), ("distance_m", header("distance", "m")),
+                       ("air_used_L_std", header("air used", "L std"))):
             row[col] = t.user_attrs.get(k, math.nan)
         row["failure"] = t.user_attrs.get("failure", "")
         rows.append(row)
@@ -364,7 +368,8 @@ def plot_trials(table, search: Search, baseline: float, path, steady: dict | Non
 
     from frogsim._files import write_figure
     name, unit = OBJECTIVES[search.objective]
-    col = [c for c in table.columns if c.startswith("objective_")][0]
+    col = next(c for c in table.columns if c.startswith("objective "))
+    so_far = next(c for c in table.columns if c.startswith("best so far "))
 
     def draw(p):
         import matplotlib.pyplot as plt
@@ -372,7 +377,7 @@ def plot_trials(table, search: Search, baseline: float, path, steady: dict | Non
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ok = np.isfinite(table[col].to_numpy(float))
         ax.plot(table["trial"][ok], table[col][ok], "o", ms=4, color="0.5", label="trial")
-        ax.step(table["trial"], table["best_so_far"], where="post", color="C0", label="best so far")
+        ax.step(table["trial"], table[so_far], where="post", color="C0", label="best so far")
         ax.axhline(baseline, color="C3", ls="--", label="scenario's own gait")
         ax.set_xlabel("trial")
         ax.set_ylabel(f"{name} [{unit}]")

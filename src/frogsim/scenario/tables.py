@@ -4,10 +4,13 @@ The convention
     Every column header names its quantity and its unit in brackets: ``time [s]``,
     ``hip_left pressure [bar gauge]``, ``source pressure [kPa abs]``, ``hip_left volume [cm^3]``,
     ``hip_left charge flow [L/min std]``, ``hip_left charge valve [1 = open]``. A pressure's unit
-    ends in ``gauge`` or ``abs``; ``std`` is the standard state of ISO 8778. frogsim writes its
-    tables this way (``timeseries.csv`` of simulate and swim, compare's CSV), and reads the same
-    headers in fit traces, force tables and compare inputs, so any frogsim output is a valid fit
-    trace and compare input.
+    ends in ``gauge`` or ``abs``; ``std`` is the standard state of ISO 8778; a pure number is
+    ``[-]``. frogsim writes every CSV this way (``timeseries.csv`` of simulate and swim, compare's
+    CSV, the studies' CSVs of reproduce, design and control, optimize-gait's ``trials.csv``), and
+    reads the same headers in fit traces, force tables and compare inputs: :func:`read_table`
+    reads every CSV frogsim writes, and :func:`split_header` gives each column's unit; the only
+    columns without one are the label columns of :data:`LABEL_COLUMNS` (text, or a trial's
+    number). simulate's and swim's ``timeseries.csv`` are valid fit traces and compare inputs.
 
 Older spellings, still read
     ``timeseries.csv`` of frogsim 0.1 spelt the unit into the name (``time_s``,
@@ -71,6 +74,9 @@ _OLD_UNITS = {"bar (gauge)": "bar gauge", "Pa (absolute)": "Pa abs", "L/min (sta
               "L (standard)": "L std", "1 = running": "1 = on"}
 _HEADER = re.compile(r"^\s*(?P<name>[^\[\]]*?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")
 TIME = "time"
+#: the label columns frogsim writes, with no unit: a study's "mode", "experiment", "controller",
+#: "joint"; optimize-gait's "trial" (its number), "state", "failure"
+LABEL_COLUMNS = ("mode", "experiment", "controller", "joint", "trial", "state", "failure")
 
 
 def header(name: str, unit: str) -> str:

@@ -15,9 +15,17 @@ import pandas as pd
 from frogsim._plotting import figure, save
 from frogsim.engine.pneumatic import simulate
 from frogsim.scenario.load import load_scenario
+from frogsim.scenario.tables import header
 from frogsim.studies.registry import StudyData, register
 
 BAR = 1e5
+# the study's CSV columns, in the one header convention (frogsim.scenario.tables); "experiment" and
+# "controller" are labels
+TIME = header("time", "s")
+SETPOINT = header("setpoint", "bar gauge")
+PRESSURE = header("pressure", "bar gauge")
+CHARGE_VALVE = header("charge valve", "1 = open")
+DISCHARGE_VALVE = header("discharge valve", "1 = open")
 CONTROLLERS = {
     "pwm": {"kind": "pwm", "frequency": "50 Hz", "proportional_band": "0.5 bar"},
     "bang-bang": {"kind": "bang-bang", "band": "0.1 bar"},
@@ -57,10 +65,10 @@ def control_pressure() -> StudyData:
                                                    "switchings_per_s", "switchings_charge_valve",
                                                    "switchings_discharge_valve", "air_used_L_std", "settle_s")}
             frames.append(pd.DataFrame({
-                "experiment": exp, "controller": ctl, "time_s": r.t,
-                "setpoint_bar_gauge": (r.setpoint("hip") - patm) / BAR,
-                "pressure_bar_gauge": (r.muscle_pressure("hip") - patm) / BAR,
-                "charge_valve": r.u[:, 0], "discharge_valve": r.u[:, 1]}))
+                "experiment": exp, "controller": ctl, TIME: r.t,
+                SETPOINT: (r.setpoint("hip") - patm) / BAR,
+                PRESSURE: (r.muscle_pressure("hip") - patm) / BAR,
+                CHARGE_VALVE: r.u[:, 0], DISCHARGE_VALVE: r.u[:, 1]}))
     # the trade-off on the sine: bang-bang's band and sliding mode's penalty swept
     trade = {"bang-bang": [], "sliding-mode": []}
     for ctl, key, values in (("bang-bang", "band", BANDS_BAR), ("sliding-mode", "penalty", PENALTIES_BAR)):
@@ -117,16 +125,16 @@ def _draw(data: StudyData, path: str) -> None:
     runs = data.summary["control_pressure"]["runs"]
     for col, exp in enumerate(EXPERIMENTS):
         a, b = ax[0, col], ax[1, col]
-        sub = t[t.experiment == exp]
-        first = sub[sub.controller == "bang-bang"]
-        a.plot(first.time_s, first.setpoint_bar_gauge, "k--", lw=1.5, label="setpoint")
+        sub = t[t["experiment"] == exp]
+        first = sub[sub["controller"] == "bang-bang"]
+        a.plot(first[TIME], first[SETPOINT], "k--", lw=1.5, label="setpoint")
         for k, ctl in enumerate(CONTROLLERS):
-            s = sub[sub.controller == ctl]
+            s = sub[sub["controller"] == ctl]
             m = runs[exp][ctl]
-            a.plot(s.time_s, s.pressure_bar_gauge, color=colors[ctl], lw=1,
+            a.plot(s[TIME], s[PRESSURE], color=colors[ctl], lw=1,
                    label=f"{ctl}: {m['tracking_error_rms_bar'] * 1e3:.0f} mbar RMS, {m['switchings_per_s']:.0f} sw/s")
-            b.step(s.time_s, s.charge_valve * 0.8 + k, where="post", color=colors[ctl], lw=0.6)
-            b.step(s.time_s, -s.discharge_valve * 0.4 + k, where="post", color=colors[ctl], lw=0.6, ls=":")
+            b.step(s[TIME], s[CHARGE_VALVE] * 0.8 + k, where="post", color=colors[ctl], lw=0.6)
+            b.step(s[TIME], -s[DISCHARGE_VALVE] * 0.4 + k, where="post", color=colors[ctl], lw=0.6, ls=":")
         a.set_title(f"{exp}: hip pressure against the setpoint")
         a.set_ylabel("pressure [bar gauge]")
         # below the axes: the sine fills its panel, a legend inside would cover a trough

@@ -19,9 +19,17 @@ from frogsim._plotting import figure, save
 from frogsim.engine.swim import swim
 from frogsim.robot.scenario import load_robot_scenario
 from frogsim.scenario.load import merged_raw
+from frogsim.scenario.tables import header
 from frogsim.studies.registry import StudyData, register
 
 BAR = 1e5
+# the study's CSV columns, in the one header convention (frogsim.scenario.tables); "experiment" is a label
+TIME = header("time", "s")
+CO_CONTRACTION = header("co-contraction", "bar gauge")
+SETPOINT = header("setpoint", "deg")
+ANGLE = header("angle", "deg")
+EXTENSOR_PRESSURE = header("extensor pressure", "bar gauge")
+FLEXOR_PRESSURE = header("flexor pressure", "bar gauge")
 LEVELS_BAR = (1.5, 3.5)
 STEP_AT = 1.0
 EXPERIMENTS = {
@@ -83,14 +91,14 @@ def control_joint() -> StudyData:
             runs[key][exp] = entry
             i_ext, i_flex = (r.muscle_names.index(n) for n in ("hip_left", "hip_left_recovery"))
             frames.append(pd.DataFrame({
-                "co_contraction_bar_gauge": level, "experiment": exp, "time_s": r.t,
-                "setpoint_deg": np.degrees(r.setpoint("hip")), "angle_deg": th,
-                "extensor_pressure_bar_gauge": (r.pressures[:, i_ext] - patm) / BAR,
-                "flexor_pressure_bar_gauge": (r.pressures[:, i_flex] - patm) / BAR,
-                "extensor_charge_valve": r.valves[:, 2 * i_ext],
-                "extensor_discharge_valve": r.valves[:, 2 * i_ext + 1],
-                "flexor_charge_valve": r.valves[:, 2 * i_flex],
-                "flexor_discharge_valve": r.valves[:, 2 * i_flex + 1]}))
+                CO_CONTRACTION: level, "experiment": exp, TIME: r.t,
+                SETPOINT: np.degrees(r.setpoint("hip")), ANGLE: th,
+                EXTENSOR_PRESSURE: (r.pressures[:, i_ext] - patm) / BAR,
+                FLEXOR_PRESSURE: (r.pressures[:, i_flex] - patm) / BAR,
+                header("extensor charge valve", "1 = open"): r.valves[:, 2 * i_ext],
+                header("extensor discharge valve", "1 = open"): r.valves[:, 2 * i_ext + 1],
+                header("flexor charge valve", "1 = open"): r.valves[:, 2 * i_flex],
+                header("flexor discharge valve", "1 = open"): r.valves[:, 2 * i_flex + 1]}))
     lo, hi = (f"{v:g}_bar" for v in LEVELS_BAR)
 
     def cmp(exp, k):
@@ -143,18 +151,18 @@ def _draw(data: StudyData, path: str) -> None:
     runs = data.summary["control_joint"]["runs"]
     for col, exp in enumerate(EXPERIMENTS):
         a, b = ax[0, col], ax[1, col]
-        sub = t[t.experiment == exp]
-        first = sub[sub.co_contraction_bar_gauge == LEVELS_BAR[0]]
-        a.plot(first.time_s, first.setpoint_deg, "k--", lw=1.5, label="setpoint")
+        sub = t[t["experiment"] == exp]
+        first = sub[sub[CO_CONTRACTION] == LEVELS_BAR[0]]
+        a.plot(first[TIME], first[SETPOINT], "k--", lw=1.5, label="setpoint")
         for level in LEVELS_BAR:
-            s = sub[sub.co_contraction_bar_gauge == level]
+            s = sub[sub[CO_CONTRACTION] == level]
             m = runs[f"{level:g}_bar"][exp]
-            a.plot(s.time_s, s.angle_deg, color=colors[level], lw=1.2,
+            a.plot(s[TIME], s[ANGLE], color=colors[level], lw=1.2,
                    label=f"p0 = {level:g} bar: {m['tracking_error_rms_deg']:.2f} deg RMS, "
                          f"{m['switchings_per_s']:.0f} sw/s, {m['air_used_L_std']:.2f} L")
-            b.plot(s.time_s, s.extensor_pressure_bar_gauge, color=colors[level], lw=1,
+            b.plot(s[TIME], s[EXTENSOR_PRESSURE], color=colors[level], lw=1,
                    label=f"extensor, p0 = {level:g} bar")
-            b.plot(s.time_s, s.flexor_pressure_bar_gauge, color=colors[level], lw=1, ls=":",
+            b.plot(s[TIME], s[FLEXOR_PRESSURE], color=colors[level], lw=1, ls=":",
                    label=f"flexor, p0 = {level:g} bar")
         a.set_title(f"{exp}: left hip angle against the setpoint")
         a.set_ylabel("hip angle [deg]")

@@ -19,6 +19,7 @@ from frogsim.circuit import layout as L
 from frogsim.engine.batch import build_models, run_models
 from frogsim.engine.measures import format_rise
 from frogsim.scenario.load import load_scenario
+from frogsim.scenario.tables import header
 from frogsim.physics.flow import pump_mass_flow
 from frogsim.studies.paper import HIP, NOTE
 from frogsim._plotting import figure, save
@@ -38,6 +39,22 @@ REQUIRED_SWING_BAR = 4.0         # chosen: a full stroke needs 4 bar between sou
                                  # (Chou-Hannaford force ~ pressure)
 SOURCE_VOLUMES_L = (2, 4, 8, 16)
 PUMP_FLOWS_L_PER_MIN = (5, 10, 20, 40, 80, 160)
+# the studies' CSV columns, in the one header convention (frogsim.scenario.tables); "mode" is a label
+RISE = header("hip rise time 90 %", "s")            # NaN: not reached while the valve was open
+REACHED = header("hip rise reached", "%")
+VALVE_ONLY_RISE = header("valve-only hip rise time 90 %", "s")
+TUBE_COUNT = header("main tube count", "-")
+DIAMETER = header("main tube inner diameter", "mm")
+SOURCE_VOLUME = header("source volume", "L")
+PUMP = header("pump displacement", "L/min")
+STROKES = header("strokes before short", "-")
+CENSORED = header("never ran short", "1 = yes")     # strokes before short is then a lower bound
+STEADY_SOURCE = header("steady source pressure", "bar gauge")
+STEADY_EXHAUST = header("steady exhaust pressure", "bar gauge")
+RATE = header("sustainable stroke rate", "1/min")
+SOURCE_AFTER = header("source pressure after run", "bar gauge")
+CONDUCTANCE = header("sonic conductance", "L/(s bar)")
+RATIO = header("critical ratio", "-")
 VALVE_C = tuple(np.round(np.arange(0.1, 1.01, 0.1), 2))     # L/(s bar); MHJ9 is 0.4
 VALVE_B = tuple(np.round(np.arange(0.15, 0.61, 0.05), 2))   # MHJ9 is 0.38
 
@@ -47,11 +64,11 @@ def _rise_table(base: str, points: list[dict]) -> pd.DataFrame:
     docs/metrics.md) and the share of that rise it reached [%]."""
     models = build_models(load_scenario(base), points)
     v = evaluate(run_models(models), ["rise_time", "rise_reached"], HIP)
-    return pd.DataFrame({"rise_time_90_s": v["rise_time"], "rise_reached_percent": 100 * v["rise_reached"]})
+    return pd.DataFrame({RISE: v["rise_time"], REACHED: 100 * v["rise_reached"]})
 
 
 def _rise_times(base: str, points: list[dict]) -> np.ndarray:
-    return _rise_table(base, points)["rise_time_90_s"].to_numpy()
+    return _rise_table(base, points)[RISE].to_numpy()
 
 
 def _bore(x: float) -> str:
@@ -85,28 +102,28 @@ def design_tubes() -> StudyData:
             for d in TUBE_DIAMETERS_MM:
                 points.append({"supply.mode": mode, "supply.main_tube_count": int(count),
                                "supply.main_tube_inner_diameter": d * MM})
-                rows.append({"mode": mode, "main_tube_count": count, "inner_diameter_mm": d})
+                rows.append({"mode": mode, TUBE_COUNT: count, DIAMETER: d})
     table = pd.concat([pd.DataFrame(rows), _rise_table("paper-cycle", points)], axis=1)
-    table["valve_only_rise_time_90_s"] = valve_only
+    table[VALVE_ONLY_RISE] = valve_only
     level = valve_only * (1 + VALVE_LIMITED_MARGIN)
     crossings = {}
     for mode in ("paper", "physical"):
         crossings[mode] = {}
         for count in TUBE_COUNTS:
-            sub = table[(table["mode"] == mode) & (table["main_tube_count"] == count)]
-            crossings[mode][str(count)] = _crossing(sub.inner_diameter_mm, sub.rise_time_90_s, level)
-    paper_4mm = table[(table["mode"] == "paper") & (table.main_tube_count == 1)
-                      & (table.inner_diameter_mm == 4.0)].rise_time_90_s.iloc[0]
-    phys_4mm = table[(table["mode"] == "physical") & (table.main_tube_count == 1)
-                     & (table.inner_diameter_mm == 4.0)].rise_time_90_s.iloc[0]
-    missing = table[~np.isfinite(table.rise_time_90_s)]
+            sub = table[(table["mode"] == mode) & (table[TUBE_COUNT] == count)]
+            crossings[mode][str(count)] = _crossing(sub[DIAMETER], sub[RISE], level)
+    paper_4mm = table[(table["mode"] == "paper") & (table[TUBE_COUNT] == 1)
+                      & (table[DIAMETER] == 4.0)][RISE].iloc[0]
+    phys_4mm = table[(table["mode"] == "physical") & (table[TUBE_COUNT] == 1)
+                     & (table[DIAMETER] == 4.0)][RISE].iloc[0]
+    missing = table[~np.isfinite(table[RISE])]
     if len(missing):
-        worst = missing.sort_values("rise_reached_percent").iloc[0]
+        worst = missing.sort_values(REACHED).iloc[0]
         unreached = (
             f" {len(missing)} of the {len(table)} layouts do not reach 90 % of the rise within the 1 s "
             f"pressurise (rise time \"not reached\", crosses in the figure); the worst ({worst['mode']} "
-            f"mode, {worst.main_tube_count} tube(s) of {worst.inner_diameter_mm:g} mm) reaches "
-            f"{worst.rise_reached_percent:.0f} % of it.")
+            f"mode, {worst[TUBE_COUNT]} tube(s) of {worst[DIAMETER]:g} mm) reaches "
+            f"{worst[REACHED]:.0f} % of it.")
     else:
         unreached = ""
     conclusion = (
@@ -131,21 +148,21 @@ def _draw_tubes(data: StudyData, path: str) -> None:
     d = data.table
     fig, ax = figure(1, 2, width=11.5, height=4.8, sharey=True)
     vo = data.summary["design_tubes"]["valve_only_rise_time_90_s"]
-    top = np.nanmax(d.rise_time_90_s) * 1.08
+    top = np.nanmax(d[RISE]) * 1.08
     for a, mode, title in ((ax[0, 0], "paper", "paper mode: Eq. (9) per-branch limit"),
                            (ax[0, 1], "physical", "physical mode: shared choked tube")):
         for count in TUBE_COUNTS:
-            sub = d[(d["mode"] == mode) & (d.main_tube_count == count)]
+            sub = d[(d["mode"] == mode) & (d[TUBE_COUNT] == count)]
             x = data.summary["design_tubes"]["valve_limited_from_inner_diameter_mm"][mode][str(count)]
             where = f"valve limits from {x:.1f} mm" if np.isfinite(x) else "tube limits throughout"
-            a.plot(sub.inner_diameter_mm, sub.rise_time_90_s, "o-", ms=3, color=f"C{count - 1}",
+            a.plot(sub[DIAMETER], sub[RISE], "o-", ms=3, color=f"C{count - 1}",
                    label=f"{count} main tube(s); {where}")
             if np.isfinite(x):
                 a.axvline(x, color=f"C{count - 1}", ls=":", lw=1)
-            miss = sub[~np.isfinite(sub.rise_time_90_s)]
-            a.plot(miss.inner_diameter_mm, np.full(len(miss), top * (1 + 0.04 * (count - 1))), "x",
+            miss = sub[~np.isfinite(sub[RISE])]
+            a.plot(miss[DIAMETER], np.full(len(miss), top * (1 + 0.04 * (count - 1))), "x",
                    color=f"C{count - 1}", ms=8, mew=2)
-        if not np.isfinite(d[d["mode"] == mode].rise_time_90_s).all():
+        if not np.isfinite(d[d["mode"] == mode][RISE]).all():
             a.plot([], [], "x", color="0.3", ms=8, mew=2, label="not reached in the 1 s pressurise")
         a.axhline(vo, color="k", ls="--", lw=1, label=f"valves only: {format_rise(vo)}")
         a.set_xlabel("main tube inner diameter [mm]")
@@ -183,14 +200,14 @@ def _air_per_stroke_at(base, source_gauge_bar: float) -> float:
 
 
 def _at(table: pd.DataFrame, source_L: float, pump_L_per_min: float) -> int:
-    row = table[(table.source_volume_L == source_L) & (table.pump_displacement_L_per_min == pump_L_per_min)]
-    return int(row.strokes_before_short.iloc[0])
+    row = table[(table[SOURCE_VOLUME] == source_L) & (table[PUMP] == pump_L_per_min)]
+    return int(row[STROKES].iloc[0])
 
 
 def _pump_for_rate(sub: pd.DataFrame, rate: float) -> float:
     """Pump displacement [L/min] at which the sustainable rate reaches ``rate`` (log interpolation)."""
-    q = np.log(sub.pump_displacement_L_per_min.to_numpy(float))
-    r = np.log(sub.sustainable_strokes_per_min.to_numpy(float))
+    q = np.log(sub[PUMP].to_numpy(float))
+    r = np.log(sub[RATE].to_numpy(float))
     if rate > np.exp(r).max():
         return float("nan")
     return float(np.exp(np.interp(np.log(rate), r, q)))
@@ -204,7 +221,7 @@ def design_endurance() -> StudyData:
     for vs in SOURCE_VOLUMES_L:
         for q in PUMP_FLOWS_L_PER_MIN:
             points.append({"source.volume": vs * LITRE, "pump.displacement": q * L_PER_MIN})
-            rows.append({"source_volume_L": vs, "pump_displacement_L_per_min": q})
+            rows.append({SOURCE_VOLUME: vs, PUMP: q})
     models = build_models(base, points)
     results = run_models(models)
     swing = REQUIRED_SWING_BAR * 1e5
@@ -216,26 +233,26 @@ def design_endurance() -> StudyData:
         starts = np.arange(0.0, r.t[-1] - 1e-9, period)
         swing_at_start = np.interp(starts, r.t, r.source_pressure - r.exhaust_pressure)
         short = np.nonzero(swing_at_start < swing)[0]
-        row["strokes_before_short"] = int(short[0]) if short.size else len(starts)
-        row["endurance_censored"] = not short.size
+        row[STROKES] = int(short[0]) if short.size else len(starts)
+        row[CENSORED] = int(not short.size)
         g = m.g
         ps, pe = _steady_pressures(m, swing)
-        row["steady_source_pressure_bar_gauge"] = (ps - patm) / 1e5
-        row["steady_exhaust_pressure_bar_gauge"] = (pe - patm) / 1e5
+        row[STEADY_SOURCE] = (ps - patm) / 1e5
+        row[STEADY_EXHAUST] = (pe - patm) / 1e5
         pump = pump_mass_flow(pe, g[L.G_TAMB], ps, g[L.G_PUMP_DISP], g[L.G_PUMP_RMAX], g[L.G_R])
-        row["sustainable_strokes_per_min"] = 60.0 * pump / air_req
-        row["source_after_run_bar_gauge"] = float((r.source_pressure[-1] - patm) / 1e5)
+        row[RATE] = 60.0 * pump / air_req
+        row[SOURCE_AFTER] = float((r.source_pressure[-1] - patm) / 1e5)
     table = pd.DataFrame(rows)
-    base = table[(table.source_volume_L == 4) & (table.pump_displacement_L_per_min == 10)].iloc[0]
+    base = table[(table[SOURCE_VOLUME] == 4) & (table[PUMP] == 10)].iloc[0]
     paper_rate = 60.0 / period
-    need = {vs: _pump_for_rate(table[table.source_volume_L == vs], paper_rate) for vs in SOURCE_VOLUMES_L}
+    need = {vs: _pump_for_rate(table[table[SOURCE_VOLUME] == vs], paper_rate) for vs in SOURCE_VOLUMES_L}
     n_strokes = int(round(results[0].t[-1] / period))
     conclusion = (
         f"Twelve muscles, a stroke every {period:g} s (the paper's 1 s pressurise / 1 s release), a "
         f"stroke needing {REQUIRED_SWING_BAR:g} bar or more between source and exhaust; one such stroke "
         f"takes {air_req / rho_ref * 1e3:.2f} L of air (standard). The paper's robot (4 L source, "
-        f"10 L/min pump) manages {int(base.strokes_before_short)} full strokes before the source runs "
-        f"short, and its pump sustains {base.sustainable_strokes_per_min:.1f} strokes per minute against "
+        f"10 L/min pump) manages {int(base[STROKES])} full strokes before the source runs "
+        f"short, and its pump sustains {base[RATE]:.1f} strokes per minute against "
         f"the {paper_rate:g} the paper's timing asks. To sustain that timing the pump needs about "
         f"{need[4]:.0f} L/min displacement with the 4 L source ({need[2]:.0f} L/min with 2 L, "
         f"{need[16]:.0f} L/min with 16 L; more air in the closed circuit raises the exhaust pressure "
@@ -248,8 +265,8 @@ def design_endurance() -> StudyData:
         "required_swing_bar": REQUIRED_SWING_BAR,
         "stroke_period_s": period,
         "air_per_stroke_at_required_swing_L_std": air_req / rho_ref * 1e3,
-        "paper_robot": {"strokes_before_short": int(base.strokes_before_short),
-                        "sustainable_strokes_per_min": float(base.sustainable_strokes_per_min)},
+        "paper_robot": {"strokes_before_short": int(base[STROKES]),
+                        "sustainable_strokes_per_min": float(base[RATE])},
         "pump_for_paper_timing_L_per_min": {f"source_{vs}_L": need[vs] for vs in SOURCE_VOLUMES_L},
         "conclusion": conclusion}})
 
@@ -260,18 +277,18 @@ def _draw_endurance(data: StudyData, path: str) -> None:
     fig, ax = figure(1, 2, width=11.5)
     a, b = ax[0, 0], ax[0, 1]
     for k, vs in enumerate(SOURCE_VOLUMES_L):
-        sub = d[d.source_volume_L == vs]
-        a.plot(sub.pump_displacement_L_per_min, sub.strokes_before_short, "o-", label=f"source {vs} L")
-        cens = sub[sub.endurance_censored]
-        a.plot(cens.pump_displacement_L_per_min, cens.strokes_before_short, "^", color=f"C{k}", ms=9)
+        sub = d[d[SOURCE_VOLUME] == vs]
+        a.plot(sub[PUMP], sub[STROKES], "o-", label=f"source {vs} L")
+        cens = sub[sub[CENSORED] == 1]
+        a.plot(cens[PUMP], cens[STROKES], "^", color=f"C{k}", ms=9)
     a.set_xscale("log")
     a.set_xlabel("pump displacement [L/min]")
     a.set_ylabel("full strokes before the source runs short")
     a.set_title("Endurance (triangles: never ran short in the simulated strokes)")
     a.legend(fontsize=8)
     for vs in SOURCE_VOLUMES_L:
-        sub = d[d.source_volume_L == vs]
-        b.plot(sub.pump_displacement_L_per_min, sub.sustainable_strokes_per_min, "o-", label=f"source {vs} L")
+        sub = d[d[SOURCE_VOLUME] == vs]
+        b.plot(sub[PUMP], sub[RATE], "o-", label=f"source {vs} L")
     b.axhline(30, color="k", ls="--", lw=1, label="paper's timing: 30 strokes/min")
     b.set_xscale("log")
     b.set_yscale("log")
@@ -293,18 +310,18 @@ def design_valve() -> StudyData:
                            "valves.charge.critical_ratio": float(b),
                            "valves.discharge.sonic_conductance": c * L_PER_S_BAR,
                            "valves.discharge.critical_ratio": float(b)})
-            rows.append({"sonic_conductance_L_per_s_bar": c, "critical_ratio": b})
+            rows.append({CONDUCTANCE: c, RATIO: b})
     table = pd.concat([pd.DataFrame(rows), _rise_table("paper-cycle", points)], axis=1)
-    at_b = table[np.isclose(table.critical_ratio, 0.4)]
-    fit = at_b[np.isfinite(at_b.rise_time_90_s)]
-    slope = np.polyfit(np.log(fit.sonic_conductance_L_per_s_bar), np.log(fit.rise_time_90_s), 1)[0]
-    at_c = table[np.isclose(table.sonic_conductance_L_per_s_bar, 0.4)]
-    spread = (at_c.rise_time_90_s.max() - at_c.rise_time_90_s.min()) / at_c.rise_time_90_s.mean()
-    if not np.isfinite(at_c.rise_time_90_s).all():
+    at_b = table[np.isclose(table[RATIO], 0.4)]
+    fit = at_b[np.isfinite(at_b[RISE])]
+    slope = np.polyfit(np.log(fit[CONDUCTANCE]), np.log(fit[RISE]), 1)[0]
+    at_c = table[np.isclose(table[CONDUCTANCE], 0.4)]
+    spread = (at_c[RISE].max() - at_c[RISE].min()) / at_c[RISE].mean()
+    if not np.isfinite(at_c[RISE]).all():
         spread = float("nan")         # some b do not reach the level: no spread to quote
-    t_lo = at_b.rise_time_90_s.iloc[0]
-    t_hi = at_b.rise_time_90_s.iloc[-1]
-    n_miss = int((~np.isfinite(table.rise_time_90_s)).sum())
+    t_lo = at_b[RISE].iloc[0]
+    t_hi = at_b[RISE].iloc[-1]
+    n_miss = int((~np.isfinite(table[RISE])).sum())
     conclusion = (
         f"Valve-limited charging (no tube limit), six muscles from 6 bar. At b = 0.4 the hip rise time "
         f"falls from {format_rise(t_lo)} at C = {VALVE_C[0]:g} to {format_rise(t_hi)} at C = {VALVE_C[-1]:g} "
@@ -324,16 +341,16 @@ def design_valve() -> StudyData:
 @design_valve.draws
 def _draw_valve(data: StudyData, path: str) -> None:
     d = data.table
-    grid = d.pivot(index="critical_ratio", columns="sonic_conductance_L_per_s_bar", values="rise_time_90_s")
+    grid = d.pivot(index=RATIO, columns=CONDUCTANCE, values=RISE)
     fig, ax = figure(width=7.5, height=5)
     a = ax[0, 0]
     cs = a.contourf(grid.columns, grid.index, grid.values, levels=14, cmap="viridis")
     lines = a.contour(grid.columns, grid.index, grid.values, levels=[0.05, 0.075, 0.1, 0.15, 0.2, 0.3],
                       colors="w", linewidths=0.8)
     a.clabel(lines, fmt="%.3g s", fontsize=8)
-    miss = d[~np.isfinite(d.rise_time_90_s)]
+    miss = d[~np.isfinite(d[RISE])]
     if len(miss):
-        a.plot(miss.sonic_conductance_L_per_s_bar, miss.critical_ratio, "wx", ms=7, mew=2,
+        a.plot(miss[CONDUCTANCE], miss[RATIO], "wx", ms=7, mew=2,
                label="90 % rise not reached in the 1 s pressurise")
     a.plot([0.4], [0.38], "r*", ms=12, label="MHJ9 (paper): C = 0.4, b = 0.38")
     fig.colorbar(cs, ax=a, label="hip muscle 90 % rise time [s]")

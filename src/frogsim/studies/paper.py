@@ -15,6 +15,7 @@ from frogsim.engine.measures import format_rise
 from frogsim.engine.pneumatic import simulate
 from frogsim.scenario.load import load_scenario
 from frogsim.scenario.schema import Motion, Program
+from frogsim.scenario.tables import header
 from frogsim.studies.calibration import PAPER_AERATION_L
 from frogsim._plotting import figure, save, shade_valve_phases
 from frogsim.studies.registry import StudyData, register
@@ -27,6 +28,34 @@ VOLUME_CONSTANTS_PERCENT = (0, 25, 50, 75, 100)            # paper Fig. 16: 0 %.
 BRANCH_LIMITS_L_PER_MIN = (15, 30, 45, 60, 90, 120, 180)   # paper Fig. 17: several saturations
 L_PER_MIN = 1e-3 / 60.0
 NOTE = "frogsim, parameter set fan2017; pressures gauge"
+# the studies' CSV columns, in the one header convention (frogsim.scenario.tables)
+TIME = header("time", "s")
+HIP_PRESSURE = header("hip pressure", "bar gauge")
+HIP_VOLUME = header("hip volume", "cm^3")
+HIP_CHARGE_FLOW = header("hip charge flow", "L/min std")
+EXHAUST_PRESSURE = header("exhaust pressure", "bar gauge")
+SOURCE_PRESSURE = header("source pressure", "bar gauge")
+SOURCE_TEMPERATURE = header("source temperature", "K")
+SIMULATED_L, PAPER_L, DIFFERENCE = (header("simulated aeration volume", "L std"),
+                                    header("paper aeration volume", "L std"), header("difference", "%"))
+
+
+def _fig15_column(ps, label: str) -> str:
+    return header(f"hip pressure {ps} bar source {label}", "bar gauge")
+
+
+def _fig16_column(frac, label: str) -> str:
+    return header(f"hip pressure {frac} % volume constant {label}", "bar gauge")
+
+
+def _fig17_column(q) -> str:
+    return header(f"hip pressure {q} L/min branch limit", "bar gauge")
+
+
+def _tube_column(signal: str, mode: str, label: str) -> str:
+    """A tube-modes column: signal "charge flow" [L/min std] or "pressure" [bar gauge]."""
+    unit = "L/min std" if signal == "charge flow" else "bar gauge"
+    return header(f"hip {signal} {mode} mode {label.replace('_', ' ')} open", unit)
 
 
 @functools.lru_cache(maxsize=1)
@@ -62,19 +91,19 @@ def final_pressure_bar(result, muscle=HIP) -> float:
 def fig13() -> StudyData:
     r = run()
     table = pd.DataFrame({
-        "time_s": r.t,
-        "hip_pressure_bar_gauge": gauge_bar(r, r.muscle_pressure(HIP)),
-        "hip_volume_cm3": r.volumes[:, r.index(HIP)] * 1e6,
-        "hip_charge_flow_L_per_min_std": r.charge_flow(HIP) / r.reference_density / L_PER_MIN,
-        "hip_charge_valve": r.u[:, 2 * r.index(HIP)],
-        "hip_discharge_valve": r.u[:, 2 * r.index(HIP) + 1],
-        "exhaust_pressure_bar_gauge": gauge_bar(r, r.exhaust_pressure),
+        TIME: r.t,
+        HIP_PRESSURE: gauge_bar(r, r.muscle_pressure(HIP)),
+        HIP_VOLUME: r.volumes[:, r.index(HIP)] * 1e6,
+        HIP_CHARGE_FLOW: r.charge_flow(HIP) / r.reference_density / L_PER_MIN,
+        header("hip charge valve", "1 = open"): r.u[:, 2 * r.index(HIP)],
+        header("hip discharge valve", "1 = open"): r.u[:, 2 * r.index(HIP) + 1],
+        EXHAUST_PRESSURE: gauge_bar(r, r.exhaust_pressure),
     })
     return StudyData(table, {"hip_cycle": {
         **rise_entry(r),
         "final_muscle_pressure_bar_gauge": final_pressure_bar(r),
-        "end_pressure_after_release_bar_gauge": float(table.hip_pressure_bar_gauge.iloc[-1]),
-        "exhaust_pressure_end_bar_gauge": float(table.exhaust_pressure_bar_gauge.iloc[-1]),
+        "end_pressure_after_release_bar_gauge": float(table[HIP_PRESSURE].iloc[-1]),
+        "exhaust_pressure_end_bar_gauge": float(table[EXHAUST_PRESSURE].iloc[-1]),
     }}, {"window": r.pressurise_window(HIP)})
 
 
@@ -84,15 +113,15 @@ def _draw13(data: StudyData, path: str) -> None:
     fig, ax = figure(2, 1, height=5.6, sharex=True)
     a, b = ax[0, 0], ax[1, 0]
     shade_valve_phases(a, *data.extras["window"])
-    a.plot(d.time_s, d.hip_pressure_bar_gauge, lw=2, label="hip muscle")
-    a.plot(d.time_s, d.exhaust_pressure_bar_gauge, lw=1, ls="--", label="exhaust chamber")
+    a.plot(d[TIME], d[HIP_PRESSURE], lw=2, label="hip muscle")
+    a.plot(d[TIME], d[EXHAUST_PRESSURE], lw=1, ls="--", label="exhaust chamber")
     a.set_ylabel("pressure [bar gauge]")
     a.set_title("Hip muscle pressure, 1 s pressurise / 1 s release from 6 bar (cf. paper Fig. 13)")
     a.legend(loc="upper right")
-    b.plot(d.time_s, d.hip_charge_flow_L_per_min_std, color="tab:green", label="charge flow")
+    b.plot(d[TIME], d[HIP_CHARGE_FLOW], color="tab:green", label="charge flow")
     b.set_ylabel("charge flow [L/min standard]")
     b2 = b.twinx()
-    b2.plot(d.time_s, d.hip_volume_cm3, color="tab:purple", lw=1, label="muscle volume")
+    b2.plot(d[TIME], d[HIP_VOLUME], color="tab:purple", lw=1, label="muscle volume")
     b2.set_ylabel("volume [cm$^3$]", color="tab:purple")
     b.set_xlabel("time [s]")
     lines, labels = b.get_legend_handles_labels()
@@ -106,13 +135,12 @@ def _draw13(data: StudyData, path: str) -> None:
 def fig14() -> StudyData:
     r = run()
     ps = gauge_bar(r, r.source_pressure)
-    table = pd.DataFrame({"time_s": r.t, "source_pressure_bar_gauge": ps,
-                          "source_temperature_K": r.temperature("source")})
+    table = pd.DataFrame({TIME: r.t, SOURCE_PRESSURE: ps, SOURCE_TEMPERATURE: r.temperature("source")})
     return StudyData(table, {"source_chamber": {
         "pressure_drop_bar": float(ps[0] - ps.min()),
         "initial_pressure_bar_gauge": float(ps[0]),
         "final_pressure_bar_gauge": float(ps[-1]),
-        "temperature_drop_K": float(table.source_temperature_K.iloc[0] - table.source_temperature_K.min()),
+        "temperature_drop_K": float(table[SOURCE_TEMPERATURE].iloc[0] - table[SOURCE_TEMPERATURE].min()),
     }}, {"window": r.pressurise_window(HIP)})
 
 
@@ -123,13 +151,13 @@ def _draw14(data: StudyData, path: str) -> None:
     a, b = ax[0, 0], ax[1, 0]
     for axis in (a, b):
         shade_valve_phases(axis, *data.extras["window"])
-    a.plot(d.time_s, d.source_pressure_bar_gauge, lw=2, label="source chamber (4 L)")
+    a.plot(d[TIME], d[SOURCE_PRESSURE], lw=2, label="source chamber (4 L)")
     a.set_ylabel("pressure [bar gauge]")
     drop = data.summary["source_chamber"]["pressure_drop_bar"]
     a.set_title(f"Source chamber pressure: six muscles charged at once, drop {drop:.2f} bar (cf. Fig. 14)")
     a.legend(loc="upper right")
     cool = data.summary["source_chamber"]["temperature_drop_K"]
-    b.plot(d.time_s, d.source_temperature_K, color="tab:red", lw=1.5)
+    b.plot(d[TIME], d[SOURCE_TEMPERATURE], color="tab:red", lw=1.5)
     b.set_ylabel("temperature [K]")
     b.set_xlabel("time [s]")
     b.set_title(f"Source chamber temperature: adiabatic expansion cools it by {cool:.1f} K", fontsize=10)
@@ -144,8 +172,8 @@ def fig15() -> StudyData:
     for label, mode in (("saturated", "paper"), ("unsaturated", "none")):
         for ps in SOURCE_PRESSURES_BAR:
             r = run({"source.initial_pressure_gauge": ps * BAR, "supply.mode": mode})
-            cols.setdefault("time_s", r.t)
-            cols[f"hip_pressure_bar_gauge_{ps}bar_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
+            cols.setdefault(TIME, r.t)
+            cols[_fig15_column(ps, label)] = gauge_bar(r, r.muscle_pressure(HIP))
             summary[label].append({"source_pressure_bar_gauge": ps, **rise_entry(r),
                                    "final_muscle_pressure_bar_gauge": final_pressure_bar(r)})
     return StudyData(pd.DataFrame(cols), {"source_pressure_sweep": summary})
@@ -160,7 +188,7 @@ def _draw_saturation_panels(d, curves, suptitle: str, path: str) -> None:
     for a, label, title in ((ax[0, 0], "saturated", "(a) with saturation (Eq. 9 branch limit)"),
                             (ax[0, 1], "unsaturated", "(b) without saturation")):
         for column, text in curves(label):
-            a.plot(d.time_s, d[column], label=text)
+            a.plot(d[TIME], d[column], label=text)
         a.set_xlim(0, 1.05)
         a.set_title(title)
         a.set_xlabel("time [s]")
@@ -175,7 +203,7 @@ def _draw15(data: StudyData, path: str) -> None:
     def curves(label):
         for e in data.summary["source_pressure_sweep"][label]:
             ps = e["source_pressure_bar_gauge"]
-            yield (f"hip_pressure_bar_gauge_{ps}bar_{label}",
+            yield (_fig15_column(ps, label),
                    f"source {ps} bar: 90 % rise {format_rise(e['rise_time_90_s'], 2)}")
     _draw_saturation_panels(data.table, curves,
                             "Hip muscle pressurising under various source pressures (cf. paper Fig. 15)", path)
@@ -193,8 +221,8 @@ def fig16() -> StudyData:
             for m in _base().muscles:
                 over[f"muscles.{m}.motion"] = Motion("volume_constant", fraction=frac / 100.0)
             r = run(over)
-            cols.setdefault("time_s", r.t)
-            cols[f"hip_pressure_bar_gauge_{frac}pct_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
+            cols.setdefault(TIME, r.t)
+            cols[_fig16_column(frac, label)] = gauge_bar(r, r.muscle_pressure(HIP))
             key = "rise_time_90_s" if label == "saturated" else "unsaturated_rise_time_90_s"
             entry.update(rise_entry(r, HIP, key))
             if label == "saturated":
@@ -209,7 +237,7 @@ def _draw16(data: StudyData, path: str) -> None:
         key = "rise_time_90_s" if label == "saturated" else "unsaturated_rise_time_90_s"
         for e in data.summary["muscle_volume_sweep"]:
             f = e["volume_constant_percent"]
-            yield (f"hip_pressure_bar_gauge_{f}pct_{label}",
+            yield (_fig16_column(f, label),
                    f"{f} % ({e['muscle_volume_cm3']:.0f} cm$^3$): rise {format_rise(e[key])}")
     _draw_saturation_panels(data.table, curves,
                             "Hip muscle pressurising at fixed muscle volumes, 6 bar source (cf. paper Fig. 16)",
@@ -223,8 +251,8 @@ def fig17() -> StudyData:
     entries = []
     for q in BRANCH_LIMITS_L_PER_MIN:
         r = run({"supply.branch_limit": q * L_PER_MIN})
-        cols.setdefault("time_s", r.t)
-        cols[f"hip_pressure_bar_gauge_{q}Lpm"] = gauge_bar(r, r.muscle_pressure(HIP))
+        cols.setdefault(TIME, r.t)
+        cols[_fig17_column(q)] = gauge_bar(r, r.muscle_pressure(HIP))
         entries.append({"branch_limit_L_per_min": q, **rise_entry(r),
                         "final_muscle_pressure_bar_gauge": final_pressure_bar(r),
                         "rise_target_pressure_bar_gauge": float(gauge_bar(r, r.rise(HIP).p_target[0]))})
@@ -239,7 +267,7 @@ def _draw17(data: StudyData, path: str) -> None:
     entries = data.summary["saturation_sweep"]
     for e in entries:
         q = e["branch_limit_L_per_min"]
-        a.plot(d.time_s, d[f"hip_pressure_bar_gauge_{q}Lpm"],
+        a.plot(d[TIME], d[_fig17_column(q)],
                label=f"{q} L/min: {format_rise(e['rise_time_90_s'], 2)}")
     a.set_xlim(0, 1.05)
     a.set_xlabel("time [s]")
@@ -271,10 +299,9 @@ def aeration() -> StudyData:
     for joint in ("hip", "knee", "ankle"):
         sim = r.aeration_volume(f"{joint}_left") * 1e3
         paper = PAPER_AERATION_L[joint]
-        rows.append({"joint": joint, "simulated_L_std": sim, "paper_L_std": paper,
-                     "difference_percent": 100.0 * (sim - paper) / paper})
+        rows.append({"joint": joint, SIMULATED_L: sim, PAPER_L: paper, DIFFERENCE: 100.0 * (sim - paper) / paper})
     table = pd.DataFrame(rows)
-    return StudyData(table, {"aeration_volume_L": {row["joint"]: row["simulated_L_std"] for row in rows}})
+    return StudyData(table, {"aeration_volume_L": {row["joint"]: row[SIMULATED_L] for row in rows}})
 
 
 @aeration.draws
@@ -283,11 +310,11 @@ def _draw_aeration(data: StudyData, path: str) -> None:
     fig, ax = figure(width=6.5)
     a = ax[0, 0]
     x = np.arange(len(d))
-    a.bar(x - 0.18, d.simulated_L_std, 0.36, label="frogsim")
-    a.bar(x + 0.18, d.paper_L_std, 0.36, label="paper Sec. 4.2")
-    for xi, (s, diff) in enumerate(zip(d.simulated_L_std, d.difference_percent)):
+    a.bar(x - 0.18, d[SIMULATED_L], 0.36, label="frogsim")
+    a.bar(x + 0.18, d[PAPER_L], 0.36, label="paper Sec. 4.2")
+    for xi, (s, diff) in enumerate(zip(d[SIMULATED_L], d[DIFFERENCE])):
         a.text(xi - 0.18, s + 0.005, f"{s:.3f} L\n({diff:+.1f} %)", ha="center", fontsize=8)
-    a.set_xticks(x, d.joint)
+    a.set_xticks(x, d["joint"])
     a.set_ylabel("aeration volume [L at standard state]")
     a.set_ylim(0, 0.6)
     a.set_title("Air charged per pressurise phase (ISO 8778 standard litres)")
@@ -314,9 +341,9 @@ def tube_modes() -> StudyData:
         for label, over in (("one_branch", _one_branch_overrides()), ("six_branches", {})):
             r = run({"supply.mode": mode, **over})
             q = r.charge_flow(HIP) / r.reference_density / L_PER_MIN
-            cols.setdefault("time_s", r.t)
-            cols[f"hip_charge_flow_L_per_min_std_{mode}_{label}"] = q
-            cols[f"hip_pressure_bar_gauge_{mode}_{label}"] = gauge_bar(r, r.muscle_pressure(HIP))
+            cols.setdefault(TIME, r.t)
+            cols[_tube_column("charge flow", mode, label)] = q
+            cols[_tube_column("pressure", mode, label)] = gauge_bar(r, r.muscle_pressure(HIP))
             summary[mode][f"{label}_L_per_min"] = float(q.max())
             summary[mode].update(rise_entry(r, HIP, f"{label}_rise_time_90_s"))
     sc = load_scenario(BASE)
@@ -333,8 +360,8 @@ def _draw_tubes(data: StudyData, path: str) -> None:
     for mode in ("paper", "physical"):
         for label, color in (("one_branch", "tab:blue"), ("six_branches", "tab:red")):
             name = f"{mode}, {label.replace('_', ' ')} open"
-            a.plot(d.time_s, d[f"hip_charge_flow_L_per_min_std_{mode}_{label}"], styles[mode], color=color, label=name)
-            b.plot(d.time_s, d[f"hip_pressure_bar_gauge_{mode}_{label}"], styles[mode], color=color, label=name)
+            a.plot(d[TIME], d[_tube_column("charge flow", mode, label)], styles[mode], color=color, label=name)
+            b.plot(d[TIME], d[_tube_column("pressure", mode, label)], styles[mode], color=color, label=name)
     a.set_xlim(0, 0.8)
     b.set_xlim(0, 1.05)
     a.set_xlabel("time [s]")

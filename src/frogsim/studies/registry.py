@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Callable
 
 import pandas as pd
@@ -9,7 +10,10 @@ import pandas as pd
 
 @dataclass
 class StudyData:
-    """What a study computes: a tidy table (written as CSV), summary entries, and extras for plots."""
+    """What a study computes: a tidy table (written as CSV by :func:`write_table`), summary entries,
+    and extras for plots. Every column of the table is headed ``name [unit]``
+    (:func:`frogsim.scenario.tables.header`) or is a label column of text or whole numbers
+    (:data:`frogsim.scenario.tables.LABEL_COLUMNS`)."""
     table: pd.DataFrame
     summary: dict
     extras: dict = field(default_factory=dict)
@@ -49,3 +53,11 @@ def run_study(name: str) -> StudyData:
     if name not in STUDIES:
         raise KeyError(f"unknown study {name!r}; studies: {', '.join(STUDIES)}")
     return STUDIES[name].compute()
+
+
+def write_table(name: str, data: StudyData, out) -> Path:
+    """Write a study's table as ``<name>.csv`` in folder ``out`` (frogsim._files.write_csv); its path."""
+    from frogsim._files import write_csv
+    path = Path(out) / f"{name}.csv"
+    write_csv(path, data.table)
+    return path

@@ -17,11 +17,21 @@ import numpy as np
 import pandas as pd
 
 from frogsim._plotting import figure, save
+from frogsim.scenario.tables import header
 from frogsim.studies.registry import StudyData, register
 
 BAR = 1e5
 NOTE = "frogsim, parameter set fan2017 with the robot sections; pressures gauge"
 JOINT_COLORS = {"hip": "tab:blue", "knee": "tab:orange", "ankle": "tab:green"}
+# leg-in-air's CSV columns, in the one header convention (frogsim.scenario.tables)
+TIME = header("time", "s")
+HIP_PRESSURE = header("hip pressure", "bar gauge")
+HIP_PRESSURE_PRESCRIBED = header("hip pressure prescribed motion", "bar gauge")
+HIP_VOLUME = header("hip volume", "cm^3")
+
+
+def _angle(joint: str) -> str:
+    return header(f"{joint} angle", "deg")
 
 
 def _gauge(result, p):
@@ -42,15 +52,15 @@ def leg_in_air() -> StudyData:
     mp = r.model.pneumatic.mp
     V = np.array([muscle_volume(L, mp[i, CL.M_B0], mp[i, CL.M_N]) for L in r.lengths[:, i]]) + mp[i, CL.M_DEAD]
     prescribed = simulate("paper-cycle")
-    table = pd.DataFrame({"time_s": t})
+    table = pd.DataFrame({TIME: t})
     for j in ("hip", "knee", "ankle"):
-        table[f"{j}_angle_deg"] = np.degrees(r.joint_angles[:, r.joint_names.index(f"{j}_left")])
-    table["hip_pressure_bar_gauge"] = _gauge(r, r.pressures[:, i])
-    table["hip_volume_cm3"] = V * 1e6
-    table["hip_contraction_percent"] = 100 * r.contraction()[:, i]
-    table["hip_pressure_prescribed_motion_bar_gauge"] = np.interp(
+        table[_angle(j)] = np.degrees(r.joint_angles[:, r.joint_names.index(f"{j}_left")])
+    table[HIP_PRESSURE] = _gauge(r, r.pressures[:, i])
+    table[HIP_VOLUME] = V * 1e6
+    table[header("hip contraction", "%")] = 100 * r.contraction()[:, i]
+    table[HIP_PRESSURE_PRESCRIBED] = np.interp(
         t, prescribed.t, _gauge(prescribed, prescribed.muscle_pressure("hip_left")))
-    table["source_pressure_bar_gauge"] = _gauge(r, r.source_pressure)
+    table[header("source pressure", "bar gauge")] = _gauge(r, r.source_pressure)
     s = r.summary()
     left = [f"{j}_left" for j in ("hip", "knee", "ankle")]
     summary = {"leg_in_air": {
@@ -59,7 +69,7 @@ def leg_in_air() -> StudyData:
         "joint_range_deg": {n: s["joints"][n]["max_deg"] - s["joints"][n]["min_deg"] for n in left},
         "max_contraction_percent": {n: s["max_contraction_percent"][n] for n in left},
         "hip_aeration_volume_L": s["aeration_volume_L_std"]["hip_left"],
-        "hip_pressure_end_of_pressurise_bar_gauge": float(np.interp(1.0, t, table.hip_pressure_bar_gauge)),
+        "hip_pressure_end_of_pressurise_bar_gauge": float(np.interp(1.0, t, table[HIP_PRESSURE])),
     }}
     return StudyData(table, summary, {"delays": summary["leg_in_air"]["joint_delay_s"],
                                       "command_s": 0.0, "release_s": 1.0})
@@ -72,7 +82,7 @@ def _draw_leg(data: StudyData, path: str) -> None:
     a, b = ax[0, 0], ax[1, 0]
     for j in ("hip", "knee", "ankle"):
         delay = data.extras["delays"][f"{j}_left"]
-        a.plot(d.time_s, d[f"{j}_angle_deg"], color=JOINT_COLORS[j], lw=2,
+        a.plot(d[TIME], d[_angle(j)], color=JOINT_COLORS[j], lw=2,
                label=f"{j}: delay {delay * 1e3:.0f} ms")
     for x, lab in ((data.extras["command_s"], "charge command"), (data.extras["release_s"], "vent command")):
         a.axvline(x, color="0.4", ls=":", lw=1)
@@ -80,14 +90,14 @@ def _draw_leg(data: StudyData, path: str) -> None:
     a.set_ylabel("joint angle from flexed stop [deg]")
     a.set_title("Leg in air, body fixed: joint angles (cf. paper Fig. 12)")
     a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)     # outside: hides no curve
-    b.plot(d.time_s, d.hip_pressure_bar_gauge, lw=2, label="hip muscle, volume from the joint angles")
-    b.plot(d.time_s, d.hip_pressure_prescribed_motion_bar_gauge, lw=1, ls="--", color="0.35",
+    b.plot(d[TIME], d[HIP_PRESSURE], lw=2, label="hip muscle, volume from the joint angles")
+    b.plot(d[TIME], d[HIP_PRESSURE_PRESCRIBED], lw=1, ls="--", color="0.35",
            label="paper-cycle: prescribed muscle motion")
     b.set_ylabel("pressure [bar gauge]")
     b.set_xlabel("time [s]")
     b.set_title("Hip muscle pressure (cf. paper Fig. 13)")
     b2 = b.twinx()
-    b2.plot(d.time_s, d.hip_volume_cm3, color="tab:purple", lw=1, alpha=0.7, label="hip muscle volume (right axis)")
+    b2.plot(d[TIME], d[HIP_VOLUME], color="tab:purple", lw=1, alpha=0.7, label="hip muscle volume (right axis)")
     b2.set_ylabel("hip muscle volume [cm$^3$]", color="tab:purple")
     lines = b.get_legend_handles_labels()
     more = b2.get_legend_handles_labels()
