@@ -28,6 +28,7 @@ LAYERS = (
     ("sweep",),
     ("fit",),
     ("optimize",),
+    ("export",),
     ("io",),
     ("studies",),
     ("cli", "__init__", "__main__"),
