@@ -1,0 +1,159 @@
+/* frogsim's emulated Arduino Mega 2560: simavr's ATmega2560 core driven in lockstep from Python.
+ *
+ * Built on first use by frogsim.export.emulator (gcc, linked against Debian's libsimavr) and
+ * loaded with ctypes. Everything the plant and the firmware exchange passes through here:
+ *   - analog inputs: the voltage of each ADC channel, in millivolts (simavr's unit), held until
+ *     changed (board_set_adc_mv);
+ *   - digital inputs: pins driven from outside (quadrature encoders; board_set_pin);
+ *   - digital outputs: every change of a watched pin, with the AVR cycle at which the firmware
+ *     wrote it, kept in a queue (board_watch, board_events): valve pins and the firmware's
+ *     busy pin, whose edges time its control interrupt in AVR cycles;
+ *   - the serial port USART0: every byte the firmware sends, with its cycle (board_uart_read);
+ *     simavr paces the bytes at the baud rate the firmware set.
+ * The AVR runs only inside board_run_until, up to a given cycle count.
+ */
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <simavr/sim_avr.h>
+#include <simavr/sim_elf.h>
+#include <simavr/avr_adc.h>
+#include <simavr/avr_ioport.h>
+#include <simavr/avr_uart.h>
+
+#define MAX_WATCH 64
+#define EVENT_CAP (1 << 16)
+#define UART_CAP (1 << 20)
+
+typedef struct board_t board_t;
+typedef struct { board_t *b; int index; } watch_t;
+
+struct board_t {
+    avr_t *avr;
+    watch_t watch[MAX_WATCH];
+    int n_watch;
+    /* pin events: cycle, watch index, value; a ring that board_events drains */
+    uint64_t ev_cycle[EVENT_CAP];
+    int32_t ev_index[EVENT_CAP];
+    int32_t ev_value[EVENT_CAP];
+    long ev_head, ev_tail, ev_lost;
+    uint8_t uart[UART_CAP];
+    uint64_t uart_cycle[UART_CAP];
+    long uart_head, uart_tail, uart_lost;
+};
+
+static void pin_changed(struct avr_irq_t *irq, uint32_t value, void *param) {
+    watch_t *w = (watch_t *)param;
+    board_t *b = w->b;
+    if (b->ev_tail - b->ev_head >= EVENT_CAP) { b->ev_lost++; return; }
+    long k = b->ev_tail % EVENT_CAP;
+    b->ev_cycle[k] = b->avr->cycle;
+    b->ev_index[k] = w->index;
+    b->ev_value[k] = (int32_t)value;
+    b->ev_tail++;
+}
+
+static void uart_out(struct avr_irq_t *irq, uint32_t value, void *param) {
+    board_t *b = (board_t *)param;
+    if (b->uart_tail - b->uart_head >= UART_CAP) { b->uart_lost++; return; }
+    long k = b->uart_tail % UART_CAP;
+    b->uart[k] = (uint8_t)value;
+    b->uart_cycle[k] = b->avr->cycle;
+    b->uart_tail++;
+}
+
+/* Load an ELF for the ATmega2560 at `frequency` Hz with AVcc = AREF = `vref_mv`.
+ * Returns NULL if the file cannot be read or the core cannot be made. */
+board_t *board_open(const char *elf, uint32_t frequency, uint32_t vref_mv) {
+    elf_firmware_t fw;
+    memset(&fw, 0, sizeof(fw));
+    if (elf_read_firmware(elf, &fw) != 0)
+        return NULL;
+    avr_t *avr = avr_make_mcu_by_name("atmega2560");
+    if (!avr)
+        return NULL;
+    avr_init(avr);
+    avr->log = 0;
+    avr_load_firmware(avr, &fw);
+    avr->frequency = frequency;
+    avr->vcc = avr->avcc = avr->aref = vref_mv;
+    board_t *b = (board_t *)calloc(1, sizeof(board_t));
+    b->avr = avr;
+    uint32_t flags = 0;
+    avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
+    flags &= ~AVR_UART_FLAG_STDIO;                      /* bytes go to board_uart_read only */
+    avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
+    avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), uart_out, b);
+    return b;
+}
+
+void board_close(board_t *b) {
+    if (!b) return;
+    avr_terminate(b->avr);
+    free(b);
+}
+
+/* Watch output pin `bit` of port `port` ('A'..'L'); its changes are queued under `index`. */
+int board_watch(board_t *b, char port, int bit, int index) {
+    if (b->n_watch >= MAX_WATCH) return -1;
+    avr_irq_t *irq = avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit);
+    if (!irq) return -2;
+    watch_t *w = &b->watch[b->n_watch++];
+    w->b = b;
+    w->index = index;
+    avr_irq_register_notify(irq, pin_changed, w);
+    return 0;
+}
+
+void board_set_adc_mv(board_t *b, int channel, uint32_t mv) {
+    avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + channel), mv);
+}
+
+int board_set_pin(board_t *b, char port, int bit, int value) {
+    avr_irq_t *irq = avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit);
+    if (!irq) return -2;
+    avr_raise_irq(irq, value ? 1 : 0);
+    return 0;
+}
+
+/* Run the core until its cycle counter reaches `cycle`. Returns 0, or -1 if the firmware
+ * stopped (returned from main with interrupts off, or crashed). */
+int board_run_until(board_t *b, uint64_t cycle) {
+    while (b->avr->cycle < cycle) {
+        int st = avr_run(b->avr);
+        if (st == cpu_Done || st == cpu_Crashed)
+            return -1;
+    }
+    return 0;
+}
+
+uint64_t board_cycle(board_t *b) { return b->avr->cycle; }
+
+/* Move up to `max` queued pin events into the arrays; returns how many. */
+long board_events(board_t *b, uint64_t *cycle, int32_t *index, int32_t *value, long max) {
+    long n = 0;
+    while (b->ev_head < b->ev_tail && n < max) {
+        long k = b->ev_head % EVENT_CAP;
+        cycle[n] = b->ev_cycle[k];
+        index[n] = b->ev_index[k];
+        value[n] = b->ev_value[k];
+        b->ev_head++;
+        n++;
+    }
+    return n;
+}
+
+/* Move up to `max` bytes the firmware sent on USART0 (and their cycles); returns how many. */
+long board_uart_read(board_t *b, uint8_t *out, uint64_t *cycle, long max) {
+    long n = 0;
+    while (b->uart_head < b->uart_tail && n < max) {
+        long k = b->uart_head % UART_CAP;
+        out[n] = b->uart[k];
+        cycle[n] = b->uart_cycle[k];
+        b->uart_head++;
+        n++;
+    }
+    return n;
+}
+
+long board_lost(board_t *b) { return b->ev_lost + b->uart_lost; }

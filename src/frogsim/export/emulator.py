@@ -1,0 +1,192 @@
+"""An emulated Arduino Mega 2560 that runs a firmware's own machine code: simavr's ATmega2560
+core (Debian ``simavr``, ``libsimavr-dev``), driven cycle by cycle from Python.
+
+The C side (``board_sim.c`` beside this module) is compiled on first use with the host's gcc,
+linked against libsimavr, and kept in frogsim's user cache folder under a hash of its source, so
+an edit rebuilds it. :class:`EmulatedBoard` loads an ELF and gives the plant's side of the wires:
+analog input voltages, driven digital inputs, the firmware's pin changes with the AVR cycle at
+which they happened, and the bytes it sends on the serial port (USART0).
+
+Missing tools are refused with the Debian packages to install (:data:`APT_LINE`).
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from frogsim._files import user_cache_folder
+from frogsim.errors import FrogsimError
+from frogsim.export.board import F_CPU, Pin
+
+#: the Debian packages the firmware path needs: the AVR tool chain, the Arduino AVR core, simavr
+APT_PACKAGES = ("gcc-avr", "avr-libc", "binutils-avr", "arduino-core-avr", "arduino-mk", "simavr",
+                "libsimavr-dev")
+APT_LINE = "apt-get update && apt-get install -y " + " ".join(APT_PACKAGES)
+_SOURCE = Path(__file__).with_name("board_sim.c")
+_SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
+
+
+def millivolts_for_count(count: int, vref_mv: int = 5000) -> int:
+    """The whole millivolts at which simavr's 10-bit ADC reads ``count``.
+
+    simavr converts an input of v millivolts to floor(v x 1023 / V_ref) (its scale is 1023, the
+    datasheet's ideal converter's is 1024: ADC = V_in 1024 / V_ref, Sec. 26.7), and takes whole
+    millivolts. To give the firmware the count the ideal converter makes from the plant's voltage,
+    software in the loop computes that count and feeds the smallest voltage simavr reads as it:
+    ceil(count x V_ref / 1023)."""
+    return -(-count * vref_mv // 1023)
+
+
+class ToolMissing(FrogsimError):
+    """A tool of the firmware path is not installed."""
+
+
+def require(tool: str) -> str:
+    """The path of an executable on PATH, or ToolMissing naming the packages to install."""
+    path = shutil.which(tool)
+    if path is None:
+        raise ToolMissing(f"{tool} not found: the firmware tools are Debian packages ({APT_LINE})")
+    return path
+
+
+def _library() -> Path:
+    """The compiled harness (built once per source version into the user cache)."""
+    if not _SIMAVR_HEADER.exists():
+        raise ToolMissing(f"simavr's headers ({_SIMAVR_HEADER}) not found: install them ({APT_LINE})")
+    cc = require("gcc")
+    tag = hashlib.sha256(_SOURCE.read_bytes() + _SIMAVR_HEADER.read_bytes()).hexdigest()[:16]
+    folder = Path(user_cache_folder("board") or tempfile.gettempdir())
+    lib = folder / f"board_sim-{tag}.so"
+    if lib.exists():
+        return lib
+    folder.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(suffix=".so", dir=folder)
+    os.close(fd)
+    run = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", tmp, str(_SOURCE), "-lsimavr"],
+                         capture_output=True, text=True)
+    if run.returncode != 0:
+        os.unlink(tmp)
+        raise ToolMissing(f"building the emulated board failed (is libsimavr-dev installed? {APT_LINE}):\n"
+                          f"{run.stderr.strip()}")
+    os.replace(tmp, lib)              # atomic: a parallel build of the same source is harmless
+    return lib
+
+
+_LIB = None
+
+
+def _lib():
+    global _LIB
+    if _LIB is None:
+        lib = ctypes.CDLL(str(_library()))
+        u64, i32, vp = ctypes.c_uint64, ctypes.c_int32, ctypes.c_void_p
+        lib.board_open.restype = vp
+        lib.board_open.argtypes = [ctypes.c_char_p, ctypes.c_uint32, ctypes.c_uint32]
+        lib.board_close.argtypes = [vp]
+        lib.board_watch.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
+        lib.board_set_adc_mv.argtypes = [vp, ctypes.c_int, ctypes.c_uint32]
+        lib.board_set_pin.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
+        lib.board_run_until.argtypes = [vp, u64]
+        lib.board_cycle.restype = u64
+        lib.board_cycle.argtypes = [vp]
+        ptr = np.ctypeslib.ndpointer
+        lib.board_events.restype = ctypes.c_long
+        lib.board_events.argtypes = [vp, ptr(np.uint64), ptr(np.int32), ptr(np.int32), ctypes.c_long]
+        lib.board_uart_read.restype = ctypes.c_long
+        lib.board_uart_read.argtypes = [vp, ptr(np.uint8), ptr(np.uint64), ctypes.c_long]
+        lib.board_lost.restype = ctypes.c_long
+        lib.board_lost.argtypes = [vp]
+        del i32
+        _LIB = lib
+    return _LIB
+
+
+class EmulatedBoard:
+    """An ATmega2560 at ``f_cpu`` running the ELF ``elf``, AVcc = AREF = ``vref`` [V].
+
+    Use :meth:`watch` for each output pin before running, then alternate :meth:`set_analog` /
+    :meth:`set_pin` (the plant's side) with :meth:`run_until` (the firmware's), and read
+    :meth:`events` and :meth:`serial`.
+    """
+
+    def __init__(self, elf, f_cpu: int = F_CPU, vref: float = 5.0):
+        path = Path(elf)
+        if not path.is_file():
+            raise FrogsimError(f"firmware {str(path)!r}: no such file")
+        self._lib = _lib()
+        self._h = self._lib.board_open(str(path).encode(), int(f_cpu), int(round(vref * 1000)))
+        if not self._h:
+            raise FrogsimError(f"firmware {str(path)!r}: simavr could not load it as an ATmega2560 ELF")
+        self.f_cpu = int(f_cpu)
+        self.vref = float(vref)
+        self.watched: list[Pin] = []
+
+    def close(self) -> None:
+        if self._h:
+            self._lib.board_close(self._h)
+            self._h = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:            # noqa: BLE001  (interpreter shutdown)
+            pass
+
+    @property
+    def cycle(self) -> int:
+        """CPU cycles run so far."""
+        return int(self._lib.board_cycle(self._h))
+
+    def watch(self, pin: Pin) -> int:
+        """Record every change of output ``pin``; returns its index in :meth:`events`."""
+        index = len(self.watched)
+        if self._lib.board_watch(self._h, pin.port.encode(), pin.bit, index) != 0:
+            raise FrogsimError(f"pin {pin.number}: cannot watch port {pin.port} bit {pin.bit}")
+        self.watched.append(pin)
+        return index
+
+    def set_analog(self, channel: int, millivolts: int) -> None:
+        """The voltage at analog input A<channel> [mV, whole: simavr's unit], held until changed."""
+        self._lib.board_set_adc_mv(self._h, int(channel), int(millivolts))
+
+    def set_pin(self, pin: Pin, value: int) -> None:
+        """Drive input ``pin`` high (1) or low (0) from outside."""
+        self._lib.board_set_pin(self._h, pin.port.encode(), pin.bit, 1 if value else 0)
+
+    def run_until(self, cycle: int) -> None:
+        """Run the firmware until the cycle counter reaches ``cycle``; FrogsimError if it stopped."""
+        if self._lib.board_run_until(self._h, int(cycle)) != 0:
+            raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
+
+    def events(self, limit: int = 1 << 16) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The watched pins' changes since the last call: (cycle, watch index, value) arrays."""
+        c = np.empty(limit, np.uint64)
+        i = np.empty(limit, np.int32)
+        v = np.empty(limit, np.int32)
+        n = self._lib.board_events(self._h, c, i, v, limit)
+        return c[:n], i[:n], v[:n]
+
+    def serial(self, limit: int = 1 << 20) -> tuple[bytes, np.ndarray]:
+        """The bytes the firmware sent on USART0 since the last call, and the cycle of each."""
+        b = np.empty(limit, np.uint8)
+        c = np.empty(limit, np.uint64)
+        n = self._lib.board_uart_read(self._h, b, c, limit)
+        return b[:n].tobytes(), c[:n]
+
+    @property
+    def lost(self) -> int:
+        """Pin events or serial bytes dropped because a queue was full (0 in a sound run)."""
+        return int(self._lib.board_lost(self._h))

@@ -1,0 +1,28 @@
+"""The firmware tests' tools (the AVR tool chain, the Arduino AVR core, simavr): in CI a missing
+tool fails the test with the apt line to run (the README's test command installs them); outside
+CI the test is skipped with that line."""
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+from frogsim.export.emulator import APT_LINE
+
+TOOLS = ("avr-gcc", "avr-objdump", "avr-size", "gcc")
+FILES = (Path("/usr/include/simavr/sim_avr.h"), Path("/usr/share/arduino/hardware/arduino/avr/cores/arduino"),
+         Path("/usr/share/arduino/Arduino.mk"))
+
+
+def missing() -> list:
+    return [t for t in TOOLS if shutil.which(t) is None] + [str(f) for f in FILES if not f.exists()]
+
+
+def need_avr_tools() -> None:
+    gone = missing()
+    if not gone:
+        return
+    text = f"firmware tools missing ({', '.join(gone)}): {APT_LINE}"
+    if os.environ.get("CI"):
+        pytest.fail(text)
+    pytest.skip(text)
