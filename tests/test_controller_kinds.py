@@ -88,6 +88,21 @@ def test_settle_must_lie_inside_the_run():
         sc.replace({"duration": 0.05})
 
 
+def test_a_short_run_without_a_written_settle_still_has_tracking_metrics():
+    """Unwritten, settle is 0.2 s, or a tenth of a run not longer: a 0.1 s run counts from 0.01 s on
+    (so its metrics are numbers, never a silent null)."""
+    long = frogsim.simulate(frogsim.load_scenario(closed_loop({"kind": "bang-bang", "setpoint": "3 bar"}, 1.0)))
+    assert long.control_metrics()["loop"]["settle_s"] == 0.2
+    r = frogsim.simulate(frogsim.load_scenario(closed_loop({"kind": "bang-bang", "setpoint": "3 bar"}, 0.1)))
+    m = r.control_metrics()["loop"]
+    assert m["settle_s"] == pytest.approx(0.01)
+    e = r.setpoint("loop") - r.muscle_pressure("hip")
+    assert np.allclose(r.setpoint("loop"), P_ATM + 3e5, rtol=0, atol=1e3)
+    after = e[r.t >= m["settle_s"]]
+    assert after.size == r.t.size - 10                      # rows from 0.01 s on
+    assert m["tracking_error_rms_bar"] == pytest.approx(np.sqrt(np.mean(after ** 2)) / 1e5)
+
+
 # --- setpoint tables: read once, at load time ---------------------------------------------------------
 def test_a_table_setpoint_is_read_once_by_the_loader_and_hashed_for_the_manifest(tmp_path, monkeypatch):
     import hashlib

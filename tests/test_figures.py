@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import frogsim
 import frogsim._plotting as plotting
 from frogsim.cli import main
 from frogsim.io.results import same_curves
@@ -93,3 +94,18 @@ def test_an_interrupted_run_says_interrupted_in_its_manifest(tmp_path, monkeypat
     assert not (out / "timeseries.csv").exists()
     monkeypatch.undo()
     assert main(["simulate", "paper-cycle", "--out", str(out)]) == 0     # replaced without --overwrite
+
+
+def test_a_joint_angle_panel_without_a_written_settle_hatches_the_default(tmp_path):
+    """swim.png of a joint-angle run whose settle is not written: the panel hatches the default
+    settle time the metrics used (summary.json's settle_s), not a missing value."""
+    from frogsim.scenario.load import merged_raw
+    from frogsim.studies.robot import plot_swim
+    raw, _ = merged_raw("hip-angle-in-air")
+    del raw["controllers"]["hip"]["settle"]
+    raw = frogsim.with_overrides(raw, {"gait.period": "0.5 s"})
+    run = frogsim.swim(frogsim.load_robot_scenario(raw))
+    assert run.control_metrics()["hip"]["settle_s"] == 0.2
+    out = tmp_path / "swim.png"
+    plot_swim(run, str(out))
+    assert out.stat().st_size > 10_000

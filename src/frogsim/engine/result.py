@@ -95,8 +95,8 @@ class Result:
             entry = {"kind": label, "muscle": m}
             if sp is not None:
                 e = sp - self.muscle_pressure(m)
-                after = e[self.t >= ctl.settle_time]
-                entry["settle_s"] = ctl.settle_time
+                after = e[self.t >= ctl.settle_time(self.model.scenario.duration)]
+                entry["settle_s"] = ctl.settle_time(self.model.scenario.duration)
                 entry["tracking_error_rms_bar"] = float(np.sqrt(np.mean(after ** 2)) / 1e5) if after.size else None
                 entry["tracking_error_max_bar"] = float(np.max(np.abs(after)) / 1e5) if after.size else None
             entry["switchings_charge_valve"] = int(sw_c)

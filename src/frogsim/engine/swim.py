@@ -352,8 +352,8 @@ class SwimResult:
                 continue
             muscles = list(ctl.driven())
             label, sp = label_and_setpoint(ctl, self.python_law, self.t, lambda: self.setpoint(name))
-            entry = {"kind": label, "muscles": muscles, "settle_s": ctl.settle_time}
-            after = self.t >= ctl.settle_time
+            entry = {"kind": label, "muscles": muscles, "settle_s": ctl.settle_time(self.rs.duration)}
+            after = self.t >= ctl.settle_time(self.rs.duration)
             angle = ctl.NAMED == "joint"        # the controller tracks its joint's angle
             if angle:
                 entry["joint"] = ctl.joint

@@ -177,7 +177,8 @@ def _draw_controller(a, result, name: str, ctl, m: dict, outside: dict) -> None:
     pressures on the right axis, the time before ``settle`` hatched (not in the metrics) and the
     tracking numbers of summary.json written in the panel."""
     t = result.t
-    a.axvspan(t[0], ctl.settle, facecolor="none", edgecolor="0.75", hatch="//", lw=0)
+    settle = m.get("settle_s", ctl.settle_time(result.rs.duration))
+    a.axvspan(t[0], settle, facecolor="none", edgecolor="0.75", hatch="//", lw=0)
     if ctl.kind == "joint-angle":
         j = result.joint_names.index(ctl.joint)
         a.plot(t, np.degrees(result.setpoint(name)), "k--", lw=1.5, label=f"{ctl.joint} setpoint")
@@ -206,7 +207,7 @@ def _draw_controller(a, result, name: str, ctl, m: dict, outside: dict) -> None:
 
     def num(x):
         return "n/a" if x is None else f"{x:.3g}"
-    a.set_title(f"{name}: {ctl.kind} control; tracking error from {ctl.settle:g} s on (earlier: hatched, "
+    a.set_title(f"{name}: {ctl.kind} control; tracking error from {settle:g} s on (earlier: hatched, "
                 f"not counted) RMS {num(rms)} {unit}, max {num(mx)} {unit}\n"
                 f"{num(m.get('switchings_per_s'))} valve switchings/s, {num(m.get('air_used_L_std'))} L "
                 f"(standard) of air{extra}", fontsize=8.5)

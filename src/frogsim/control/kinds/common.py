@@ -9,7 +9,7 @@ from frogsim.scenario.kinds import ControllerSettings
 from frogsim.scenario.rules import check_pressure_setpoint
 from frogsim.scenario.schema import Sensor, Setpoint
 
-DEFAULT_SETTLE = 0.2     # [s] the metrics' settle time when none is written
+DEFAULT_SETTLE = 0.2     # [s] the metrics' settle time when none is written (a tenth of a run not longer)
 
 
 @dataclass(frozen=True)
@@ -17,13 +17,16 @@ class SensedLoop(ControllerSettings):
     """A controller that reads its muscle's pressure through a sensor, with tracking metrics."""
     sensor: Sensor = field(default_factory=Sensor)
     settle: float | None = quantity("time", ge=0.0, display="s", default=None,
-                                    doc="tracking metrics count from this time on (default 0.2 s); "
-                                        "must be shorter than the run")
+                                    doc="tracking metrics count from this time on (default 0.2 s, a "
+                                        "tenth of a run not longer than that); must be shorter than the run")
 
-    @property
-    def settle_time(self) -> float:
-        """[s] the time from which the tracking metrics count."""
-        return DEFAULT_SETTLE if self.settle is None else self.settle
+    def settle_time(self, duration: float) -> float:
+        """[s] the time from which the tracking metrics of a run of ``duration`` [s] count: the
+        written ``settle`` (the rules keep it shorter than the run), else 0.2 s, or a tenth of a
+        run not longer than 0.2 s (so that a short run has metrics, over its last nine tenths)."""
+        if self.settle is not None:
+            return self.settle
+        return DEFAULT_SETTLE if duration > DEFAULT_SETTLE else duration / 10.0
 
 
 @dataclass(frozen=True)
