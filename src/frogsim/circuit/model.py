@@ -336,12 +336,11 @@ def _state_part(air, source, exhaust, muscle_p0: tuple, volumes: tuple, rtol: fl
     scale = np.zeros_like(y0)
     for i, (p0g, V0) in enumerate(zip(muscle_p0, volumes)):
         p0 = patm + (p0g if p0g is not None else exhaust.initial_pressure_gauge)
-        j = L.Y_MUSCLE0 + 2 * i
-        y0[j] = p0 * V0 / (R * T_amb)
-        y0[j + 1] = p0
+        y0[L.mass_index(i)] = p0 * V0 / (R * T_amb)
+        y0[L.pressure_index(i)] = p0
         scale_m = patm * V0 / (R * T_amb)
-        scale[j] = scale_m
-        scale[j + 1] = patm
+        scale[L.mass_index(i)] = scale_m
+        scale[L.pressure_index(i)] = patm
         scale[L.charged_index(i, n)] = scale_m
         scale[L.vented_index(i, n)] = scale_m
     ps0 = patm + source.initial_pressure_gauge

@@ -47,7 +47,7 @@ from frogsim.circuit.laws import (  # noqa: F401  (the table's layout, re-export
     KIND_JOINT, L_A_BITS, L_A_FS, L_A_LAG, L_A_NOISE, L_A_SEED, L_JOINT1, L_KD, L_KI, L_KP, L_P0,
     L_SIGN, L_STREAM)  # noqa: F401
 from frogsim.circuit.laws import DUTY_SCHEDULED, laws_table
-from frogsim.circuit.layout import Y_MUSCLE0, Y_PE, Y_PS
+from frogsim.circuit.layout import Y_PE, Y_PS, pressure_index
 from frogsim.physics.flow import iso6358_mass_flow
 
 #: a muscle whose valves a Python function drives (frogsim.simulate(..., controller=fn)): the
@@ -551,7 +551,7 @@ def sample_controllers(laws, t, y, u, cs):
         valves = True
         b = _block(cs, c)
         i = int(laws[c, L_MUSCLE])
-        p = sense(laws, c, y[Y_MUSCLE0 + 2 * i + 1], cs, b, k, dt)
+        p = sense(laws, c, y[pressure_index(i)], cs, b, k, dt)
         cs[b + B_SENSED] = p
         if kind == KIND_EXTERNAL:
             if laws[c, L_JOINT1] > 0.0:

@@ -36,7 +36,7 @@ from frogsim.engine.coupled_loop import mujoco_c, run_steps
 # R_* and T_PEAK*: the record's and the state's columns, read by callers of run_coupled
 from frogsim.engine.coupled_layout import (  # noqa: F401
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
-    R_EXERGY, R_FIXED, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
+    R_EXERGY, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
     R_V, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
     S_TRUNK, S_VMAX, S_WMAX, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK,
     T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE, U_TENDON, record_columns)
@@ -80,8 +80,8 @@ class CoupledModel:
         y, g, mp, mu = (self.arrays[k] for k in ("y", "g", "mp", "mu"))
         L = self.mjd.ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
         V = muscle_volume(L, mp[i, CL.M_B0], mp[i, CL.M_N]) + mp[i, CL.M_DEAD]
-        y[CL.Y_MUSCLE0 + 2 * i] = pressure_abs * V / (g[CL.G_R] * g[CL.G_TAMB])
-        y[CL.Y_MUSCLE0 + 2 * i + 1] = pressure_abs
+        y[CL.mass_index(i)] = pressure_abs * V / (g[CL.G_R] * g[CL.G_TAMB])
+        y[CL.pressure_index(i)] = pressure_abs
         self.arrays["ds"][D_F_VALID] = 0.0          # the state changed: dy/dt is evaluated again
 
 
@@ -201,7 +201,7 @@ def build_coupled(rs) -> CoupledModel:
     for i in range(len(names)):
         L = d.ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
         V = muscle_volume(L, pm.mp[i, CL.M_B0], pm.mp[i, CL.M_N]) + pm.mp[i, CL.M_DEAD]
-        y[CL.Y_MUSCLE0 + 2 * i] = y[CL.Y_MUSCLE0 + 2 * i + 1] * V / (pm.g[CL.G_R] * pm.g[CL.G_TAMB])
+        y[CL.mass_index(i)] = y[CL.pressure_index(i)] * V / (pm.g[CL.G_R] * pm.g[CL.G_TAMB])
     circuit = (pm.g, pm.mp, y, pm.u0.copy(), pm.sched_t, pm.sched_u, pm.atol)
     joints = [f"{j}_{s}" for s in ("left", "right") for j in ("hip", "knee", "ankle")]
     return _assemble(rs.name, rs, xml, m, d, pm, circuit, mu, tables,
@@ -532,20 +532,19 @@ class CoupledStepper:
     def pressures(self) -> np.ndarray:
         """Muscle pressures [Pa abs]."""
         y = self.cm.arrays["y"]
-        return y[CL.Y_MUSCLE0 + 1:CL.Y_MUSCLE0 + 2 * self.n:2].copy()
+        return y[CL.pressure_slice(self.n)].copy()
 
     def source_pressure(self) -> float:
         return float(self.cm.arrays["y"][CL.Y_PS])
 
     def charged_mass(self) -> float:
         """Air charged into all muscles since the reset [kg]."""
-        y, n = self.cm.arrays["y"], self.n
-        return float(y[CL.Y_MUSCLE0 + 2 * n:CL.Y_MUSCLE0 + 3 * n].sum())
+        return float(self.cm.arrays["y"][CL.charged_slice(self.n)].sum())
 
     def total_air_mass(self) -> float:
         """Air in source, exhaust and muscles [kg] (constant in the closed circuit)."""
         y, n = self.cm.arrays["y"], self.n
-        return float(y[CL.Y_MS] + y[CL.Y_ME] + y[CL.Y_MUSCLE0:CL.Y_MUSCLE0 + 2 * n:2].sum())
+        return float(y[CL.Y_MS] + y[CL.Y_ME] + y[CL.mass_slice(n)].sum())
 
     def palm_opening(self) -> np.ndarray:
         return self.cm.arrays["frac"].copy()

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from frogsim._jit import jit, jit_alloc, jit_step
 
-from frogsim.circuit.layout import Y_MUSCLE0
+from frogsim.circuit.layout import muscle_count, physical_size
 from frogsim.circuit.rhs import rhs
 from frogsim.control.sampled import (CS_PUMP, apply_due, next_due_time, next_sample_time, sample_controllers,
                                     start_controllers)
@@ -238,9 +238,9 @@ def ds_size(ny):
 def _scratch_size(ny):
     """Entries of advance's scratch space for a state of ny entries: 22 stage vectors, the
     Rosenbrock matrix (ny x ny), the previous valve states (2n) and the right-hand side's aux
-    (2n + 1) and work (3n) vectors; n muscles make a state of Y_MUSCLE0 + 4 n + 1 entries
-    (:func:`frogsim.circuit.layout.state_size`)."""
-    n = (ny - Y_MUSCLE0 - 1) // 4
+    (2n + 1) and work (3n) vectors, n the muscles of a state of ny entries
+    (:func:`frogsim.circuit.layout.muscle_count`)."""
+    n = muscle_count(ny)
     return 22 * ny + ny * ny + 2 * n + 5 * n + 1
 
 
@@ -441,7 +441,7 @@ def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, f
     stats[0] += 1
     if stiff:
         stats[3] += 1
-    for j in range(Y_MUSCLE0 + 2 * n):
+    for j in range(physical_size(n)):
         if not y[j] > 0.0:          # every air mass and pressure; NaN fails too
             status = STATUS_NONPHYSICAL
     if status != STATUS_OK:
@@ -561,7 +561,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     u_prev = scratch[o:o + nu]
     aux = scratch[o + nu:o + nu + 2 * n + 1]
     work = scratch[o + nu + 2 * n + 1:o + nu + 5 * n + 1]
-    nphys = Y_MUSCLE0 + 2 * n
+    nphys = physical_size(n)
     t = ds[D_T]
     h = ds[D_H]
     err_old = ds[D_ERR]

@@ -45,11 +45,8 @@ def _as_model(what) -> PneumaticModel:
 
 def _state_labels(model: PneumaticModel) -> list[tuple[int, str, str]]:
     """(state index, label, unit) of every air mass and pressure (quantities that must stay > 0)."""
-    out = [(L.Y_MS, "source mass", "kg"), (L.Y_PS, "source pressure", "Pa abs"),
-           (L.Y_ME, "exhaust mass", "kg"), (L.Y_PE, "exhaust pressure", "Pa abs")]
-    for i, name in enumerate(model.names):
-        out += [(L.Y_MUSCLE0 + 2 * i, f"{name} mass", "kg"), (L.Y_MUSCLE0 + 2 * i + 1, f"{name} pressure", "Pa abs")]
-    return out
+    labels = L.state_labels(model.names)
+    return [(j, *labels[j]) for j in range(L.physical_size(model.n))]
 
 
 def _describe_state(model: PneumaticModel, y: np.ndarray) -> str:
