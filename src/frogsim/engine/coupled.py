@@ -36,8 +36,8 @@ from frogsim.engine.coupled_loop import mujoco_c, run_steps
 # R_* and T_PEAK*: the record's and the state's columns, read by callers of run_coupled
 from frogsim.engine.coupled_layout import (  # noqa: F401
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
-    R_EXERGY, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
-    R_V, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
+    R_EXERGY, R_HULL, R_PE, R_POSITION, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
+    R_V, R_VELOCITY, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
     S_TRUNK, S_VMAX, S_WMAX, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK,
     T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE, U_TENDON, record_columns)
 from frogsim.engine.integrator import D_F_VALID, D_SI, STATS_SIZE, STATUS_TEXT, start
@@ -228,21 +228,27 @@ def build_bare(xml: str, tables, density: float, gravity: float, duration: float
                      (np.zeros(0), np.zeros(0)), sc, [], duration, output_interval)
 
 
-_KERNEL_ARRAYS = ("sc", "st", "rec", "el", "strip_s", "strip_k", "pa", "vprev", "pal_t",
-                  "pal_target", "frac", "frac_new", "mu", "tension", "leg_qpos", "leg_dof", "y", "u",
-                  "ds", "cs", "g", "mp", "mot_t", "mot_L", "mot_d", "mot_n", "sched_t", "sched_u",
-                  "laws", "atol", "stats")
+#: step_kernel's groups of arrays (before MuJoCo's), by their names in CoupledModel.arrays
+KERNEL_GROUPS = (("sc", "st", "rec"), ("el", "strip_s", "strip_k", "pa", "vprev"),
+                 ("pal_t", "pal_target", "frac", "frac_new", "leg_qpos", "leg_dof"), ("mu", "tension"),
+                 ("y", "u", "ds", "cs", ("g", "mp", "mot_t", "mot_L", "mot_d", "mot_n"), "sched_t", "sched_u",
+                  "laws", "atol", "stats"))
+
+
+def _group(arrays: dict, names: tuple) -> tuple:
+    return tuple(_group(arrays, n) if isinstance(n, tuple) else arrays[n] for n in names)
 
 
 def kernel_args(cm: CoupledModel) -> tuple:
-    """The arrays step_kernel takes after (k, stepping, row): the tables, then MuJoCo's views."""
+    """The groups step_kernel takes after (k, stepping, row): records, water, body, muscles,
+    pneumatics (:data:`KERNEL_GROUPS`), then MuJoCo's views."""
     m, d = cm.mjm, cm.mjd
     if cm._views[0] is not m or cm._views[1] is not d:
         cm._views = (m, d, (
             d.ten_length, d.ten_velocity, d.xpos, d.xmat, d.xipos, d.cvel, d.subtree_com,
             m.body_rootid, m.body_parentid, m.body_mass, m.body_ipos, m.body_inertia,
             m.body_subtreemass, d.ctrl, d.xfrc_applied, d.qpos, d.qvel))
-    return tuple(cm.arrays[k] for k in _KERNEL_ARRAYS) + cm._views[2]
+    return _group(cm.arrays, KERNEL_GROUPS) + (cm._views[2],)
 
 
 def forces_now(cm: CoupledModel) -> np.ndarray:

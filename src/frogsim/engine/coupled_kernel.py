@@ -115,28 +115,39 @@ def apply_added_mass(el, pa, frac, only_palms, body_mass, body_ipos, body_inerti
 
 
 @jit
-def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, pal_t, pal_target,
-                frac, frac_new, mu, tension, leg_qpos, leg_dof, y, u, ds, cs, g, mp, mot_t, mot_L,
-                mot_d, mot_n, sched_t, sched_u, laws, atol, stats, ten_length, ten_velocity, xpos,
-                xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass, body_ipos,
-                body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel):
+def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, mujoco):
     """One coupled step at t = k dt (see the module docstring). Returns 0, or a FAIL_* code.
 
     ``stepping`` = 0 only checks, computes forces and records (the last row of a run).
-    ``row`` >= 0 records the state at t into rec[row]. After the constants sc (S_*), the state st
-    (T_*) and the record rec (R_*), the arrays come in groups
-    (:func:`frogsim.engine.coupled.kernel_args`; one flat list, as Numba's dispatcher unboxes
-    tuples of arrays measurably slower than arrays, and this is called every step):
+    ``row`` >= 0 records the state at t into rec[row]. The arrays come in groups, each a tuple
+    (:func:`frogsim.engine.coupled.kernel_args`):
 
-    * the parts in the water (el, strip_s, strip_k, pa: :mod:`frogsim.robot.water`) and each
-      part's velocity at the last step (vprev);
-    * palms: command times and targets (pal_t, pal_target), openings now and after the step;
-    * the muscle table (mu: U_*), the muscles' tensions, the leg joints' qpos and dof addresses;
-    * pneumatics, as :func:`frogsim.engine.integrator.advance` takes them: state y, valve states
-      u, driver and controller states ds and cs, circuit (g, mp), the muscles' length paths
-      (mot_*), schedule (sched_t, sched_u), sampled rules (laws), atol, stats;
-    * MuJoCo's arrays.
+    * ``records``: the constants sc (S_*), the kernel's state st (T_*) and the record rec (R_*);
+    * ``water``: the parts in the water (el, strip_s, strip_k, pa: :mod:`frogsim.robot.water`) and
+      each part's velocity at the last step (vprev);
+    * ``body``: palms' command times and targets (pal_t, pal_target), their openings now and after
+      the step (frac, frac_new), the leg joints' qpos and dof addresses (leg_qpos, leg_dof);
+    * ``muscles``: the muscle table (mu: U_*) and the muscles' tensions;
+    * ``pneumatics``, as :func:`frogsim.engine.integrator.advance` takes them: state y, valve
+      states u, driver and controller states ds and cs, the circuit (g, mp and the muscles'
+      length paths mot_*: advance's ``model`` tuple), schedule (sched_t, sched_u), sampled rules
+      (laws), atol, stats;
+    * ``mujoco``: MuJoCo's arrays (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com,
+      body_rootid, body_parentid, body_mass, body_ipos, body_inertia, body_subtreemass, ctrl,
+      xfrc_applied, qpos, qvel).
+
+    The compiled loop (:func:`frogsim.engine.coupled_loop.run_steps`) passes the groups on from
+    compiled code, at no cost per step; a call from Python unboxes the tuples (about a
+    microsecond more per call than as loose arrays).
     """
+    sc, st, rec = records
+    el, strip_s, strip_k, pa, vprev = water
+    pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof = body
+    mu, tension = muscles
+    y, u, ds, cs, circuit, sched_t, sched_u, laws, atol, stats = pneumatics
+    g, mp, mot_t, mot_L, mot_d, mot_n = circuit
+    (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass,
+     body_ipos, body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel) = mujoco
     dt = sc[S_DT]
     t = k * dt
     n = mu.shape[0]
@@ -361,8 +372,7 @@ def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, 
     # the new length paths start with the old ones' value and slope: dy/dt at t is the one the
     # last step ended with (up to the rounding of the slope), so the driver starts from it
     ds[D_REUSE_F] = 1.0
-    status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n),
-                     (sched_t, sched_u, laws, sc[S_CTRL_DT]), (sc[S_RTOL], atol, sc[S_MAXSTEP]),
+    status = advance(t_end, y, u, ds, cs, circuit, (sched_t, sched_u, laws, sc[S_CTRL_DT]), (sc[S_RTOL], atol, sc[S_MAXSTEP]),
                      no_output, stats)
     if status != 0:
         st[T_FAIL], st[T_FAIL_ARG], st[T_FAIL_VAL] = FAIL_PNEUMATIC, status, t

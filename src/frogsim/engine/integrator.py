@@ -721,11 +721,11 @@ def finished_status(status, ds, n_out):
 
 
 @jit_alloc
-def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
-                 ctrl_dt, out_t, rtol, atol, max_step, h0, laws, pause_every):
+def run_schedule(y0, u0, t0, t_end, model, commands, solver, out_t, h0, pause_every):
     """Integrate from t0 to t_end under an open-loop valve schedule and the run's sampled laws
-    ``laws`` (the pump's band and the closed-loop controllers, ``PneumaticModel.laws``):
-    :func:`begin`, then one :func:`advance`.
+    (the pump's band and the closed-loop controllers, ``PneumaticModel.laws``): :func:`begin`, then
+    one :func:`advance`, whose groups it takes: ``model`` = (g, mp, mot_t, mot_L, mot_d, mot_n),
+    ``commands`` = (sched_t, sched_u, laws, ctrl_dt), ``solver`` = (rtol, atol, max_step).
 
     ``sched_t`` (sorted) are the times at which valve states become ``sched_u[k]``; before the
     first, ``u0`` holds. Entries may repeat the current state: they only make the integrator stop
@@ -735,9 +735,9 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
 
     Returns (out_y, out_u, y_end, stats, status, t_reached, cs, u, ds).
     """
+    sched_t, sched_u, laws, ctrl_dt = commands
     out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0)
     ds[D_PAUSE] = pause_every
-    status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), commands,
-                     (rtol, atol, max_step), (out_t, out_y, out_u), stats)
+    status = advance(t_end, y, u, ds, cs, model, commands, solver, (out_t, out_y, out_u), stats)
     status = finished_status(status, ds, out_t.size)
     return out_y, out_u, y, stats, status, ds[D_T], cs, u, ds
