@@ -243,8 +243,10 @@ def _one(base: Scenario, pt: dict, k: int) -> PneumaticModel:
 
 def _run_one(m: PneumaticModel):
     t_end, ctrl_dt, rtol, max_step = run_settings(m.scenario)
-    return run_schedule(m.y0, m.u0, 0.0, t_end, (m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n),
-                        (m.sched_t, m.sched_u, m.laws, ctrl_dt), (rtol, m.atol, max_step), m.out_t, 1e-4, 0)
+    y0, atol = m.start
+    sched_t, sched_u, u0, _ = m.schedule
+    return run_schedule(y0, u0, 0.0, t_end, m.rhs_model, (sched_t, sched_u, m.laws, ctrl_dt), (rtol, atol, max_step),
+                        m.out_t, 1e-4, 0)
 
 
 def _failure(b: int, name: str, t_r: float, status: int) -> str:

@@ -372,8 +372,8 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
     # the new length paths start with the old ones' value and slope: dy/dt at t is the one the
     # last step ended with (up to the rounding of the slope), so the driver starts from it
     ds[D_REUSE_F] = 1.0
-    status = advance(t_end, y, u, ds, cs, circuit, (sched_t, sched_u, laws, sc[S_CTRL_DT]), (sc[S_RTOL], atol, sc[S_MAXSTEP]),
-                     no_output, stats)
+    status = advance(t_end, y, u, ds, cs, circuit, (sched_t, sched_u, laws, sc[S_CTRL_DT]),
+                     (sc[S_RTOL], atol, sc[S_MAXSTEP]), no_output, stats)
     if status != 0:
         st[T_FAIL], st[T_FAIL_ARG], st[T_FAIL_VAL] = FAIL_PNEUMATIC, status, t
         return FAIL_PNEUMATIC

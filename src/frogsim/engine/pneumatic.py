@@ -162,11 +162,13 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
     # begin, then the first STEPS_PER_CALL steps in one compiled call (most runs end within it):
     # the same two functions run_schedule calls, called from here so that a first run compiles
     # only them (run_schedule, the batched engine's entry, is compiled when a batch runs)
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(model.y0, 0.0, model.u0, model.laws, model.sched_t,
-                                                        model.sched_u, ctrl_dt, model.out_t, h0)
+    y0, atol = model.start
+    sched_t, sched_u, u0, _ = model.schedule
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, 0.0, u0, model.laws, sched_t, sched_u, ctrl_dt,
+                                                        model.out_t, h0)
     ds[D_PAUSE] = STEPS_PER_CALL
-    circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
-    solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
+    circuit = model.rhs_model
+    solver = (sc.solver.rtol, atol, sc.solver.max_step)
     out = (model.out_t, out_y, out_u)
     status = advance(T, y, u, ds, cs, circuit, commands, solver, out, stats)
     bar = None
@@ -251,10 +253,11 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
     rows = {n: c for c, n in zip([c for c in range(laws.shape[0]) if laws[c, L_KIND] == KIND_EXTERNAL], ext)}
     dt = 1.0 / sc.controller.rate
     T = sc.duration
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(model.y0, 0.0, model.u0, laws, model.sched_t,
-                                                        model.sched_u, dt, model.out_t, h0)
-    circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
-    solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
+    y0, atol = model.start
+    sched_t, sched_u, u0, _ = model.schedule
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, 0.0, u0, laws, sched_t, sched_u, dt, model.out_t, h0)
+    circuit = model.rhs_model
+    solver = (sc.solver.rtol, atol, sc.solver.max_step)
     out = (model.out_t, out_y, out_u)
     block = cs[CS_BLOCK]
 
