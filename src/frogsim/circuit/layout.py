@@ -20,9 +20,9 @@ through :func:`charged_index`, :func:`vented_index`, :func:`pump_index`, the siz
 (a wall temperature, a tube segment's pressure) is one more entry of MUSCLE_FIELDS here, with its
 place as a MUSCLE_* constant.
 
-The index functions are plain Python for Python callers and compiled into each compiled caller
-(``numba.extending.register_jitable``: no dispatcher of their own, integer arithmetic that the
-compiler folds into the caller's indexing).
+The index functions are plain Python for Python callers and inlined into each compiled caller's
+Numba IR (``numba.extending.register_jitable`` with ``inline="always"``: no dispatcher of their own;
+the caller compiles to the machine code the offsets written out in place gave it).
 """
 from numba.extending import register_jitable
 
@@ -86,56 +86,56 @@ _VENTED = 1
 _COUNTERS = 2          # per-muscle counters
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def muscle_index(i, field):
     """Index of field ``field`` (a MUSCLE_* place) of muscle i's block in the state."""
     return Y_MUSCLE0 + MUSCLE_WIDTH * i + field
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def mass_index(i):
     """Index of muscle i's air mass [kg] in the state."""
     return Y_MUSCLE0 + MUSCLE_WIDTH * i + MUSCLE_MASS
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def pressure_index(i):
     """Index of muscle i's pressure [Pa abs] in the state."""
     return Y_MUSCLE0 + MUSCLE_WIDTH * i + MUSCLE_PRESSURE
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def physical_size(n):
     """Entries of the physical part for n muscles (chambers and muscle blocks: the air masses and
     pressures, each positive; the right-hand side reads no entry after them)."""
     return Y_MUSCLE0 + MUSCLE_WIDTH * n
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def charged_index(i, n):
     """Index of muscle i's cumulative charged mass in the state."""
     return Y_MUSCLE0 + MUSCLE_WIDTH * n + _CHARGED * n + i
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def vented_index(i, n):
     """Index of muscle i's cumulative vented mass in the state."""
     return Y_MUSCLE0 + MUSCLE_WIDTH * n + _VENTED * n + i
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def pump_index(n):
     """Index of the cumulative pump mass in the state."""
     return Y_MUSCLE0 + MUSCLE_WIDTH * n + _COUNTERS * n
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def state_size(n):
     """Length of the state vector for n muscles."""
     return Y_MUSCLE0 + MUSCLE_WIDTH * n + _COUNTERS * n + 1
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def muscle_count(ny):
     """Number of muscles of a state of ny entries (the inverse of :func:`state_size`)."""
     return (ny - Y_MUSCLE0 - 1) // (MUSCLE_WIDTH + _COUNTERS)

@@ -5,7 +5,8 @@ these constants name their columns: the muscle table mu[i, U_*], the constants s
 kernel's own state st[T_*] (the pneumatic driver's and the controllers' state are arrays of their
 own, :mod:`frogsim.engine.integrator` and :mod:`frogsim.control.sampled`), and one row of the
 per-step record rec[row, R_*], whose variable part the rec_* functions (for compiled code) and
-:func:`record_columns` (slices, for Python) lay out. No other module computes a record column.
+:func:`record_columns` (slices, for Python) lay out, inlined into the kernel as
+:mod:`frogsim.circuit.layout`'s index functions are. No other module computes a record column.
 """
 from __future__ import annotations
 
@@ -78,55 +79,55 @@ _REC_VALVES = 4      # first block after the per-muscle ones
 _REC_MUSCLE_WIDTH = 6    # columns per muscle: four values and two valve states
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def rec_pressure(i, n):
     """Column of muscle i's pressure (of n muscles)."""
     return R_FIXED + _REC_PRESSURE * n + i
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def rec_length(i, n):
     """Column of muscle i's length."""
     return R_FIXED + _REC_LENGTH * n + i
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def rec_tension(i, n):
     """Column of muscle i's tension."""
     return R_FIXED + _REC_TENSION * n + i
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def rec_charged(i, n):
     """Column of the air charged into muscle i."""
     return R_FIXED + _REC_CHARGED * n + i
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def rec_valve(i, n, which):
     """Column of muscle i's valve ``which`` (0 charge, 1 discharge)."""
     return R_FIXED + _REC_VALVES * n + 2 * i + which
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def rec_palm(p, n):
     """Column of palm p's opening."""
     return R_FIXED + _REC_MUSCLE_WIDTH * n + p
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def rec_angle(j, n, npal):
     """Column of leg joint j's angle."""
     return R_FIXED + _REC_MUSCLE_WIDTH * n + npal + j
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def rec_omega(j, n, npal, nj):
     """Column of leg joint j's angular velocity."""
     return R_FIXED + _REC_MUSCLE_WIDTH * n + npal + nj + j
 
 
-@register_jitable(_nrt=False)
+@register_jitable(inline="always", _nrt=False)
 def rec_qpos(j, n, npal, nj):
     """Column of MuJoCo's position j (qpos[j])."""
     return R_FIXED + _REC_MUSCLE_WIDTH * n + npal + 2 * nj + j
