@@ -60,16 +60,18 @@ def check_volumes(model: PneumaticModel) -> None:
     A muscle's length moves monotonically between its motion knots and Eq. (5)'s volume is concave
     in the length, so the knots bound the volume over the whole run.
     """
+    mp = model.circuit.mp
+    mot_t, mot_L, _, mot_n = model.motion
     for i, name in enumerate(model.names):
-        fixed = model.mp[i, L.M_FIXEDV]
+        fixed = mp[i, L.M_FIXEDV]
         if fixed > 0.0:
             continue
-        b0, n, dead = model.mp[i, L.M_B0], model.mp[i, L.M_N], model.mp[i, L.M_DEAD]
-        for k in range(int(model.mot_n[i])):
-            v = muscle_volume(float(model.mot_L[i, k]), float(b0), float(n)) + dead
+        b0, n, dead = mp[i, L.M_B0], mp[i, L.M_N], mp[i, L.M_DEAD]
+        for k in range(int(mot_n[i])):
+            v = muscle_volume(float(mot_L[i, k]), float(b0), float(n)) + dead
             if not (math.isfinite(v) and v > 0.0):
                 raise SimulationError(f"scenario {model.scenario.name!r}: non-physical state at "
-                                      f"t = {model.mot_t[i, k]:.6g} s: {name} volume = {v:.4g} m^3 "
+                                      f"t = {mot_t[i, k]:.6g} s: {name} volume = {v:.4g} m^3 "
                                       "(must be positive; check the muscle type's geometry)")
 
 
