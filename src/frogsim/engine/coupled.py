@@ -31,7 +31,7 @@ import numpy as np
 from frogsim.circuit import layout as CL
 from frogsim.circuit.model import build_model, schedule_from_events
 from frogsim.control.sampled import sampled_laws
-from frogsim.engine.coupled_kernel import apply_added_mass, step_kernel
+from frogsim.engine.coupled_kernel import apply_added_mass, step_kernel_loose
 from frogsim.engine.coupled_loop import mujoco_c, run_steps
 # R_* and T_PEAK*: the record's and the state's columns, read by callers of run_coupled
 from frogsim.engine.coupled_layout import (  # noqa: F401
@@ -235,20 +235,38 @@ KERNEL_GROUPS = (("sc", "st", "rec"), ("el", "strip_s", "strip_k", "pa", "vprev"
                   "laws", "atol", "stats"))
 
 
-def _group(arrays: dict, names: tuple) -> tuple:
-    return tuple(_group(arrays, n) if isinstance(n, tuple) else arrays[n] for n in names)
+def _loose(names: tuple) -> tuple:
+    return tuple(a for n in names for a in (_loose(n) if isinstance(n, tuple) else (n,)))
 
 
-def kernel_args(cm: CoupledModel) -> tuple:
-    """The groups step_kernel takes after (k, stepping, row): records, water, body, muscles,
-    pneumatics (:data:`KERNEL_GROUPS`), then MuJoCo's views."""
+_KERNEL_LOOSE = _loose(KERNEL_GROUPS)
+
+
+def _mujoco_views(cm: CoupledModel) -> tuple:
     m, d = cm.mjm, cm.mjd
     if cm._views[0] is not m or cm._views[1] is not d:
         cm._views = (m, d, (
             d.ten_length, d.ten_velocity, d.xpos, d.xmat, d.xipos, d.cvel, d.subtree_com,
             m.body_rootid, m.body_parentid, m.body_mass, m.body_ipos, m.body_inertia,
             m.body_subtreemass, d.ctrl, d.xfrc_applied, d.qpos, d.qvel))
-    return _group(cm.arrays, KERNEL_GROUPS) + (cm._views[2],)
+    return cm._views[2]
+
+
+def kernel_args(cm: CoupledModel) -> tuple:
+    """The groups step_kernel takes after (k, stepping, row): records, water, body, muscles,
+    pneumatics (:data:`KERNEL_GROUPS`), then MuJoCo's views; for the compiled loop."""
+    a = cm.arrays          # written out (the order of KERNEL_GROUPS): called once per controller period
+    return ((a["sc"], a["st"], a["rec"]), (a["el"], a["strip_s"], a["strip_k"], a["pa"], a["vprev"]),
+            (a["pal_t"], a["pal_target"], a["frac"], a["frac_new"], a["leg_qpos"], a["leg_dof"]),
+            (a["mu"], a["tension"]),
+            (a["y"], a["u"], a["ds"], a["cs"], (a["g"], a["mp"], a["mot_t"], a["mot_L"], a["mot_d"], a["mot_n"]),
+             a["sched_t"], a["sched_u"], a["laws"], a["atol"], a["stats"]), _mujoco_views(cm))
+
+
+def kernel_loose_args(cm: CoupledModel) -> tuple:
+    """The same arrays loose, in the same order, for :func:`step_kernel_loose` (Python's calls)."""
+    a = cm.arrays
+    return tuple(a[k] for k in _KERNEL_LOOSE) + _mujoco_views(cm)
 
 
 def forces_now(cm: CoupledModel) -> np.ndarray:
@@ -257,7 +275,7 @@ def forces_now(cm: CoupledModel) -> np.ndarray:
     after MuJoCo's forward pass and the kernel's force computation (muscles and water)."""
     mujoco = import_mujoco()
     mujoco.mj_forward(cm.mjm, cm.mjd)
-    status = step_kernel(0, 0, -1, *kernel_args(cm))
+    status = step_kernel_loose(0, 0, -1, *kernel_loose_args(cm))
     if status:
         raise SimulationError(f"{cm.name!r}: {_failure(cm)}")
     return cm.mjd.xfrc_applied.copy()
@@ -322,8 +340,8 @@ def run_coupled(cm: CoupledModel, progress=None, compiled: bool = True) -> dict:
     """
     mujoco = import_mujoco()
     m, d = cm.mjm, cm.mjd
-    args = kernel_args(cm)
     lib = mujoco_c(mujoco) if compiled else None
+    args = kernel_args(cm) if lib is not None else kernel_loose_args(cm)
     n_steps, every = cm.n_steps, cm.rec_every
     chunk = max(1, n_steps // 20)
     warnings = []            # MuJoCo's own warnings, kept instead of written to MUJOCO_LOG.TXT
@@ -354,7 +372,7 @@ def run_coupled(cm: CoupledModel, progress=None, compiled: bool = True) -> dict:
                 k = k1
         else:
             step1, step2 = mujoco.mj_step1, mujoco.mj_step2
-            kernel = step_kernel
+            kernel = step_kernel_loose
             for k in range(n_steps + 1):
                 step1(m, d)
                 stepping = 1 if k < n_steps else 0
@@ -485,9 +503,9 @@ class CoupledStepper:
             self.u_due = a["sched_u"][-1].copy()
         a["ds"][D_SI] = 0.0
         a["st"][T_PALM_TARGET] = float(palm)
-        args = kernel_args(cm)
         m, d = cm.mjm, cm.mjd
         if self._lib is not None and K > 1:
+            args = kernel_args(cm)
             k_end, status = run_steps(self._lib[0], self._lib[1], m._address, d._address, self.k,
                                       self.k + K, self.k + K + 1, 0, self._fresh, True, args)
             self._fresh = status == 0
@@ -496,7 +514,8 @@ class CoupledStepper:
                 raise SimulationError(f"scenario {cm.name!r}: unstable at t = {self.t:.4f} s: "
                                       f"{_failure(cm)}")
             return int(changed.size)
-        step1, step2, kernel = self._step1, self._step2, step_kernel
+        step1, step2, kernel = self._step1, self._step2, step_kernel_loose
+        args = kernel_loose_args(cm)
         for _ in range(K):
             if not self._fresh:
                 step1(m, d)
