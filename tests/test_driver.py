@@ -113,8 +113,9 @@ def test_open_loop_row_and_table_forms_give_the_same_run():
                                                        "duration": 3.0, "programs.stroke.cycles": 2})
     m = frogsim.build_model(sc)
     assert m.laws.ndim == 1
-    runs = [run_schedule(m.y0, 0.0, sc.duration, m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n, m.sched_t,
-                         m.sched_u, m.u0, 1.0 / sc.controller.rate, m.out_t, sc.solver.rtol, m.atol,
-                         sc.solver.max_step, 1e-4, laws, 0) for laws in (m.laws, m.laws.reshape(1, -1))]
+    runs = [run_schedule(m.y0, m.u0, 0.0, sc.duration, m.rhs_model,
+                         (m.sched_t, m.sched_u, laws, 1.0 / sc.controller.rate), (sc.solver.rtol, m.atol,
+                                                                                   sc.solver.max_step),
+                         m.out_t, 1e-4, 0) for laws in (m.laws, m.laws.reshape(1, -1))]
     assert np.array_equal(runs[0][0], runs[1][0]) and np.array_equal(runs[0][1], runs[1][1])
     assert set(np.unique(runs[0][1][:, -1])) == {0.0, 1.0}                   # the pump switched

@@ -80,7 +80,7 @@ def test_plant_reproduces_simulate_and_conserves_air():
     for k in range(int(round(sc.duration * rate))):
         plant.step([ACTION[s] for s in _programmed(progs, k / rate, rate)])
     n = plant.n
-    want = res.y[-1, [CL.Y_MUSCLE0 + 2 * i + 1 for i in range(n)] + [CL.Y_PS, CL.Y_PE]]
+    want = res.y[-1, [CL.pressure_index(i) for i in range(n)] + [CL.Y_PS, CL.Y_PE]]
     obs = plant.observe()
     assert obs[-1] == pytest.approx(1.2)
     np.testing.assert_allclose(obs[:-1], want, rtol=1e-6)

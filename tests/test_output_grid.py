@@ -49,10 +49,10 @@ def _physical_rows(r, duration):
     assert np.all(np.diff(r.t) > 0)
     assert np.isfinite(r.y).all() and np.isfinite(r.u).all()
     n = r.n
-    masses_and_pressures = r.y[:, :L.Y_MUSCLE0 + 2 * n]
+    masses_and_pressures = r.y[:, :L.physical_size(n)]
     assert (masses_and_pressures > 0).all()
-    assert (r.y[:, L.Y_MUSCLE0 + 2 * n:] >= -1e-12).all()
-    p_max = max(r.y[0, L.Y_PS], r.y[0, L.Y_PE], *r.y[0, L.Y_MUSCLE0 + 1:L.Y_MUSCLE0 + 2 * n:2])
+    assert (r.y[:, L.physical_size(n):] >= -1e-12).all()
+    p_max = max(r.y[0, L.Y_PS], r.y[0, L.Y_PE], *r.y[0, L.pressure_slice(n)])
     assert r.y[:, [L.Y_PS, L.Y_PE]].max() <= 1.5 * p_max        # the pump's band ends near 6 bar
     assert set(np.unique(r.u[:, :2 * n])) <= {0.0, 1.0}
 

@@ -174,7 +174,7 @@ def test_negative_state_stops_with_quantity_value_and_time():
     model = frogsim.build_model(sc)
     t = np.array([0.0, 0.1, 0.2])
     y = np.tile(model.y0, (3, 1))
-    y[2, L.Y_MUSCLE0 + 2 * 1] = -1e-6            # muscle 1 (hip_right): its air mass
+    y[2, L.mass_index(1)] = -1e-6            # muscle 1 (hip_right): its air mass
     with pytest.raises(frogsim.SimulationError, match=r"t = 0\.2 s: hip_right mass = -1e-06 kg"):
         pneumatic.check_state(model, t, y)
     y[1, L.Y_PS] = float("nan")

@@ -1,11 +1,30 @@
-"""Index layout of the flat arrays the engine loops over (compile-time constants for Numba).
+"""Index layout of the flat arrays the engine loops over: the one place that says where every
+volume's and muscle's state lives (compile-time constants and pure index functions for Numba).
 
-State vector y (n muscles):
-    [m_s, p_s, m_e, p_e, m_1, p_1, ..., m_n, p_n, Q_1..Q_n, D_1..D_n, P]
+State vector y (n muscles), in this order (the solver's error norms and dense output see it):
+
+    [m_s, p_s, m_e, p_e,  (m_1, p_1), ..., (m_n, p_n),  Q_1..Q_n, D_1..D_n, P]
+
 where m [kg] and p [Pa abs] are each volume's air mass and pressure, Q_i the mass that has entered
 muscle i through its charge valve, D_i the mass that has left through its discharge valve, and P the
-mass the pump has moved (cumulative, kg).
+mass the pump has moved (cumulative, kg). Each muscle has a block of :data:`MUSCLE_WIDTH` entries
+(its fields MUSCLE_MASS, MUSCLE_PRESSURE, ... at fixed places in the block); the chambers and the
+muscle blocks are the *physical* part (air masses and pressures, all positive, everything the
+right-hand side reads), the cumulative masses follow.
+
+Every other module asks this one: a muscle's entries through :func:`mass_index` and
+:func:`pressure_index` (or the slices :func:`mass_slice`, :func:`pressure_slice`), the counters
+through :func:`charged_index`, :func:`vented_index`, :func:`pump_index`, the sizes through
+:func:`physical_size` and :func:`state_size`, the labels through :func:`state_labels`
+(tests/test_layout.py fails on an offset computed anywhere else). A per-muscle state added later
+(a wall temperature, a tube segment's pressure) is one more entry of MUSCLE_FIELDS here, with its
+place as a MUSCLE_* constant.
+
+The index functions are plain Python for Python callers and inlined into each compiled caller's
+Numba IR (``numba.extending.register_jitable`` with ``inline="always"``: no dispatcher of their own;
+the caller compiles to the machine code the offsets written out in place gave it).
 """
+from numba.extending import register_jitable
 
 # global parameter vector g
 G_K = 0            # heat capacity ratio [-]
@@ -48,29 +67,105 @@ M_DRL = 11
 M_L0 = 12       # rest length [m]
 M_SIZE = 13
 
-# fixed part of the state
+# fixed part of the state: the source and exhaust chambers
 Y_MS = 0
 Y_PS = 1
 Y_ME = 2
 Y_PE = 3
-Y_MUSCLE0 = 4
+Y_MUSCLE0 = 4      # first muscle's block
+
+# one muscle's block: its fields (label, unit) in block order, and each field's place in it
+MUSCLE_FIELDS = (("mass", "kg"), ("pressure", "Pa abs"))
+MUSCLE_MASS = 0        # air mass [kg]
+MUSCLE_PRESSURE = 1    # pressure [Pa abs]
+MUSCLE_WIDTH = len(MUSCLE_FIELDS)     # entries per muscle
+
+# the cumulative masses after the physical part: one block of n per counter, then the pump's
+_CHARGED = 0
+_VENTED = 1
+_COUNTERS = 2          # per-muscle counters
 
 
-def state_size(n: int) -> int:
-    """Length of the state vector for n muscles."""
-    return 4 + 4 * n + 1
+@register_jitable(inline="always", _nrt=False)
+def muscle_index(i, field):
+    """Index of field ``field`` (a MUSCLE_* place) of muscle i's block in the state."""
+    return Y_MUSCLE0 + MUSCLE_WIDTH * i + field
 
 
-def charged_index(i: int, n: int) -> int:
+@register_jitable(inline="always", _nrt=False)
+def mass_index(i):
+    """Index of muscle i's air mass [kg] in the state."""
+    return Y_MUSCLE0 + MUSCLE_WIDTH * i + MUSCLE_MASS
+
+
+@register_jitable(inline="always", _nrt=False)
+def pressure_index(i):
+    """Index of muscle i's pressure [Pa abs] in the state."""
+    return Y_MUSCLE0 + MUSCLE_WIDTH * i + MUSCLE_PRESSURE
+
+
+@register_jitable(inline="always", _nrt=False)
+def physical_size(n):
+    """Entries of the physical part for n muscles (chambers and muscle blocks: the air masses and
+    pressures, each positive; the right-hand side reads no entry after them)."""
+    return Y_MUSCLE0 + MUSCLE_WIDTH * n
+
+
+@register_jitable(inline="always", _nrt=False)
+def charged_index(i, n):
     """Index of muscle i's cumulative charged mass in the state."""
-    return 4 + 2 * n + i
+    return Y_MUSCLE0 + MUSCLE_WIDTH * n + _CHARGED * n + i
 
 
-def vented_index(i: int, n: int) -> int:
+@register_jitable(inline="always", _nrt=False)
+def vented_index(i, n):
     """Index of muscle i's cumulative vented mass in the state."""
-    return 4 + 3 * n + i
+    return Y_MUSCLE0 + MUSCLE_WIDTH * n + _VENTED * n + i
 
 
-def pump_index(n: int) -> int:
+@register_jitable(inline="always", _nrt=False)
+def pump_index(n):
     """Index of the cumulative pump mass in the state."""
-    return 4 + 4 * n
+    return Y_MUSCLE0 + MUSCLE_WIDTH * n + _COUNTERS * n
+
+
+@register_jitable(inline="always", _nrt=False)
+def state_size(n):
+    """Length of the state vector for n muscles."""
+    return Y_MUSCLE0 + MUSCLE_WIDTH * n + _COUNTERS * n + 1
+
+
+@register_jitable(inline="always", _nrt=False)
+def muscle_count(ny):
+    """Number of muscles of a state of ny entries (the inverse of :func:`state_size`)."""
+    return (ny - Y_MUSCLE0 - 1) // (MUSCLE_WIDTH + _COUNTERS)
+
+
+def mass_slice(n: int) -> slice:
+    """The muscles' air masses [kg], in muscle order, as a slice of the state."""
+    return slice(mass_index(0), physical_size(n), MUSCLE_WIDTH)
+
+
+def pressure_slice(n: int) -> slice:
+    """The muscles' pressures [Pa abs], in muscle order, as a slice of the state."""
+    return slice(pressure_index(0), physical_size(n), MUSCLE_WIDTH)
+
+
+def charged_slice(n: int) -> slice:
+    """The muscles' cumulative charged masses [kg], in muscle order, as a slice of the state."""
+    return slice(charged_index(0, n), charged_index(0, n) + n)
+
+
+def state_labels(names) -> list[tuple[str, str]]:
+    """(label, unit) of every state entry, in state order, for muscles ``names``."""
+    n = len(names)
+    out = [None] * state_size(n)
+    out[Y_MS], out[Y_PS] = ("source mass", "kg"), ("source pressure", "Pa abs")
+    out[Y_ME], out[Y_PE] = ("exhaust mass", "kg"), ("exhaust pressure", "Pa abs")
+    for i, name in enumerate(names):
+        for f, (label, unit) in enumerate(MUSCLE_FIELDS):
+            out[muscle_index(i, f)] = (f"{name} {label}", unit)
+        out[charged_index(i, n)] = (f"{name} charged mass", "kg")
+        out[vented_index(i, n)] = (f"{name} vented mass", "kg")
+    out[pump_index(n)] = ("pumped mass", "kg")
+    return out

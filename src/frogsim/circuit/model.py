@@ -4,6 +4,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -88,29 +89,75 @@ def branch_limit_standard(s) -> float:
                                   s.branch_count)
 
 
-@dataclass
-class PneumaticModel:
-    """Flat arrays for the engine (see :mod:`frogsim.circuit.layout`) built from one Scenario."""
-    scenario: Scenario
-    names: list
+class Circuit(NamedTuple):
+    """The circuit's constants: the globals g (G_*) and one row of mp (M_*) per muscle."""
     g: np.ndarray
     mp: np.ndarray
-    mot_t: np.ndarray
-    mot_L: np.ndarray
-    mot_d: np.ndarray
-    mot_n: np.ndarray
-    sched_t: np.ndarray
-    sched_u: np.ndarray
+
+
+class Motion(NamedTuple):
+    """The muscles' prescribed length paths, cubic Hermite knots per muscle (rows padded to a
+    common length): times t [s], lengths L [m], slopes d [m/s] (n, K), knots per muscle n (n,)."""
+    t: np.ndarray
+    L: np.ndarray
+    d: np.ndarray
+    n: np.ndarray
+
+
+class Schedule(NamedTuple):
+    """The open-loop valve commands: switching times t (S,) [s], the valve states from each on u
+    (S, 2n; NaN: a closed-loop controller's valve), the states before the first u0 (2n,), and each
+    muscle's charge-valve opening times (a list of arrays)."""
+    t: np.ndarray
+    u: np.ndarray
     u0: np.ndarray
     charge_open_times: list
+
+
+class Start(NamedTuple):
+    """The initial state y0 (:mod:`frogsim.circuit.layout`) and the absolute tolerance of each entry."""
     y0: np.ndarray
     atol: np.ndarray
+
+
+@dataclass
+class PneumaticModel:
+    """The engine's arrays (see :mod:`frogsim.circuit.layout`) built from one Scenario, in named
+    groups: ``circuit`` (g, mp), ``motion`` (the length paths), ``schedule`` (the open-loop valve
+    commands), ``start`` (y0, atol), the output times ``out_t`` and the sampled laws ``laws``
+    (:mod:`frogsim.circuit.laws`). :attr:`rhs_model` is the right-hand side's group as
+    :func:`frogsim.engine.integrator.advance` takes it. The arrays' old flat names (``g``,
+    ``mot_t``, ``sched_u``, ``y0``, ...) read the groups' members."""
+    scenario: Scenario
+    names: list
+    circuit: Circuit
+    motion: Motion
+    schedule: Schedule
+    start: Start
     out_t: np.ndarray
     laws: np.ndarray = None
 
     @property
     def n(self) -> int:
         return len(self.names)
+
+    @property
+    def rhs_model(self) -> tuple:
+        """(g, mp, mot_t, mot_L, mot_d, mot_n): advance's ``model`` group (a plain tuple)."""
+        return tuple(self.circuit) + tuple(self.motion)
+
+    g = property(lambda self: self.circuit.g)
+    mp = property(lambda self: self.circuit.mp)
+    mot_t = property(lambda self: self.motion.t)
+    mot_L = property(lambda self: self.motion.L)
+    mot_d = property(lambda self: self.motion.d)
+    mot_n = property(lambda self: self.motion.n)
+    sched_t = property(lambda self: self.schedule.t)
+    sched_u = property(lambda self: self.schedule.u)
+    u0 = property(lambda self: self.schedule.u0)
+    charge_open_times = property(lambda self: self.schedule.charge_open_times)
+    y0 = property(lambda self: self.start.y0)
+    atol = property(lambda self: self.start.atol)
 
 
 def build_model(scenario: Scenario) -> PneumaticModel:
@@ -205,11 +252,10 @@ def assemble(scenario: Scenario, parts: dict) -> PneumaticModel:
     mot_t, mot_L, mot_d, mot_n, sched_t, _, u0, opens, _, _ = motion
     laws, sched_u = parts["laws"], parts["sched_u"]
     y0, atol = parts["state"]
-    return PneumaticModel(scenario=scenario, names=list(names), g=parts["g"].copy(), mp=mp.copy(),
-                          mot_t=mot_t.copy(), mot_L=mot_L.copy(), mot_d=mot_d.copy(), mot_n=mot_n.copy(),
-                          sched_t=sched_t.copy(), sched_u=sched_u.copy(), u0=u0.copy(),
-                          charge_open_times=[o.copy() for o in opens], y0=y0.copy(), atol=atol.copy(),
-                          out_t=parts["out_t"].copy(), laws=laws.copy())
+    return PneumaticModel(scenario=scenario, names=list(names), circuit=Circuit(parts["g"].copy(), mp.copy()),
+                          motion=Motion(mot_t.copy(), mot_L.copy(), mot_d.copy(), mot_n.copy()),
+                          schedule=Schedule(sched_t.copy(), sched_u.copy(), u0.copy(), [o.copy() for o in opens]),
+                          start=Start(y0.copy(), atol.copy()), out_t=parts["out_t"].copy(), laws=laws.copy())
 
 
 def _laws(sc: Scenario, g: np.ndarray, names: tuple, volumes: tuple) -> np.ndarray:
@@ -325,12 +371,11 @@ def _state_part(air, source, exhaust, muscle_p0: tuple, volumes: tuple, rtol: fl
     scale = np.zeros_like(y0)
     for i, (p0g, V0) in enumerate(zip(muscle_p0, volumes)):
         p0 = patm + (p0g if p0g is not None else exhaust.initial_pressure_gauge)
-        j = L.Y_MUSCLE0 + 2 * i
-        y0[j] = p0 * V0 / (R * T_amb)
-        y0[j + 1] = p0
+        y0[L.mass_index(i)] = p0 * V0 / (R * T_amb)
+        y0[L.pressure_index(i)] = p0
         scale_m = patm * V0 / (R * T_amb)
-        scale[j] = scale_m
-        scale[j + 1] = patm
+        scale[L.mass_index(i)] = scale_m
+        scale[L.pressure_index(i)] = patm
         scale[L.charged_index(i, n)] = scale_m
         scale[L.vented_index(i, n)] = scale_m
     ps0 = patm + source.initial_pressure_gauge

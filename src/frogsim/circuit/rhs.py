@@ -17,8 +17,8 @@ from frogsim._jit import jit, jit_step
 from frogsim.circuit.layout import (
     G_BRANCH_LIMIT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF, G_SUPPLY_MODE, G_TAMB,
     G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_B0, M_CB, M_CC, M_CM, M_CRL, M_DB,
-    M_DC, M_DEAD, M_DM, M_DRL, M_FIXEDV, M_N, SUPPLY_PAPER, SUPPLY_PHYSICAL, Y_ME, Y_MS,
-    Y_MUSCLE0, Y_PE, Y_PS,
+    M_DC, M_DEAD, M_DM, M_DRL, M_FIXEDV, M_N, SUPPLY_PAPER, SUPPLY_PHYSICAL, Y_ME, Y_MS, Y_PE, Y_PS,
+    charged_index, mass_index, pressure_index, pump_index, vented_index,
 )
 from frogsim.physics.flow import iso6358_mass_flow, pump_mass_flow
 from frogsim.physics.gas import pressure_rate
@@ -114,7 +114,7 @@ def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
                           rho_ref, T_ref)
     for i in range(n):
         if u[2 * i] > 0.5:
-            p_i = y[Y_MUSCLE0 + 2 * i + 1]
+            p_i = y[pressure_index(i)]
             f -= iso6358_mass_flow(pm, T_s, p_i, T_mus[i], mp[i, M_CC], mp[i, M_CB], mp[i, M_CM],
                                    mp[i, M_CRL], rho_ref, T_ref)
     return f
@@ -133,7 +133,7 @@ def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
     for i in range(n):
         if u[2 * i] > 0.5:
             any_open = True
-            p_i = y[Y_MUSCLE0 + 2 * i + 1]
+            p_i = y[pressure_index(i)]
             lo = min(lo, p_i)
             hi = max(hi, p_i)
     if not any_open or hi - lo <= 0.0:
@@ -202,20 +202,19 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
             V = muscle_volume(L, b0, nt) + mp[i, M_DEAD]
             work[n + i] = V
             work[2 * n + i] = muscle_volume_slope(L, b0, nt) * dL
-            work[i] = y[Y_MUSCLE0 + 2 * i + 1] * V / (y[Y_MUSCLE0 + 2 * i] * R)
+            work[i] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
     else:
         for i in range(n):
             V, dV = muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n)
             work[n + i] = V
             work[2 * n + i] = dV
-            work[i] = y[Y_MUSCLE0 + 2 * i + 1] * V / (y[Y_MUSCLE0 + 2 * i] * R)
+            work[i] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
     p_up = p_s
     if mode == SUPPLY_PHYSICAL:
         p_up = manifold_pressure(p_s, T_s, y, u, g, mp, n, work)
     limit = g[G_BRANCH_LIMIT]
     for i in range(n):
-        j = Y_MUSCLE0 + 2 * i
-        p_i = y[j + 1]
+        p_i = y[pressure_index(i)]
         T_i = work[i]
         hin_i = 0.0
         out_i = 0.0
@@ -243,10 +242,10 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
             else:                  # exhaust -> muscle
                 out_e -= md
                 hin_i -= md * T_e
-        dydt[j] = mc - md
-        dydt[j + 1] = pressure_rate(p_i, work[n + i], work[2 * n + i], hin_i, out_i, T_i, R, k)
-        dydt[Y_MUSCLE0 + 2 * n + i] = mc
-        dydt[Y_MUSCLE0 + 3 * n + i] = md
+        dydt[mass_index(i)] = mc - md
+        dydt[pressure_index(i)] = pressure_rate(p_i, work[n + i], work[2 * n + i], hin_i, out_i, T_i, R, k)
+        dydt[charged_index(i, n)] = mc
+        dydt[vented_index(i, n)] = md
         aux[2 * i] = mc
         aux[2 * i + 1] = md
     m_pump = 0.0
@@ -260,4 +259,4 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     dydt[Y_PS] = pressure_rate(p_s, V_s, 0.0, hin_s, out_s, T_s, R, k)
     dydt[Y_ME] = min_e - out_e
     dydt[Y_PE] = pressure_rate(p_e, V_e, 0.0, hin_e, out_e, T_e, R, k)
-    dydt[Y_MUSCLE0 + 4 * n] = m_pump
+    dydt[pump_index(n)] = m_pump

@@ -40,7 +40,7 @@ import math
 import numpy as np
 
 from frogsim._jit import jit, jit_alloc, jit_step
-from frogsim.circuit.layout import Y_MUSCLE0
+from frogsim.circuit.layout import pressure_index
 from frogsim.control.kinds import bang_bang, joint_angle, pwm, sliding_mode
 from frogsim.control.signals import (  # noqa: F401  (the memory layout and signals, re-exported)
     B_A_FILT, B_A_FILT_ON, B_A_SENSED, B_ANGLE, B_CLIPS, B_CMD_C, B_CMD_D, B_FILT, B_FILT_ON, B_INT, B_MODE,
@@ -237,7 +237,7 @@ def sample_controllers(laws, t, y, u, cs):
         valves = True
         b = _block(cs, c)
         i = int(laws[c, L_MUSCLE])
-        p = sense(laws, c, y[Y_MUSCLE0 + 2 * i + 1], cs, b, k, dt)
+        p = sense(laws, c, y[pressure_index(i)], cs, b, k, dt)
         cs[b + B_SENSED] = p
         if kind == KIND_EXTERNAL:
             if laws[c, L_JOINT1] > 0.0:

@@ -183,8 +183,8 @@ def _run_rows(im, iu, il, ist, ig, ir, y0, t_end, g, mp, mot_t, mot_L, mot_d, mo
     for b in range(im.size):
         m, v, c, s, q, r = im[b], iu[b], il[b], ist[b], ig[b], ir[b]
         oy, ou, _, _, st, t_r, _, _, _ = run_schedule(
-            y0[s], 0.0, t_end[r], g[q], mp[m], mot_t[m], mot_L[m], mot_d[m], mot_n[m], sched_t[m], sched_u[v],
-            u0[m], ctrl_dt[r], out_t, rtol[r], atol[s], max_step[r], 1e-4, laws[c], 0)
+            y0[s], u0[m], 0.0, t_end[r], (g[q], mp[m], mot_t[m], mot_L[m], mot_d[m], mot_n[m]),
+            (sched_t[m], sched_u[v], laws[c], ctrl_dt[r]), (rtol[r], atol[s], max_step[r]), out_t, 1e-4, 0)
         status[b] = st
         t_reached[b] = t_r
         for i in range(ycols.size):
@@ -207,8 +207,8 @@ def _run_parts(p: dict):
     laws, sched_u = p["laws"], p["sched_u"]
     y0, atol = p["state"]
     t_end, ctrl_dt, rtol, max_step = p["run"]
-    return run_schedule(y0, 0.0, t_end, p["g"], mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
-                        ctrl_dt, p["out_t"], rtol, atol, max_step, 1e-4, laws, 0)
+    return run_schedule(y0, u0, 0.0, t_end, (p["g"], mp, mot_t, mot_L, mot_d, mot_n),
+                        (sched_t, sched_u, laws, ctrl_dt), (rtol, atol, max_step), p["out_t"], 1e-4, 0)
 
 
 def build_models(base: Scenario, points: list[dict]):
@@ -243,9 +243,10 @@ def _one(base: Scenario, pt: dict, k: int) -> PneumaticModel:
 
 def _run_one(m: PneumaticModel):
     t_end, ctrl_dt, rtol, max_step = run_settings(m.scenario)
-    return run_schedule(m.y0, 0.0, t_end, m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n,
-                        m.sched_t, m.sched_u, m.u0, ctrl_dt, m.out_t, rtol,
-                        m.atol, max_step, 1e-4, m.laws, 0)
+    y0, atol = m.start
+    sched_t, sched_u, u0, _ = m.schedule
+    return run_schedule(y0, u0, 0.0, t_end, m.rhs_model, (sched_t, sched_u, m.laws, ctrl_dt), (rtol, atol, max_step),
+                        m.out_t, 1e-4, 0)
 
 
 def _failure(b: int, name: str, t_r: float, status: int) -> str:

@@ -31,13 +31,13 @@ import numpy as np
 from frogsim.circuit import layout as CL
 from frogsim.circuit.model import build_model, schedule_from_events
 from frogsim.control.sampled import sampled_laws
-from frogsim.engine.coupled_kernel import apply_added_mass, step_kernel
+from frogsim.engine.coupled_kernel import apply_added_mass, step_kernel_loose
 from frogsim.engine.coupled_loop import mujoco_c, run_steps
 # R_* and T_PEAK*: the record's and the state's columns, read by callers of run_coupled
 from frogsim.engine.coupled_layout import (  # noqa: F401
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
-    R_EXERGY, R_FIXED, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
-    R_V, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
+    R_EXERGY, R_HULL, R_PE, R_POSITION, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
+    R_V, R_VELOCITY, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
     S_TRUNK, S_VMAX, S_WMAX, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK,
     T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE, U_TENDON, record_columns)
 from frogsim.engine.integrator import D_F_VALID, D_SI, STATS_SIZE, STATUS_TEXT, start
@@ -80,8 +80,8 @@ class CoupledModel:
         y, g, mp, mu = (self.arrays[k] for k in ("y", "g", "mp", "mu"))
         L = self.mjd.ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
         V = muscle_volume(L, mp[i, CL.M_B0], mp[i, CL.M_N]) + mp[i, CL.M_DEAD]
-        y[CL.Y_MUSCLE0 + 2 * i] = pressure_abs * V / (g[CL.G_R] * g[CL.G_TAMB])
-        y[CL.Y_MUSCLE0 + 2 * i + 1] = pressure_abs
+        y[CL.mass_index(i)] = pressure_abs * V / (g[CL.G_R] * g[CL.G_TAMB])
+        y[CL.pressure_index(i)] = pressure_abs
         self.arrays["ds"][D_F_VALID] = 0.0          # the state changed: dy/dt is evaluated again
 
 
@@ -201,7 +201,7 @@ def build_coupled(rs) -> CoupledModel:
     for i in range(len(names)):
         L = d.ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
         V = muscle_volume(L, pm.mp[i, CL.M_B0], pm.mp[i, CL.M_N]) + pm.mp[i, CL.M_DEAD]
-        y[CL.Y_MUSCLE0 + 2 * i] = y[CL.Y_MUSCLE0 + 2 * i + 1] * V / (pm.g[CL.G_R] * pm.g[CL.G_TAMB])
+        y[CL.mass_index(i)] = y[CL.pressure_index(i)] * V / (pm.g[CL.G_R] * pm.g[CL.G_TAMB])
     circuit = (pm.g, pm.mp, y, pm.u0.copy(), pm.sched_t, pm.sched_u, pm.atol)
     joints = [f"{j}_{s}" for s in ("left", "right") for j in ("hip", "knee", "ankle")]
     return _assemble(rs.name, rs, xml, m, d, pm, circuit, mu, tables,
@@ -228,21 +228,45 @@ def build_bare(xml: str, tables, density: float, gravity: float, duration: float
                      (np.zeros(0), np.zeros(0)), sc, [], duration, output_interval)
 
 
-_KERNEL_ARRAYS = ("sc", "st", "rec", "el", "strip_s", "strip_k", "pa", "vprev", "pal_t",
-                  "pal_target", "frac", "frac_new", "mu", "tension", "leg_qpos", "leg_dof", "y", "u",
-                  "ds", "cs", "g", "mp", "mot_t", "mot_L", "mot_d", "mot_n", "sched_t", "sched_u",
-                  "laws", "atol", "stats")
+#: step_kernel's groups of arrays (before MuJoCo's), by their names in CoupledModel.arrays
+KERNEL_GROUPS = (("sc", "st", "rec"), ("el", "strip_s", "strip_k", "pa", "vprev"),
+                 ("pal_t", "pal_target", "frac", "frac_new", "leg_qpos", "leg_dof"), ("mu", "tension"),
+                 ("y", "u", "ds", "cs", ("g", "mp", "mot_t", "mot_L", "mot_d", "mot_n"), "sched_t", "sched_u",
+                  "laws", "atol", "stats"))
 
 
-def kernel_args(cm: CoupledModel) -> tuple:
-    """The arrays step_kernel takes after (k, stepping, row): the tables, then MuJoCo's views."""
+def _loose(names: tuple) -> tuple:
+    return tuple(a for n in names for a in (_loose(n) if isinstance(n, tuple) else (n,)))
+
+
+_KERNEL_LOOSE = _loose(KERNEL_GROUPS)
+
+
+def _mujoco_views(cm: CoupledModel) -> tuple:
     m, d = cm.mjm, cm.mjd
     if cm._views[0] is not m or cm._views[1] is not d:
         cm._views = (m, d, (
             d.ten_length, d.ten_velocity, d.xpos, d.xmat, d.xipos, d.cvel, d.subtree_com,
             m.body_rootid, m.body_parentid, m.body_mass, m.body_ipos, m.body_inertia,
             m.body_subtreemass, d.ctrl, d.xfrc_applied, d.qpos, d.qvel))
-    return tuple(cm.arrays[k] for k in _KERNEL_ARRAYS) + cm._views[2]
+    return cm._views[2]
+
+
+def kernel_args(cm: CoupledModel) -> tuple:
+    """The groups step_kernel takes after (k, stepping, row): records, water, body, muscles,
+    pneumatics (:data:`KERNEL_GROUPS`), then MuJoCo's views; for the compiled loop."""
+    a = cm.arrays          # written out (the order of KERNEL_GROUPS): called once per controller period
+    return ((a["sc"], a["st"], a["rec"]), (a["el"], a["strip_s"], a["strip_k"], a["pa"], a["vprev"]),
+            (a["pal_t"], a["pal_target"], a["frac"], a["frac_new"], a["leg_qpos"], a["leg_dof"]),
+            (a["mu"], a["tension"]),
+            (a["y"], a["u"], a["ds"], a["cs"], (a["g"], a["mp"], a["mot_t"], a["mot_L"], a["mot_d"], a["mot_n"]),
+             a["sched_t"], a["sched_u"], a["laws"], a["atol"], a["stats"]), _mujoco_views(cm))
+
+
+def kernel_loose_args(cm: CoupledModel) -> tuple:
+    """The same arrays loose, in the same order, for :func:`step_kernel_loose` (Python's calls)."""
+    a = cm.arrays
+    return tuple(a[k] for k in _KERNEL_LOOSE) + _mujoco_views(cm)
 
 
 def forces_now(cm: CoupledModel) -> np.ndarray:
@@ -251,7 +275,7 @@ def forces_now(cm: CoupledModel) -> np.ndarray:
     after MuJoCo's forward pass and the kernel's force computation (muscles and water)."""
     mujoco = import_mujoco()
     mujoco.mj_forward(cm.mjm, cm.mjd)
-    status = step_kernel(0, 0, -1, *kernel_args(cm))
+    status = step_kernel_loose(0, 0, -1, *kernel_loose_args(cm))
     if status:
         raise SimulationError(f"{cm.name!r}: {_failure(cm)}")
     return cm.mjd.xfrc_applied.copy()
@@ -321,8 +345,8 @@ def run_coupled(cm: CoupledModel, progress=None, compiled: bool = True) -> dict:
     """
     mujoco = import_mujoco()
     m, d = cm.mjm, cm.mjd
-    args = kernel_args(cm)
     lib = mujoco_c(mujoco) if compiled else None
+    args = kernel_args(cm) if lib is not None else kernel_loose_args(cm)
     n_steps, every = cm.n_steps, cm.rec_every
     chunk = max(1, n_steps // 20)
     warnings = []            # MuJoCo's own warnings, kept instead of written to MUJOCO_LOG.TXT
@@ -357,7 +381,7 @@ def run_coupled(cm: CoupledModel, progress=None, compiled: bool = True) -> dict:
                 k = k1
         else:
             step1, step2 = mujoco.mj_step1, mujoco.mj_step2
-            kernel = step_kernel
+            kernel = step_kernel_loose
             for k in range(n_steps + 1):
                 step1(m, d)
                 stepping = 1 if k < n_steps else 0
@@ -488,9 +512,9 @@ class CoupledStepper:
             self.u_due = a["sched_u"][-1].copy()
         a["ds"][D_SI] = 0.0
         a["st"][T_PALM_TARGET] = float(palm)
-        args = kernel_args(cm)
         m, d = cm.mjm, cm.mjd
         if self._lib is not None and K > 1:
+            args = kernel_args(cm)
             k_end, status = run_steps(self._lib[0], self._lib[1], m._address, d._address, self.k,
                                       self.k + K, self.k + K + 1, 0, self._fresh, True, args)
             self._fresh = status == 0
@@ -499,7 +523,8 @@ class CoupledStepper:
                 raise SimulationError(f"scenario {cm.name!r}: unstable at t = {self.t:.4f} s: "
                                       f"{_failure(cm)}")
             return int(changed.size)
-        step1, step2, kernel = self._step1, self._step2, step_kernel
+        step1, step2, kernel = self._step1, self._step2, step_kernel_loose
+        args = kernel_loose_args(cm)
         for _ in range(K):
             if not self._fresh:
                 step1(m, d)
@@ -541,20 +566,19 @@ class CoupledStepper:
     def pressures(self) -> np.ndarray:
         """Muscle pressures [Pa abs]."""
         y = self.cm.arrays["y"]
-        return y[CL.Y_MUSCLE0 + 1:CL.Y_MUSCLE0 + 2 * self.n:2].copy()
+        return y[CL.pressure_slice(self.n)].copy()
 
     def source_pressure(self) -> float:
         return float(self.cm.arrays["y"][CL.Y_PS])
 
     def charged_mass(self) -> float:
         """Air charged into all muscles since the reset [kg]."""
-        y, n = self.cm.arrays["y"], self.n
-        return float(y[CL.Y_MUSCLE0 + 2 * n:CL.Y_MUSCLE0 + 3 * n].sum())
+        return float(self.cm.arrays["y"][CL.charged_slice(self.n)].sum())
 
     def total_air_mass(self) -> float:
         """Air in source, exhaust and muscles [kg] (constant in the closed circuit)."""
         y, n = self.cm.arrays["y"], self.n
-        return float(y[CL.Y_MS] + y[CL.Y_ME] + y[CL.Y_MUSCLE0:CL.Y_MUSCLE0 + 2 * n:2].sum())
+        return float(y[CL.Y_MS] + y[CL.Y_ME] + y[CL.mass_slice(n)].sum())
 
     def palm_opening(self) -> np.ndarray:
         return self.cm.arrays["frac"].copy()

@@ -47,10 +47,11 @@ from frogsim.circuit import layout as CL
 from frogsim.control.sampled import CS_PUMP, observe_joints
 from frogsim.engine.coupled_layout import (
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
-    R_EXERGY, R_FIXED, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME, R_V,
+    R_EXERGY, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME, R_V,
     R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_TRUNK, S_VMAX,
     S_WMAX, T_EXERGY, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_CMD, T_PALM_TARGET, T_PEAK,
-    T_PEAK_TIME, U_ACT, U_FITTINGS, U_TENDON)
+    T_PEAK_TIME, U_ACT, U_FITTINGS, U_TENDON, rec_angle, rec_charged, rec_length, rec_omega, rec_palm,
+    rec_pressure, rec_qpos, rec_tension, rec_valve)
 from frogsim.engine.integrator import D_REUSE_F, advance
 from frogsim.physics.hydro import (added_mass_rate_force, buoyancy, cross, fan_added_mass,
                                    isotropic_added_mass, kirchhoff_velocity_force, munk_moment,
@@ -114,28 +115,56 @@ def apply_added_mass(el, pa, frac, only_palms, body_mass, body_ipos, body_inerti
 
 
 @jit
-def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, pal_t, pal_target,
-                frac, frac_new, mu, tension, leg_qpos, leg_dof, y, u, ds, cs, g, mp, mot_t, mot_L,
-                mot_d, mot_n, sched_t, sched_u, laws, atol, stats, ten_length, ten_velocity, xpos,
-                xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass, body_ipos,
-                body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel):
+def step_kernel_loose(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, pal_t, pal_target, frac,
+                      frac_new, leg_qpos, leg_dof, mu, tension, y, u, ds, cs, g, mp, mot_t, mot_L, mot_d, mot_n,
+                      sched_t, sched_u, laws, atol, stats, ten_length, ten_velocity, xpos, xmat, xipos, cvel,
+                      subtree_com, body_rootid, body_parentid, body_mass, body_ipos, body_inertia,
+                      body_subtreemass, ctrl, xfrc, qpos, qvel):
+    """:func:`step_kernel` for callers in Python (the Python loops, one call per MuJoCo step): its
+    groups' arrays in their order, loose (:func:`frogsim.engine.coupled.kernel_loose_args`), which
+    Numba's dispatcher unboxes faster than tuples; the groups are made again in compiled code."""
+    return step_kernel(k, stepping, row, (sc, st, rec), (el, strip_s, strip_k, pa, vprev),
+                       (pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof), (mu, tension),
+                       (y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), sched_t, sched_u, laws, atol, stats),
+                       (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid,
+                        body_mass, body_ipos, body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel))
+
+
+@jit
+def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, mujoco):
     """One coupled step at t = k dt (see the module docstring). Returns 0, or a FAIL_* code.
 
     ``stepping`` = 0 only checks, computes forces and records (the last row of a run).
-    ``row`` >= 0 records the state at t into rec[row]. After the constants sc (S_*), the state st
-    (T_*) and the record rec (R_*), the arrays come in groups
-    (:func:`frogsim.engine.coupled.kernel_args`; one flat list, as Numba's dispatcher unboxes
-    tuples of arrays measurably slower than arrays, and this is called every step):
+    ``row`` >= 0 records the state at t into rec[row]. The arrays come in groups, each a tuple
+    (:func:`frogsim.engine.coupled.kernel_args`):
 
-    * the parts in the water (el, strip_s, strip_k, pa: :mod:`frogsim.robot.water`) and each
-      part's velocity at the last step (vprev);
-    * palms: command times and targets (pal_t, pal_target), openings now and after the step;
-    * the muscle table (mu: U_*), the muscles' tensions, the leg joints' qpos and dof addresses;
-    * pneumatics, as :func:`frogsim.engine.integrator.advance` takes them: state y, valve states
-      u, driver and controller states ds and cs, circuit (g, mp), the muscles' length paths
-      (mot_*), schedule (sched_t, sched_u), sampled rules (laws), atol, stats;
-    * MuJoCo's arrays.
+    * ``records``: the constants sc (S_*), the kernel's state st (T_*) and the record rec (R_*);
+    * ``water``: the parts in the water (el, strip_s, strip_k, pa: :mod:`frogsim.robot.water`) and
+      each part's velocity at the last step (vprev);
+    * ``body``: palms' command times and targets (pal_t, pal_target), their openings now and after
+      the step (frac, frac_new), the leg joints' qpos and dof addresses (leg_qpos, leg_dof);
+    * ``muscles``: the muscle table (mu: U_*) and the muscles' tensions;
+    * ``pneumatics``, as :func:`frogsim.engine.integrator.advance` takes them: state y, valve
+      states u, driver and controller states ds and cs, the circuit (g, mp and the muscles'
+      length paths mot_*: advance's ``model`` tuple), schedule (sched_t, sched_u), sampled rules
+      (laws), atol, stats;
+    * ``mujoco``: MuJoCo's arrays (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com,
+      body_rootid, body_parentid, body_mass, body_ipos, body_inertia, body_subtreemass, ctrl,
+      xfrc_applied, qpos, qvel).
+
+    The compiled loop (:func:`frogsim.engine.coupled_loop.run_steps`) passes the groups on from
+    compiled code, at no cost per step. Python calls :func:`step_kernel_loose` instead: Numba's
+    dispatcher unboxes tuples of arrays far slower than loose arrays (about 8,600 more
+    instructions a call for these 48 arrays, measured with callgrind).
     """
+    sc, st, rec = records
+    el, strip_s, strip_k, pa, vprev = water
+    pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof = body
+    mu, tension = muscles
+    y, u, ds, cs, circuit, sched_t, sched_u, laws, atol, stats = pneumatics
+    g, mp, mot_t, mot_L, mot_d, mot_n = circuit
+    (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass,
+     body_ipos, body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel) = mujoco
     dt = sc[S_DT]
     t = k * dt
     n = mu.shape[0]
@@ -169,7 +198,7 @@ def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, 
     law = int(sc[S_LAW])
     for i in range(n):
         L = ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
-        tension[i] = muscle_force(law, y[CL.Y_MUSCLE0 + 2 * i + 1] - patm, L, mp[i, CL.M_L0],
+        tension[i] = muscle_force(law, y[CL.pressure_index(i)] - patm, L, mp[i, CL.M_L0],
                                   mp[i, CL.M_B0], mp[i, CL.M_N], sc[S_BLADDER], sc[S_BLADDER + 1],
                                   sc[S_BLADDER + 2], sc[S_BLADDER + 3], sc[S_BLADDER + 4])
         ctrl[int(mu[i, U_ACT])] = tension[i]
@@ -313,31 +342,27 @@ def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, 
         q = 0.0
         air = y[CL.Y_MS] + y[CL.Y_ME]
         for i in range(n):
-            q += y[CL.Y_MUSCLE0 + 2 * n + i]
-            air += y[CL.Y_MUSCLE0 + 2 * i]
+            q += y[CL.charged_index(i, n)]
+            air += y[CL.mass_index(i)]
         rr[R_CHARGED] = q
-        rr[R_PUMPED] = y[CL.Y_MUSCLE0 + 4 * n]
+        rr[R_PUMPED] = y[CL.pump_index(n)]
         rr[R_AIR] = air
         rr[R_EXERGY] = st[T_EXERGY]
         rr[R_PUMP_ON] = cs[CS_PUMP]
-        c = R_FIXED
         for i in range(n):
-            rr[c + i] = y[CL.Y_MUSCLE0 + 2 * i + 1]
-            rr[c + n + i] = ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
-            rr[c + 2 * n + i] = tension[i]
-            rr[c + 3 * n + i] = y[CL.Y_MUSCLE0 + 2 * n + i]
-            rr[c + 4 * n + 2 * i] = u[2 * i]
-            rr[c + 4 * n + 2 * i + 1] = u[2 * i + 1]
-        c += 6 * n
+            rr[rec_pressure(i, n)] = y[CL.pressure_index(i)]
+            rr[rec_length(i, n)] = ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
+            rr[rec_tension(i, n)] = tension[i]
+            rr[rec_charged(i, n)] = y[CL.charged_index(i, n)]
+            rr[rec_valve(i, n, 0)] = u[2 * i]
+            rr[rec_valve(i, n, 1)] = u[2 * i + 1]
         for p in range(npal):
-            rr[c + p] = frac[p]
-        c += npal
+            rr[rec_palm(p, n)] = frac[p]
         for j in range(nj):
-            rr[c + j] = qpos[leg_qpos[j]]
-            rr[c + nj + j] = qvel[leg_dof[j]]
-        c += 2 * nj
+            rr[rec_angle(j, n, npal)] = qpos[leg_qpos[j]]
+            rr[rec_omega(j, n, npal, nj)] = qvel[leg_dof[j]]
         for j in range(qpos.size):
-            rr[c + j] = qpos[j]
+            rr[rec_qpos(j, n, npal, nj)] = qpos[j]
     if stepping == 0:
         return 0
     # -- 5. pneumatics from t to t + dt, muscle lengths following MuJoCo's -----------------------------
@@ -357,22 +382,21 @@ def step_kernel(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, 
         mot_n[i] = 4
     q0 = 0.0
     for i in range(n):
-        q0 += y[CL.Y_MUSCLE0 + 2 * n + i]
+        q0 += y[CL.charged_index(i, n)]
     ps0 = y[CL.Y_PS]
     no_output = (y[:0], mot_t[:0], mot_t[:0])         # no output rows: empty views, no allocation
     observe_joints(laws, cs, qpos, qvel, leg_qpos, leg_dof)     # what joint-angle laws read
     # the new length paths start with the old ones' value and slope: dy/dt at t is the one the
     # last step ended with (up to the rounding of the slope), so the driver starts from it
     ds[D_REUSE_F] = 1.0
-    status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n),
-                     (sched_t, sched_u, laws, sc[S_CTRL_DT]), (sc[S_RTOL], atol, sc[S_MAXSTEP]),
-                     no_output, stats)
+    status = advance(t_end, y, u, ds, cs, circuit, (sched_t, sched_u, laws, sc[S_CTRL_DT]),
+                     (sc[S_RTOL], atol, sc[S_MAXSTEP]), no_output, stats)
     if status != 0:
         st[T_FAIL], st[T_FAIL_ARG], st[T_FAIL_VAL] = FAIL_PNEUMATIC, status, t
         return FAIL_PNEUMATIC
     q1 = 0.0
     for i in range(n):
-        q1 += y[CL.Y_MUSCLE0 + 2 * n + i]
+        q1 += y[CL.charged_index(i, n)]
     if ps0 > patm:
         st[T_EXERGY] += (q1 - q0) * g[CL.G_R] * g[CL.G_TAMB] * math.log(ps0 / patm)
     # -- 6. palms' added mass for the next step (after the first step, only when a palm moved: the

@@ -4,9 +4,13 @@ The compiled kernel (:mod:`frogsim.engine.coupled_kernel`) reads and writes plai
 these constants name their columns: the muscle table mu[i, U_*], the constants sc[S_*], the
 kernel's own state st[T_*] (the pneumatic driver's and the controllers' state are arrays of their
 own, :mod:`frogsim.engine.integrator` and :mod:`frogsim.control.sampled`), and one row of the
-per-step record rec[row, R_*], whose variable part :func:`record_columns` lays out.
+per-step record rec[row, R_*], whose variable part the rec_* functions (for compiled code) and
+:func:`record_columns` (slices, for Python) lay out, inlined into the kernel as
+:mod:`frogsim.circuit.layout`'s index functions are. No other module computes a record column.
 """
 from __future__ import annotations
+
+from numba.extending import register_jitable
 
 # --- muscle table mu[i, :] -------------------------------------------------------------------------
 U_TENDON = 0     # MuJoCo tendon id
@@ -61,16 +65,84 @@ R_PUMPED = 14    # air moved by the pump since t = 0 [kg]
 R_AIR = 15       # air in source, exhaust and muscles [kg]
 R_EXERGY = 16    # exergy of the charged air since t = 0 [J]
 R_PUMP_ON = 17
-R_FIXED = 18     # then: n pressures, n lengths, n tensions, n charged masses, 2n valve states,
-                 # np palm openings, nj joint angles, nj joint velocities, nq MuJoCo positions
+R_FIXED = 18     # then the blocks of :func:`record_columns`
+R_POSITION = slice(R_X, R_X + 3)
+R_VELOCITY = slice(R_V, R_V + 3)
+
+# the variable part: blocks of n columns (one per muscle) in this order, then the valves (2 per
+# muscle: charge, discharge), then np palm openings, nj joint angles, nj joint velocities, nq MuJoCo positions
+_REC_PRESSURE = 0    # muscle pressures [Pa abs]
+_REC_LENGTH = 1      # muscle lengths [m]
+_REC_TENSION = 2     # muscle tensions [N]
+_REC_CHARGED = 3     # air charged into each muscle since t = 0 [kg]
+_REC_VALVES = 4      # first block after the per-muscle ones
+_REC_MUSCLE_WIDTH = 6    # columns per muscle: four values and two valve states
+
+
+@register_jitable(inline="always", _nrt=False)
+def rec_pressure(i, n):
+    """Column of muscle i's pressure (of n muscles)."""
+    return R_FIXED + _REC_PRESSURE * n + i
+
+
+@register_jitable(inline="always", _nrt=False)
+def rec_length(i, n):
+    """Column of muscle i's length."""
+    return R_FIXED + _REC_LENGTH * n + i
+
+
+@register_jitable(inline="always", _nrt=False)
+def rec_tension(i, n):
+    """Column of muscle i's tension."""
+    return R_FIXED + _REC_TENSION * n + i
+
+
+@register_jitable(inline="always", _nrt=False)
+def rec_charged(i, n):
+    """Column of the air charged into muscle i."""
+    return R_FIXED + _REC_CHARGED * n + i
+
+
+@register_jitable(inline="always", _nrt=False)
+def rec_valve(i, n, which):
+    """Column of muscle i's valve ``which`` (0 charge, 1 discharge)."""
+    return R_FIXED + _REC_VALVES * n + 2 * i + which
+
+
+@register_jitable(inline="always", _nrt=False)
+def rec_palm(p, n):
+    """Column of palm p's opening."""
+    return R_FIXED + _REC_MUSCLE_WIDTH * n + p
+
+
+@register_jitable(inline="always", _nrt=False)
+def rec_angle(j, n, npal):
+    """Column of leg joint j's angle."""
+    return R_FIXED + _REC_MUSCLE_WIDTH * n + npal + j
+
+
+@register_jitable(inline="always", _nrt=False)
+def rec_omega(j, n, npal, nj):
+    """Column of leg joint j's angular velocity."""
+    return R_FIXED + _REC_MUSCLE_WIDTH * n + npal + nj + j
+
+
+@register_jitable(inline="always", _nrt=False)
+def rec_qpos(j, n, npal, nj):
+    """Column of MuJoCo's position j (qpos[j])."""
+    return R_FIXED + _REC_MUSCLE_WIDTH * n + npal + 2 * nj + j
 
 
 def record_columns(n: int, npal: int, nj: int, nq: int) -> dict:
-    """Start column of each per-muscle / per-palm / per-joint block in a record row."""
-    c = {"pressure": R_FIXED, "length": R_FIXED + n, "tension": R_FIXED + 2 * n,
-         "charged": R_FIXED + 3 * n, "valves": R_FIXED + 4 * n, "palm": R_FIXED + 6 * n}
-    c["angle"] = c["palm"] + npal
-    c["omega"] = c["angle"] + nj
-    c["qpos"] = c["omega"] + nj
-    c["size"] = c["qpos"] + nq
-    return c
+    """Each per-muscle / per-palm / per-joint block of a record row as a slice of its columns, and
+    "size": the row's length."""
+    return {"pressure": slice(rec_pressure(0, n), rec_pressure(0, n) + n),
+            "length": slice(rec_length(0, n), rec_length(0, n) + n),
+            "tension": slice(rec_tension(0, n), rec_tension(0, n) + n),
+            "charged": slice(rec_charged(0, n), rec_charged(0, n) + n),
+            "valves": slice(rec_valve(0, n, 0), rec_valve(0, n, 0) + 2 * n),
+            "palm": slice(rec_palm(0, n), rec_palm(0, n) + npal),
+            "angle": slice(rec_angle(0, n, npal), rec_angle(0, n, npal) + nj),
+            "omega": slice(rec_omega(0, n, npal, nj), rec_omega(0, n, npal, nj) + nj),
+            "qpos": slice(rec_qpos(0, n, npal, nj), rec_qpos(0, n, npal, nj) + nq),
+            "size": rec_qpos(0, n, npal, nj) + nq}

@@ -2,12 +2,13 @@
 
 The coupled engine's step is ``mj_step1 -> step_kernel -> mj_step2``. Called from Python, each
 MuJoCo step costs three trips through a binding layer (pybind11 for MuJoCo, Numba's dispatcher
-for the kernel, which unboxes its ~50 array arguments on every call): more time than the two
+for the kernel, which unboxes its groups of arrays on every call): more time than the two
 MuJoCo calls themselves. :func:`run_steps` runs a whole stretch of steps inside one Numba call
 instead: it calls ``mj_step1`` and ``mj_step2`` of MuJoCo's shared library through their addresses
 (:func:`mujoco_c`), the kernel with its argument tuple unpacked (``step_kernel(k, stepping, row,
-*args)``: whatever :func:`frogsim.engine.coupled.kernel_args` returns is passed through as it is),
-and returns to Python between stretches (progress, MuJoCo's warnings) or at the first failure.
+*args)``: the groups :func:`frogsim.engine.coupled.kernel_args` returns pass from compiled code to
+compiled code as they are, so grouping them costs nothing per step), and returns to Python between
+stretches (progress, MuJoCo's warnings) or at the first failure.
 
 The calls and their order are those of the Python loop, so the runs are the same bit for bit
 (tested against the Python loop, which :func:`frogsim.engine.coupled.run_coupled` keeps as

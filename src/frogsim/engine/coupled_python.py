@@ -21,8 +21,8 @@ from frogsim.circuit import layout as CL
 from frogsim.control.sampled import (B_A_SENSED, B_SENSED, B_W_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE,
                                      KIND_EXTERNAL, KIND_PUMP_BAND, L_JOINT1, L_KIND, L_MUSCLE,
                                      command_from_python)
-from frogsim.engine.coupled import _failure, kernel_args, run_record
-from frogsim.engine.coupled_kernel import step_kernel
+from frogsim.engine.coupled import _failure, kernel_loose_args, run_record
+from frogsim.engine.coupled_kernel import step_kernel_loose
 from frogsim.engine.coupled_layout import S_CTRL_DT, S_TRUNK
 from frogsim.engine.integrator import start
 from frogsim.errors import SimulationError
@@ -101,7 +101,7 @@ def run_coupled_python(cm, fn, progress=None) -> dict:
         obs["body_velocity"] = body_velocity(m, d, tb)
         command_from_python(laws, rows, cs, fn(t_k, obs), t_k, u, t_k)
 
-    args = kernel_args(cm)
+    args = kernel_loose_args(cm)
     step1, step2 = mujoco.mj_step1, mujoco.mj_step2
     n_steps, every = cm.n_steps, cm.rec_every
     chunk = max(1, n_steps // 20)
@@ -113,7 +113,7 @@ def run_coupled_python(cm, fn, progress=None) -> dict:
         stepping = 1 if k < n_steps else 0
         row = k // every if k % every == 0 else (-1 if stepping else k // every + 1)
         before = cs[CS_SAMPLE]
-        if step_kernel(k, stepping, row, *args):
+        if step_kernel_loose(k, stepping, row, *args):
             raise SimulationError(f"scenario {cm.name!r}: unstable at t = {k * cm.dt:.4f} s: "
                                   f"{_failure(cm)}")
         if stepping:

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from frogsim._jit import jit, jit_alloc, jit_step
 
-from frogsim.circuit.layout import Y_MUSCLE0
+from frogsim.circuit.layout import muscle_count, physical_size
 from frogsim.circuit.rhs import rhs
 from frogsim.control.sampled import (CS_PUMP, apply_due, next_due_time, next_sample_time, sample_controllers,
                                     start_controllers)
@@ -238,9 +238,9 @@ def ds_size(ny):
 def _scratch_size(ny):
     """Entries of advance's scratch space for a state of ny entries: 22 stage vectors, the
     Rosenbrock matrix (ny x ny), the previous valve states (2n) and the right-hand side's aux
-    (2n + 1) and work (3n) vectors; n muscles make a state of Y_MUSCLE0 + 4 n + 1 entries
-    (:func:`frogsim.circuit.layout.state_size`)."""
-    n = (ny - Y_MUSCLE0 - 1) // 4
+    (2n + 1) and work (3n) vectors, n the muscles of a state of ny entries
+    (:func:`frogsim.circuit.layout.muscle_count`)."""
+    n = muscle_count(ny)
     return 22 * ny + ny * ny + 2 * n + 5 * n + 1
 
 
@@ -441,7 +441,7 @@ def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, f
     stats[0] += 1
     if stiff:
         stats[3] += 1
-    for j in range(Y_MUSCLE0 + 2 * n):
+    for j in range(physical_size(n)):
         if not y[j] > 0.0:          # every air mass and pressure; NaN fails too
             status = STATUS_NONPHYSICAL
     if status != STATUS_OK:
@@ -561,7 +561,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     u_prev = scratch[o:o + nu]
     aux = scratch[o + nu:o + nu + 2 * n + 1]
     work = scratch[o + nu + 2 * n + 1:o + nu + 5 * n + 1]
-    nphys = Y_MUSCLE0 + 2 * n
+    nphys = physical_size(n)
     t = ds[D_T]
     h = ds[D_H]
     err_old = ds[D_ERR]
@@ -721,11 +721,11 @@ def finished_status(status, ds, n_out):
 
 
 @jit_alloc
-def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
-                 ctrl_dt, out_t, rtol, atol, max_step, h0, laws, pause_every):
+def run_schedule(y0, u0, t0, t_end, model, commands, solver, out_t, h0, pause_every):
     """Integrate from t0 to t_end under an open-loop valve schedule and the run's sampled laws
-    ``laws`` (the pump's band and the closed-loop controllers, ``PneumaticModel.laws``):
-    :func:`begin`, then one :func:`advance`.
+    (the pump's band and the closed-loop controllers, ``PneumaticModel.laws``): :func:`begin`, then
+    one :func:`advance`, whose groups it takes: ``model`` = (g, mp, mot_t, mot_L, mot_d, mot_n),
+    ``commands`` = (sched_t, sched_u, laws, ctrl_dt), ``solver`` = (rtol, atol, max_step).
 
     ``sched_t`` (sorted) are the times at which valve states become ``sched_u[k]``; before the
     first, ``u0`` holds. Entries may repeat the current state: they only make the integrator stop
@@ -735,9 +735,9 @@ def run_schedule(y0, t0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sche
 
     Returns (out_y, out_u, y_end, stats, status, t_reached, cs, u, ds).
     """
+    sched_t, sched_u, laws, ctrl_dt = commands
     out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0)
     ds[D_PAUSE] = pause_every
-    status = advance(t_end, y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), commands,
-                     (rtol, atol, max_step), (out_t, out_y, out_u), stats)
+    status = advance(t_end, y, u, ds, cs, model, commands, solver, (out_t, out_y, out_u), stats)
     status = finished_status(status, ds, out_t.size)
     return out_y, out_u, y, stats, status, ds[D_T], cs, u, ds

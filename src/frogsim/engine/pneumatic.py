@@ -45,11 +45,8 @@ def _as_model(what) -> PneumaticModel:
 
 def _state_labels(model: PneumaticModel) -> list[tuple[int, str, str]]:
     """(state index, label, unit) of every air mass and pressure (quantities that must stay > 0)."""
-    out = [(L.Y_MS, "source mass", "kg"), (L.Y_PS, "source pressure", "Pa abs"),
-           (L.Y_ME, "exhaust mass", "kg"), (L.Y_PE, "exhaust pressure", "Pa abs")]
-    for i, name in enumerate(model.names):
-        out += [(L.Y_MUSCLE0 + 2 * i, f"{name} mass", "kg"), (L.Y_MUSCLE0 + 2 * i + 1, f"{name} pressure", "Pa abs")]
-    return out
+    labels = L.state_labels(model.names)
+    return [(j, *labels[j]) for j in range(L.physical_size(model.n))]
 
 
 def _describe_state(model: PneumaticModel, y: np.ndarray) -> str:
@@ -63,16 +60,18 @@ def check_volumes(model: PneumaticModel) -> None:
     A muscle's length moves monotonically between its motion knots and Eq. (5)'s volume is concave
     in the length, so the knots bound the volume over the whole run.
     """
+    mp = model.circuit.mp
+    mot_t, mot_L, _, mot_n = model.motion
     for i, name in enumerate(model.names):
-        fixed = model.mp[i, L.M_FIXEDV]
+        fixed = mp[i, L.M_FIXEDV]
         if fixed > 0.0:
             continue
-        b0, n, dead = model.mp[i, L.M_B0], model.mp[i, L.M_N], model.mp[i, L.M_DEAD]
-        for k in range(int(model.mot_n[i])):
-            v = muscle_volume(float(model.mot_L[i, k]), float(b0), float(n)) + dead
+        b0, n, dead = mp[i, L.M_B0], mp[i, L.M_N], mp[i, L.M_DEAD]
+        for k in range(int(mot_n[i])):
+            v = muscle_volume(float(mot_L[i, k]), float(b0), float(n)) + dead
             if not (math.isfinite(v) and v > 0.0):
                 raise SimulationError(f"scenario {model.scenario.name!r}: non-physical state at "
-                                      f"t = {model.mot_t[i, k]:.6g} s: {name} volume = {v:.4g} m^3 "
+                                      f"t = {mot_t[i, k]:.6g} s: {name} volume = {v:.4g} m^3 "
                                       "(must be positive; check the muscle type's geometry)")
 
 
@@ -165,11 +164,13 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
     # begin, then the first STEPS_PER_CALL steps in one compiled call (most runs end within it):
     # the same two functions run_schedule calls, called from here so that a first run compiles
     # only them (run_schedule, the batched engine's entry, is compiled when a batch runs)
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(model.y0, 0.0, model.u0, model.laws, model.sched_t,
-                                                        model.sched_u, ctrl_dt, model.out_t, h0)
+    y0, atol = model.start
+    sched_t, sched_u, u0, _ = model.schedule
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, 0.0, u0, model.laws, sched_t, sched_u, ctrl_dt,
+                                                        model.out_t, h0)
     ds[D_PAUSE] = STEPS_PER_CALL
-    circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
-    solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
+    circuit = model.rhs_model
+    solver = (sc.solver.rtol, atol, sc.solver.max_step)
     out = (model.out_t, out_y, out_u)
     status = advance(T, y, u, ds, cs, circuit, commands, solver, out, stats)
     bar = None
@@ -254,10 +255,11 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
     rows = {n: c for c, n in zip([c for c in range(laws.shape[0]) if laws[c, L_KIND] == KIND_EXTERNAL], ext)}
     dt = 1.0 / sc.controller.rate
     T = sc.duration
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(model.y0, 0.0, model.u0, laws, model.sched_t,
-                                                        model.sched_u, dt, model.out_t, h0)
-    circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
-    solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
+    y0, atol = model.start
+    sched_t, sched_u, u0, _ = model.schedule
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, 0.0, u0, laws, sched_t, sched_u, dt, model.out_t, h0)
+    circuit = model.rhs_model
+    solver = (sc.solver.rtol, atol, sc.solver.max_step)
     out = (model.out_t, out_y, out_u)
     block = cs[CS_BLOCK]
 

@@ -138,11 +138,11 @@ class Result:
 
     def muscle_pressure(self, muscle: str) -> np.ndarray:
         """Pressure in a muscle [Pa abs]."""
-        return self.y[:, L.Y_MUSCLE0 + 2 * self.index(muscle) + 1]
+        return self.y[:, L.pressure_index(self.index(muscle))]
 
     def muscle_mass(self, muscle: str) -> np.ndarray:
         """Air mass in a muscle [kg]."""
-        return self.y[:, L.Y_MUSCLE0 + 2 * self.index(muscle)]
+        return self.y[:, L.mass_index(self.index(muscle))]
 
     def charged_mass(self, muscle: str) -> np.ndarray:
         """Mass that has entered the muscle through its charge valve since t = 0 [kg]."""
@@ -160,9 +160,7 @@ class Result:
     @property
     def total_air_mass(self) -> np.ndarray:
         """Air in source, exhaust and all muscles [kg]: constant in the closed circuit."""
-        n = self.n
-        return (self.y[:, L.Y_MS] + self.y[:, L.Y_ME]
-                + self.y[:, L.Y_MUSCLE0:L.Y_MUSCLE0 + 2 * n:2].sum(axis=1))
+        return self.y[:, L.Y_MS] + self.y[:, L.Y_ME] + self.y[:, L.mass_slice(self.n)].sum(axis=1)
 
     @property
     def reference_density(self) -> float:

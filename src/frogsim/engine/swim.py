@@ -63,58 +63,57 @@ class SwimResult:
     def joint_names(self) -> list:
         return self.model.joint_names
 
-    def _block(self, name: str, width: int) -> np.ndarray:
-        c = self.model.columns[name]
-        return self.rec[:, c:c + width]
+    def _block(self, name: str) -> np.ndarray:
+        return self.rec[:, self.model.columns[name]]
 
     @property
     def joint_angles(self) -> np.ndarray:
         """Joint angles [rad], shape (time, joint), 0 at the flexed stop (see joint_names)."""
-        return self._block("angle", len(self.joint_names))
+        return self._block("angle")
 
     @property
     def joint_velocities(self) -> np.ndarray:
-        return self._block("omega", len(self.joint_names))
+        return self._block("omega")
 
     @property
     def pressures(self) -> np.ndarray:
         """Muscle pressures [Pa abs], shape (time, muscle)."""
-        return self._block("pressure", len(self.muscle_names))
+        return self._block("pressure")
 
     @property
     def lengths(self) -> np.ndarray:
         """Muscle lengths [m] (tendon length less the fittings)."""
-        return self._block("length", len(self.muscle_names))
+        return self._block("length")
 
     @property
     def tensions(self) -> np.ndarray:
         """Muscle tensions [N]."""
-        return self._block("tension", len(self.muscle_names))
+        return self._block("tension")
 
     @property
     def charged(self) -> np.ndarray:
         """Air charged into each muscle since t = 0 [kg]."""
-        return self._block("charged", len(self.muscle_names))
+        return self._block("charged")
 
     @property
     def valves(self) -> np.ndarray:
         """Valve states (charge, discharge per muscle; 1 open), shape (time, 2 n)."""
-        return self._block("valves", 2 * len(self.muscle_names))
+        return self._block("valves")
 
     @property
     def palm_opening(self) -> np.ndarray:
         """Palm opening, 0 folded .. 1 open, shape (time, 2) (left, right)."""
-        return self._block("palm", 2)
+        return self._block("palm")
 
     @property
     def position(self) -> np.ndarray:
         """Hull centre in the world [m], shape (time, 3)."""
-        return self.rec[:, C.R_X:C.R_X + 3]
+        return self.rec[:, C.R_POSITION]
 
     @property
     def velocity(self) -> np.ndarray:
         """Velocity of the hull centre [m/s], shape (time, 3)."""
-        return self.rec[:, C.R_V:C.R_V + 3]
+        return self.rec[:, C.R_VELOCITY]
 
     @property
     def heading(self) -> np.ndarray:

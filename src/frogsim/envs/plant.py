@@ -152,7 +152,7 @@ class PneumaticPlant:
     # -- readings --------------------------------------------------------------------------------
     def pressures(self) -> np.ndarray:
         """True muscle pressures [Pa abs]."""
-        return self.y[L.Y_MUSCLE0 + 1:L.Y_MUSCLE0 + 2 * self.n:2].copy()
+        return self.y[L.pressure_slice(self.n)].copy()
 
     def observe(self) -> np.ndarray:
         """``[p_1 .. p_n, p_source, p_exhaust, t]`` with the sensor noise on the pressures."""
@@ -164,9 +164,8 @@ class PneumaticPlant:
     def total_air_mass(self) -> float:
         """Air in source, exhaust and muscles [kg] (constant in the closed circuit)."""
         y = self.y
-        return float(y[L.Y_MS] + y[L.Y_ME] + y[L.Y_MUSCLE0:L.Y_MUSCLE0 + 2 * self.n:2].sum())
+        return float(y[L.Y_MS] + y[L.Y_ME] + y[L.mass_slice(self.n)].sum())
 
     def charged_mass(self) -> float:
         """Air charged into all muscles since the reset [kg]."""
-        y, n = self.y, self.n
-        return float(y[L.Y_MUSCLE0 + 2 * n:L.Y_MUSCLE0 + 3 * n].sum())
+        return float(self.y[L.charged_slice(self.n)].sum())

@@ -41,7 +41,7 @@ def frames_for(result, fps: float = 20.0, max_frames: int = 600) -> dict:
     idx = np.clip(np.searchsorted(t, times), 0, t.size - 1)
     cm = result.model
     c = cm.columns
-    qpos = result.rec[idx, c["qpos"]:c["qpos"] + cm.mjm.nq]
+    qpos = result.rec[idx, c["qpos"]]
     pal = result.rs.robot.palms
     L = result.rs.robot.legs.palm_length
     phi_f, phi_o = palm_fan_angle(pal.folded_area, L), palm_fan_angle(pal.open_area, L)

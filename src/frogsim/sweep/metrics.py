@@ -56,7 +56,7 @@ class Chunk:
         return self.out.final_state(j)
 
     def pressure(self, i):
-        return self.state(_pressure_col(i))
+        return self.state(L.pressure_index(i))
 
     def charge_valve(self, i):
         return self.valve(2 * i)
@@ -99,12 +99,8 @@ def kept_columns(metrics: list[str], n: int, i: int) -> tuple[list, list]:
     return sorted(ys), sorted(us)
 
 
-def _pressure_col(i):
-    return L.Y_MUSCLE0 + 2 * i + 1
-
-
 def _rise_cols(n, i):
-    return (_pressure_col(i), L.Y_PS), (2 * i,)
+    return (L.pressure_index(i), L.Y_PS), (2 * i,)
 
 
 def _rise(c: Chunk, i: int):
@@ -129,7 +125,7 @@ def _rise_reached(c: Chunk, i: int):
 
 
 @register_metric("final_pressure", "bar (gauge)", "muscle pressure when the first pressurise phase ends",
-                 lambda n, i: ((_pressure_col(i),), (2 * i,)))
+                 lambda n, i: ((L.pressure_index(i),), (2 * i,)))
 def _final_pressure(c: Chunk, i: int):
     return (value_at_close(c.t, c.pressure(i), c.charge_valve(i), c.t_open[:, i]) - c.patm) / BAR
 
