@@ -98,6 +98,53 @@ def test_valve_changes_fall_on_the_grid_plus_dead_time_on_a_fine_output_grid():
         assert np.all(off < 1e-6)
 
 
+# --- the sliding-mode law's valve model is the plant's valves ---------------------------------------------
+def test_sliding_mode_row_holds_no_valve_constant_and_its_model_follows_the_scenario_valves():
+    from frogsim.circuit import layout as L
+    from frogsim.control import table
+    from frogsim.control.kinds import sliding_mode
+    sc = frogsim.load_scenario(closed_loop({"kind": "sliding-mode", "setpoint": "3 bar"}, 0.004,
+                                           output_interval="0.01 ms", supply={"mode": "none"}))
+    base = frogsim.build_model(sc)
+    # no column of the table for a valve constant, and a table that does not move when every ISO 6358
+    # constant of both valves does (while the plant's muscle rows do)
+    assert not [n for n in dir(table) if n in ("L_CC", "L_CB", "L_CM", "L_CRL", "L_DC", "L_DB", "L_DM", "L_DRL")]
+    other = frogsim.build_model(sc.replace({"valves.charge.sonic_conductance": 3 * C_MHJ9,
+                                            "valves.charge.critical_ratio": 0.3,
+                                            "valves.charge.subsonic_index": 0.6,
+                                            "valves.charge.laminar_ratio": 0.99,
+                                            "valves.discharge.sonic_conductance": 2 * C_MHJ9,
+                                            "valves.discharge.critical_ratio": 0.25,
+                                            "valves.discharge.subsonic_index": 0.45,
+                                            "valves.discharge.laminar_ratio": 0.98}))
+    assert np.array_equal(base.laws, other.laws)
+    assert other.mp[0, L.M_CC] == 3 * C_MHJ9 and other.mp[0, L.M_DB] == 0.25
+    [c] = [c for c in range(base.laws.shape[0]) if base.laws[c, table.L_KIND] == sliding_mode.CODE]
+    T = base.g[L.G_TAMB]
+    p_s = P_ATM + 6.0 * BAR
+    for factor in (1.0, 2.0):
+        varied = sc.replace({"valves.charge.sonic_conductance": factor * C_MHJ9,
+                             "valves.discharge.sonic_conductance": factor * C_MHJ9})
+        m = frogsim.build_model(varied)
+        # the law's prediction: Eq. (8) choked flows (pressure ratio below b = 0.38), every gas at
+        # ambient temperature, times the row's k R T_amb / V
+        y = m.y0.copy()
+        y[L.Y_PS], y[L.Y_PE] = p_s, P_ATM
+        gain = m.laws[c, table.L_GAIN]
+        r_charge, _ = sliding_mode.mode_rates(m.laws, m.mp, c, y, P_ATM)
+        assert r_charge == pytest.approx(gain * factor * C_MHJ9 * RHO_REF * p_s * math.sqrt(T_REF / T), rel=1e-12)
+        p_top = P_ATM + 4.0 * BAR
+        _, r_vent = sliding_mode.mode_rates(m.laws, m.mp, c, y, p_top)
+        assert r_vent == pytest.approx(-gain * factor * C_MHJ9 * RHO_REF * p_top * math.sqrt(T_REF / T), rel=1e-12)
+        # the plant: the first charge (commanded at t = 0, open one dead time later) is choked from
+        # the source at the initial 6 bar and T_ref, at the same conductance
+        r = frogsim.simulate(m)
+        i0, i1 = np.searchsorted(r.t, [DEAD - 1e-12, DEAD + 0.05e-3 - 1e-12])
+        q = r.charged_mass("hip")
+        slope = (q[i1] - q[i0]) / (r.t[i1] - r.t[i0])
+        assert slope == pytest.approx(factor * C_MHJ9 * RHO_REF * p_s, rel=1e-3)
+
+
 # --- PWM -----------------------------------------------------------------------------------------------
 def pwm_run(duty: float):
     d = closed_loop({"kind": "pwm", "frequency": "10 Hz", "duty": duty, "rest": "vent"}, 0.5,

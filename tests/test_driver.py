@@ -28,8 +28,9 @@ def test_pump_band_is_a_hysteresis_switch():
 
 def test_rule_table_and_samples():
     g = np.zeros(L.G_SIZE)
+    mp = np.zeros((0, L.M_SIZE))                               # no muscle
     assert sampled_laws(g).size == 0                           # no pump: no sampled rule
-    cs = start_controllers(sampled_laws(g), 0.0035, np.zeros(5), np.zeros(0), 1e-3)
+    cs = start_controllers(sampled_laws(g), mp, 0.0035, np.zeros(5), np.zeros(0), 1e-3)
     assert next_control_time(sampled_laws(g), cs, 1e-3) == math.inf   # the driver never stops for it
     g[L.G_PUMP_ENABLED], g[L.G_PUMP_ON], g[L.G_PUMP_OFF] = 1.0, 6.0 * BAR, 6.5 * BAR
     row = sampled_laws(g)                                      # the open-loop form: one 1-D row
@@ -40,13 +41,13 @@ def test_rule_table_and_samples():
         y = np.zeros(5)
         y[L.Y_PS] = 5.0 * BAR
         # a run starting at 3.5 ms takes the sample of 3 ms; the next is at 4 ms
-        cs = start_controllers(laws, 0.0035, y, np.zeros(0), 1e-3)
+        cs = start_controllers(laws, mp, 0.0035, y, np.zeros(0), 1e-3)
         assert cs[CS_SAMPLE] == 3.0 and cs[CS_PUMP] == 1.0
         assert next_control_time(laws, cs, 1e-3) == pytest.approx(4e-3, rel=1e-15)
         y[L.Y_PS] = 6.2 * BAR
-        assert not sample_controllers(laws, 4e-3, y, np.zeros(0), cs)   # inside the band: unchanged
+        assert not sample_controllers(laws, mp, 4e-3, y, np.zeros(0), cs)   # inside the band: unchanged
         y[L.Y_PS] = 6.6 * BAR
-        assert sample_controllers(laws, 5e-3, y, np.zeros(0), cs)       # above: switched off
+        assert sample_controllers(laws, mp, 5e-3, y, np.zeros(0), cs)       # above: switched off
         assert cs[CS_SAMPLE] == 5.0 and cs[CS_PUMP] == 0.0
 
 
@@ -61,7 +62,7 @@ def test_a_run_advanced_in_many_calls_matches_one_call(paper_cycle_raw):
     sc = model.scenario
     commands = (model.sched_t, model.sched_u, sampled_laws(model.g), 1.0 / sc.controller.rate)
     y, u = model.y0.copy(), model.u0.copy()
-    ds, cs = start(0.0, 1e-4, y, u, commands)
+    ds, cs = start(0.0, 1e-4, y, u, model.mp, commands)
     circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
     solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
     no_output = (np.zeros(0), np.zeros((0, y.size)), np.zeros((0, u.size + 1)))

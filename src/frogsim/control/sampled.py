@@ -201,10 +201,12 @@ def next_due_time(laws, cs):
 
 
 @jit
-def sample_controllers(laws, t, y, u, cs):
+def sample_controllers(laws, mp, t, y, u, cs):
     """At a stop t: write the valve commands that have come due into u; if t is the next sample,
     take it: evaluate every law on the state y and write or queue its commands (the pump's switch
-    cs[CS_PUMP] at once, valve commands one dead time later). True if a command changed."""
+    cs[CS_PUMP] at once, valve commands one dead time later). ``mp`` is the model's muscle rows,
+    where a law that models the valves reads their ISO 6358 constants (the table holds none).
+    True if a command changed."""
     if laws.ndim == 1:                     # open loop (see sampled_laws): the pump's band only
         if t < (cs[CS_SAMPLE] + 1.0) * cs[CS_DT] - TOL:
             return False
@@ -250,7 +252,7 @@ def sample_controllers(laws, t, y, u, cs):
         elif kind == pwm.CODE:
             mode = pwm.law(laws, c, cs, b, y, p, ts)
         elif kind == sliding_mode.CODE:
-            mode = sliding_mode.law(laws, c, cs, b, y, p, ts)
+            mode = sliding_mode.law(laws, mp, c, cs, b, y, p, ts)
         elif kind == joint_angle.CODE:
             mode = joint_angle.law(laws, c, cs, b, y, p, ts)
         command_valves(laws, c, cs, mode, ts)
@@ -260,14 +262,15 @@ def sample_controllers(laws, t, y, u, cs):
 
 
 @jit_alloc
-def start_controllers(laws, t0, y, u, ctrl_dt):
+def start_controllers(laws, mp, t0, y, u, ctrl_dt):
     """Controller state at the start of a run at t0: pump stopped, valves under control shut, then
-    the sample at or just before t0 taken (its commands hold from t0 on, or a dead time later)."""
+    the sample at or just before t0 taken (its commands hold from t0 on, or a dead time later);
+    ``mp`` as :func:`sample_controllers` takes it."""
     if laws.ndim == 1:                     # open loop: no valve laws, no command queue
         cs = np.zeros(CS_SIZE)
         cs[CS_DT] = ctrl_dt
         cs[CS_SAMPLE] = math.floor(t0 / ctrl_dt + 1e-9) - 1.0
-        sample_controllers(laws, t0, y, u, cs)
+        sample_controllers(laws, mp, t0, y, u, cs)
         return cs
     dead = 0.0
     for c in range(laws.shape[0]):
@@ -280,7 +283,7 @@ def start_controllers(laws, t0, y, u, ctrl_dt):
     cs[CS_BLOCK] = block
     cs[CS_Q] = Q
     cs[CS_SAMPLE] = math.floor(t0 / ctrl_dt + 1e-9) - 1.0
-    sample_controllers(laws, t0, y, u, cs)
+    sample_controllers(laws, mp, t0, y, u, cs)
     return cs
 
 

@@ -9,9 +9,9 @@ constants for Numba) and assembles the table; :func:`build_table` is registered 
 :mod:`frogsim.scenario.kinds`, through which :func:`frogsim.circuit.model.build_model` calls it
 (the circuit layer does not import this one). A row is L_SIZE columns plus the setpoint's knots
 (t_j [s], p_j [Pa abs]) in pairs from column L_SP0 on; the table is as wide as its widest row.
-Only the sliding-mode kind, whose law models the valves, writes their ISO 6358 constants into its
-row (L_CC..L_DRL); they are also in the model's muscle rows ``mp``, which the compiled sample
-does not receive.
+The table holds no valve constant: a law that models the valves (the sliding-mode kind's) reads
+their ISO 6358 constants from the model's muscle rows ``mp[i, M_CC..M_DRL]`` (i = the row's
+L_MUSCLE), the plant's own numbers, which the compiled sample receives with the table.
 
 Pressures are absolute [Pa] inside; times [s]; the PWM period and minimum pulse in controller
 samples (the commands change only on the controller's grid).
@@ -64,37 +64,29 @@ L_SEED = 18      # sensor noise seed
 L_BITS = 19      # ADC bits (0: no quantisation)
 L_FS = 20        # ADC full scale [Pa gauge] (the range is 0..full scale)
 L_LAG = 21       # sensor first-order lag time constant [s] (0: none)
-L_CC = 22        # the controller's valve model (Eq. 8): charge C, b, m, r_lam
-L_CB = 23
-L_CM = 24
-L_CRL = 25
-L_DC = 26        # discharge C, b, m, r_lam
-L_DB = 27
-L_DM = 28
-L_DRL = 29
-L_RHOREF = 30
-L_TREF = 31
-L_TAMB = 32
-L_BRANCH = 33    # charge-flow limit of the supply [kg/s] (inf: none)
-L_SP_KIND = 34   # SP_*
-L_SP_A = 35      # constant: value; sine: mean [Pa abs]
-L_SP_B = 36      # sine: amplitude [Pa]
-L_SP_C = 37      # sine: frequency [Hz]
-L_SP_D = 38      # sine: start time [s]
-L_SP_N = 39      # steps / table: number of knots
-L_JOINT1 = 40    # joint-angle: 1 + index of the joint whose angle the law reads (0: none)
-L_SIGN = 41      # joint-angle: +1 the extensor (target p0 + dp/2), -1 the flexor (p0 - dp/2)
-L_P0 = 42        # joint-angle: co-contraction level p0 [Pa abs]
-L_KP = 43        # joint-angle: proportional gain [Pa/rad]
-L_KD = 44        # joint-angle: derivative gain [Pa s/rad]
-L_KI = 45        # joint-angle: integral gain [Pa/(rad s)]
-L_STREAM = 46    # first noise stream of the pressure sensor (0: stream 1)
-L_A_NOISE = 47   # angle sensor: noise standard deviation [rad]
-L_A_SEED = 48    # angle sensor: noise seed
-L_A_BITS = 49    # angle sensor: encoder bits (0: no quantisation)
-L_A_FS = 50      # angle sensor: full scale [rad] (the range is 0..full scale)
-L_A_LAG = 51     # angle sensor: first-order lag time constant [s] (0: none)
-L_SIZE = 52
+L_RHOREF = 22    # the controller's gas model: ISO 6358 reference density [kg/m^3]
+L_TREF = 23      # ISO 6358 reference temperature [K]
+L_TAMB = 24      # ambient temperature [K] (every gas in the law's valve model)
+L_BRANCH = 25    # charge-flow limit of the supply [kg/s] (inf: none)
+L_SP_KIND = 26   # SP_*
+L_SP_A = 27      # constant: value; sine: mean [Pa abs]
+L_SP_B = 28      # sine: amplitude [Pa]
+L_SP_C = 29      # sine: frequency [Hz]
+L_SP_D = 30      # sine: start time [s]
+L_SP_N = 31      # steps / table: number of knots
+L_JOINT1 = 32    # joint-angle: 1 + index of the joint whose angle the law reads (0: none)
+L_SIGN = 33      # joint-angle: +1 the extensor (target p0 + dp/2), -1 the flexor (p0 - dp/2)
+L_P0 = 34        # joint-angle: co-contraction level p0 [Pa abs]
+L_KP = 35        # joint-angle: proportional gain [Pa/rad]
+L_KD = 36        # joint-angle: derivative gain [Pa s/rad]
+L_KI = 37        # joint-angle: integral gain [Pa/(rad s)]
+L_STREAM = 38    # first noise stream of the pressure sensor (0: stream 1)
+L_A_NOISE = 39   # angle sensor: noise standard deviation [rad]
+L_A_SEED = 40    # angle sensor: noise seed
+L_A_BITS = 41    # angle sensor: encoder bits (0: no quantisation)
+L_A_FS = 42      # angle sensor: full scale [rad] (the range is 0..full scale)
+L_A_LAG = 43     # angle sensor: first-order lag time constant [s] (0: none)
+L_SIZE = 44
 L_SP0 = L_SIZE   # knots (t_j, p_j) from here on
 
 

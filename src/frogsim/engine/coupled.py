@@ -106,7 +106,7 @@ def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joint
     # angles that step_kernel writes into cs before each step; the sample at t = 0 reads the
     # initial observation, zero: the robot starts at rest at its flexed stops)
     laws = pm.laws if pm is not None else sampled_laws(g)
-    ds, cs = start(0.0, 1e-4, y, u, (sched_t, sched_u, laws, sc[S_CTRL_DT]))
+    ds, cs = start(0.0, 1e-4, y, u, mp, (sched_t, sched_u, laws, sc[S_CTRL_DT]))
     dt = sc[S_DT]
     n_steps = int(round(duration / dt))
     rec_every = max(1, int(round(output_interval / dt)))
@@ -441,8 +441,8 @@ class CoupledStepper:
         a["pal_t"], a["pal_target"] = np.zeros(0), np.zeros(0)
         a["sched_t"], a["sched_u"] = np.zeros(0), np.zeros((0, 2 * n))
         a["u"][:] = 0.0
-        ds, cs = start(0.0, 1e-4, a["y"], a["u"], (a["sched_t"], a["sched_u"], a["laws"],
-                                                    a["sc"][S_CTRL_DT]))
+        ds, cs = start(0.0, 1e-4, a["y"], a["u"], a["mp"], (a["sched_t"], a["sched_u"], a["laws"],
+                                                             a["sc"][S_CTRL_DT]))
         a["ds"], a["cs"] = ds, cs
         a["st"][T_PALM_TARGET] = 0.0
         self._keys = ("st", "y", "u", "ds", "cs", "frac", "frac_new", "vprev", "mot_t", "mot_L",

@@ -75,7 +75,7 @@ def run_coupled_python(cm, fn, progress=None) -> dict:
     laws = external_laws(a["laws"])
     a["laws"] = laws
     a["u"][:] = cm.pneumatic.u0
-    ds, cs = start(0.0, 1e-4, a["y"], a["u"], (a["sched_t"], a["sched_u"], laws, dt_ctrl))
+    ds, cs = start(0.0, 1e-4, a["y"], a["u"], a["mp"], (a["sched_t"], a["sched_u"], laws, dt_ctrl))
     a["ds"], a["cs"] = ds, cs
     rows = {cm.muscle_names[int(laws[c, L_MUSCLE])]: c for c in range(laws.shape[0])
             if laws[c, L_KIND] == KIND_EXTERNAL}

@@ -338,7 +338,7 @@ def _dopri_step(t, h, t_new, y, f, u, pump_on, model, atol, rtol, stages, aux, w
 
 
 @jit_step
-def _samples_in_step(laws, cs, t, t_new, h, y, f, stages, dense, ys, u, dense_ready):
+def _samples_in_step(laws, mp, cs, t, t_new, h, y, f, stages, dense, ys, u, dense_ready):
     """The controllers' samples t_k inside an accepted step (t, t_new] of length h, in order,
     each taken from the step's continuous extension (``dense`` = rc1..rc4; made here from the
     Dormand-Prince stages f, ``stages`` when ``dense_ready`` is False and a sample needs it) into
@@ -364,7 +364,7 @@ def _samples_in_step(laws, cs, t, t_new, h, y, f, stages, dense, ys, u, dense_re
                 _dopri_dense(h, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
                 dense_ready = True
             _dense(y, rc1, rc2, rc3, rc4, (t_s - t) / h, ys)
-        if sample_controllers(laws, t_s, ys, u, cs):
+        if sample_controllers(laws, mp, t_s, ys, u, cs):
             refresh = True
             if t_s < t_new - EPS:
                 t_cut = t_s
@@ -377,7 +377,7 @@ def _samples_in_step(laws, cs, t, t_new, h, y, f, stages, dense, ys, u, dense_re
 
 
 @jit_step
-def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, f, stages, dense, ys, u, u_prev,
+def _accept(ds, laws, mp, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, f, stages, dense, ys, u, u_prev,
             pump_on, out, out_i, stats):
     """An accepted step of length h from t to t_new (error norm err; the previous one err_old):
     the stiffness test (a Dormand-Prince step), the controllers' samples inside the step
@@ -416,7 +416,7 @@ def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, f
     for j in range(nu):
         u_prev[j] = u[j]
     pump_prev = pump_on
-    t_cut, refresh, dense_ready = _samples_in_step(laws, cs, t, t_new, h_try, y, f, stages, dense, ys, u,
+    t_cut, refresh, dense_ready = _samples_in_step(laws, mp, cs, t, t_new, h_try, y, f, stages, dense, ys, u,
                                                    dense_ready)
     if not dense_ready and (t_cut < t_new - EPS or (out_i < n_out and out_t[out_i] <= t_cut)):
         _dopri_dense(h_try, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
@@ -465,10 +465,11 @@ def _accept(ds, laws, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, f
 
 
 @jit_alloc
-def start(t0, h0, y, u, commands):
+def start(t0, h0, y, u, mp, commands):
     """Driver state ``ds`` and controller state ``cs`` of a run that starts at t0.
 
-    ``commands`` = (sched_t, sched_u, laws, ctrl_dt). The schedule entries due at t0 are written
+    ``commands`` = (sched_t, sched_u, laws, ctrl_dt); ``mp`` the model's muscle rows (a law that
+    models the valves reads their constants there). The schedule entries due at t0 are written
     into u, the controllers take the sample at or just before t0 (:func:`frogsim.control.sampled
     .start_controllers`), the first trial step is h0 [s].
     """
@@ -485,7 +486,7 @@ def start(t0, h0, y, u, commands):
                 u[j] = sched_u[si, j]
         si += 1
     ds[D_SI] = si
-    return ds, start_controllers(laws, t0, y, u, ctrl_dt)
+    return ds, start_controllers(laws, mp, t0, y, u, ctrl_dt)
 
 
 @jit
@@ -619,7 +620,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                 continue
             if err <= 1.0:
                 t, h_next, err_old, pump_on, out_i, refresh, status = _accept(
-                    ds, laws, cs, t, t_new, h_try, err, err_old, stiff, st_num, st_den, y, f, stages, dense, ys, u,
+                    ds, laws, mp, cs, t, t_new, h_try, err, err_old, stiff, st_num, st_den, y, f, stages, dense, ys, u,
                     u_prev, pump_on, out, out_i, stats)
                 if status != STATUS_OK:
                     break
@@ -683,11 +684,12 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
 
 
 @jit_alloc
-def begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
+def begin(y0, t0, u0, mp, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
     """Everything a run from t0 needs before its first :func:`advance`: output arrays (the rows at
     or before t0 hold the initial state), the state and valve vectors, the driver and controller
     states, the step statistics and the commands tuple. ``laws`` is the run's table of sampled
-    laws (``PneumaticModel.laws``: the pump's band and the closed-loop controllers)."""
+    laws (``PneumaticModel.laws``: the pump's band and the closed-loop controllers), ``mp`` the
+    model's muscle rows (the valves' constants a law's valve model reads)."""
     ny = y0.size
     nu = u0.size
     n_out = out_t.size
@@ -697,7 +699,7 @@ def begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
     y = y0.copy()
     u = u0.copy()
     commands = (sched_t, sched_u, laws, ctrl_dt)
-    ds, cs = start(t0, h0, y, u, commands)
+    ds, cs = start(t0, h0, y, u, mp, commands)
     out_i = 0
     while out_i < n_out and out_t[out_i] <= t0:
         for j in range(ny):
@@ -736,7 +738,8 @@ def run_schedule(y0, u0, t0, t_end, model, commands, solver, out_t, h0, pause_ev
     Returns (out_y, out_u, y_end, stats, status, t_reached, cs, u, ds).
     """
     sched_t, sched_u, laws, ctrl_dt = commands
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, laws, sched_t, sched_u, ctrl_dt, out_t, h0)
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, model[1], laws, sched_t, sched_u, ctrl_dt,
+                                                        out_t, h0)
     ds[D_PAUSE] = pause_every
     status = advance(t_end, y, u, ds, cs, model, commands, solver, (out_t, out_y, out_u), stats)
     status = finished_status(status, ds, out_t.size)

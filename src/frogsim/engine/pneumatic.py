@@ -166,8 +166,8 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
     # only them (run_schedule, the batched engine's entry, is compiled when a batch runs)
     y0, atol = model.start
     sched_t, sched_u, u0, _ = model.schedule
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, 0.0, u0, model.laws, sched_t, sched_u, ctrl_dt,
-                                                        model.out_t, h0)
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, 0.0, u0, model.mp, model.laws, sched_t, sched_u,
+                                                        ctrl_dt, model.out_t, h0)
     ds[D_PAUSE] = STEPS_PER_CALL
     circuit = model.rhs_model
     solver = (sc.solver.rtol, atol, sc.solver.max_step)
@@ -257,7 +257,8 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
     T = sc.duration
     y0, atol = model.start
     sched_t, sched_u, u0, _ = model.schedule
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, 0.0, u0, laws, sched_t, sched_u, dt, model.out_t, h0)
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, 0.0, u0, model.mp, laws, sched_t, sched_u, dt,
+                                                        model.out_t, h0)
     circuit = model.rhs_model
     solver = (sc.solver.rtol, atol, sc.solver.max_step)
     out = (model.out_t, out_y, out_u)

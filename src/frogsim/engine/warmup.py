@@ -88,8 +88,8 @@ def warm_up(part: str) -> None:
         _compile(I._rosenbrock_step, 0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, 1, wk, True, *vec, aux, work,
                  stats)
     elif part == "accept":
-        _compile(I._accept, a["ds"], a["commands"][2], a["cs"], 0.0, 1e-3, 1e-3, 0.5, 1e-4, False, 0.0, 1.0, y, f,
-                 a["stages"], a["dense"], f, u, u, 0.0, a["out"], 0, stats)
+        _compile(I._accept, a["ds"], a["commands"][2], model[1], a["cs"], 0.0, 1e-3, 1e-3, 0.5, 1e-4, False, 0.0,
+                 1.0, y, f, a["stages"], a["dense"], f, u, u, 0.0, a["out"], 0, stats)
         _compile(I._dense, y, *a["dense"], 0.5, f)
         J, piv = np.zeros((a["ny"], a["ny"])), np.zeros(a["ny"])      # pivots stored as floats
         _compile(I._lu, J, piv)
@@ -98,7 +98,7 @@ def warm_up(part: str) -> None:
         _compile(I.advance, 1.0, y, u, a["ds"], a["cs"], model, a["commands"], (1e-6, atol, 1e-3), a["out"], stats)
     elif part == "start":
         c = a["commands"]
-        _compile(I.begin, y, 0.0, u, c[2], c[0], c[1], c[3], a["out"][0], 1e-4)
+        _compile(I.begin, y, 0.0, u, model[1], c[2], c[0], c[1], c[3], a["out"][0], 1e-4)
     elif part == "measures":
         t, p = np.zeros(11), np.zeros((1, 11))
         _compile(_rises, t, p, p, p, np.zeros(1), 0.9)

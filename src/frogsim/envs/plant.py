@@ -88,8 +88,8 @@ class PneumaticPlant:
         empty_t, empty_u = np.zeros(0), np.zeros((0, nu))
         # the pump's band only: the valves are the agent's (a scenario's closed-loop controllers
         # are not run here)
-        _, _, y, u, ds, cs, stats, commands = begin(m.y0, 0.0, np.zeros(nu), sampled_laws(m.g), empty_t, empty_u,
-                                                    self.ctrl_dt, np.zeros(0), self.h0)
+        _, _, y, u, ds, cs, stats, commands = begin(m.y0, 0.0, np.zeros(nu), m.mp, sampled_laws(m.g), empty_t,
+                                                    empty_u, self.ctrl_dt, np.zeros(0), self.h0)
         self.y, self.u, self.ds, self.cs, self.stats = y, u, ds, cs, stats
         self.laws = commands[2]
         self.k = 0

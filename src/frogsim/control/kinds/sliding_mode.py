@@ -6,12 +6,11 @@ import math
 from dataclasses import dataclass
 
 from frogsim._jit import jit
-from frogsim.circuit.layout import Y_PE, Y_PS
+from frogsim.circuit.layout import M_CB, M_CC, M_CM, M_CRL, M_DB, M_DC, M_DM, M_DRL, Y_PE, Y_PS
 from frogsim.control.kinds.common import PressureTracking
 from frogsim.control.signals import B_MODE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, setpoint
-from frogsim.control.table import (L_BRANCH, L_CB, L_CC, L_CM, L_CRL, L_DB, L_DC, L_DEAD_C, L_DEAD_D, L_DM,
-                                   L_DRL, L_GAIN, L_HORIZON, L_PENALTY, L_RHOREF, L_TAMB, L_TREF, valve_row,
-                                   with_setpoint)
+from frogsim.control.table import (L_BRANCH, L_DEAD_C, L_DEAD_D, L_GAIN, L_HORIZON, L_MUSCLE, L_PENALTY,
+                                   L_RHOREF, L_TAMB, L_TREF, valve_row, with_setpoint)
 from frogsim.physics.flow import iso6358_mass_flow
 from frogsim.scenario.fields import quantity
 from frogsim.scenario.kinds import register
@@ -34,42 +33,37 @@ class SlidingModeSettings(PressureTracking):
         row = valve_row(ctx, CODE, self.muscle, self.sensor)
         row[L_HORIZON] = self.horizon
         row[L_PENALTY] = self.penalty
-        vc, vd = ctx.sc.valves.charge, ctx.sc.valves.discharge
-        # the controller's own valve model (Eq. 8)
-        row[L_CC], row[L_CB], row[L_CM], row[L_CRL] = (vc.sonic_conductance, vc.critical_ratio,
-                                                       vc.subsonic_index, vc.laminar_ratio)
-        row[L_DC], row[L_DB], row[L_DM], row[L_DRL] = (vd.sonic_conductance, vd.critical_ratio,
-                                                       vd.subsonic_index, vd.laminar_ratio)
         return [with_setpoint(row, self.setpoint, ctx.patm)]
 
 
 @jit
-def law(laws, c, cs, b, y, p, ts):
-    """The sliding-mode choice at ts."""
+def law(laws, mp, c, cs, b, y, p, ts):
+    """The sliding-mode choice at ts (``mp``: the model's muscle rows, whose valve constants the
+    law's valve model reads)."""
     sp, dsp = setpoint(laws, c, ts)
     cs[b + B_SP] = sp
-    return sliding_mode(laws, c, cs, b, y, p, sp, dsp)
+    return sliding_mode(laws, mp, c, cs, b, y, p, sp, dsp)
 
 
 @jit
-def mode_rates(laws, c, y, p):
+def mode_rates(laws, mp, c, y, p):
     """The controller's model of the muscle's pressure rate [Pa/s] under charge and under vent:
     Eq. (8) flows at the measured pressure p (source and exhaust at their pressures, every gas at
-    ambient temperature, the supply's branch limit) times k R T_amb / V."""
+    ambient temperature, the supply's branch limit) times k R T_amb / V. The valves' ISO 6358
+    constants are the plant's: the muscle's row of the model's ``mp`` (columns M_CC..M_DRL)."""
     T = laws[c, L_TAMB]
     rho = laws[c, L_RHOREF]
     Tr = laws[c, L_TREF]
-    mc = iso6358_mass_flow(y[Y_PS], T, p, T, laws[c, L_CC], laws[c, L_CB], laws[c, L_CM], laws[c, L_CRL],
-                           rho, Tr)
+    i = int(laws[c, L_MUSCLE])
+    mc = iso6358_mass_flow(y[Y_PS], T, p, T, mp[i, M_CC], mp[i, M_CB], mp[i, M_CM], mp[i, M_CRL], rho, Tr)
     mc = min(mc, laws[c, L_BRANCH])
-    md = iso6358_mass_flow(p, T, y[Y_PE], T, laws[c, L_DC], laws[c, L_DB], laws[c, L_DM], laws[c, L_DRL],
-                           rho, Tr)
+    md = iso6358_mass_flow(p, T, y[Y_PE], T, mp[i, M_DC], mp[i, M_DB], mp[i, M_DM], mp[i, M_DRL], rho, Tr)
     gain = laws[c, L_GAIN]
     return gain * mc, -gain * md
 
 
 @jit
-def sliding_mode(laws, c, cs, b, y, p, sp, dsp):
+def sliding_mode(laws, mp, c, cs, b, y, p, sp, dsp):
     """Multi-mode sliding control of the pressure with a switching penalty (after Hodgson et al.'s
     seven-mode sliding control, reduced to one muscle's three modes).
 
@@ -81,7 +75,7 @@ def sliding_mode(laws, c, cs, b, y, p, sp, dsp):
     reduce s^2 by at least rho^2, which is a dead band around s = 0 whose width the penalty rho
     sets.
     """
-    r_charge, r_vent = mode_rates(laws, c, y, p)
+    r_charge, r_vent = mode_rates(laws, mp, c, y, p)
     last = cs[b + B_MODE]
     r_last = r_charge if last > 0 else (r_vent if last < 0 else 0.0)
     dead = max(laws[c, L_DEAD_C], laws[c, L_DEAD_D])
