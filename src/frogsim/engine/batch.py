@@ -354,10 +354,13 @@ def run_outputs(models, columns: tuple | None = None) -> tuple[list, dict]:
         if status != STATUS_OK:
             failures[b] = _failure(b, name, t_r, status)
             continue
-        key = (t.size, float(t[-1]))
-        grid = grids.setdefault(key, [t, names, [], [], [], [], [], []])
-        if grid[0] is not t and not np.array_equal(grid[0], t):
-            raise ValueError("runs with the same number of outputs and end time on different grids")
+        # one group per distinct time grid (grids of the same length and end can still differ:
+        # 1 s at 0.2 s and at 0.237 s both have six rows)
+        same = grids.setdefault((t.size, float(t[-1])), [])
+        grid = next((gr for gr in same if gr[0] is t or np.array_equal(gr[0], t)), None)
+        if grid is None:
+            grid = [t, names, [], [], [], [], [], []]
+            same.append(grid)
         grid[2].append(b)
         grid[3].append(oy)
         grid[4].append(ou)
@@ -365,5 +368,5 @@ def run_outputs(models, columns: tuple | None = None) -> tuple[list, dict]:
         grid[6].append(g[L.G_PATM])
         grid[7].append(g[L.G_RHOREF])
     groups = [(np.array(rows), Outputs(t, names, np.array(opens), np.array(patm), np.array(rho), ys, us))
-              for t, names, rows, ys, us, opens, patm, rho in grids.values()]
+              for same in grids.values() for t, names, rows, ys, us, opens, patm, rho in same]
     return groups, failures
