@@ -128,6 +128,12 @@ def test_compare_overlays_differently_named_muscles(tmp_path, capsys):
                  ":hip_left pressure", "--out", str(out2), "--quiet"]) == 0
     again = pd.read_csv(out2 / "one-hip.csv")
     assert np.array_equal(again.iloc[:, 1].to_numpy(), own["hip pressure [bar gauge]"].to_numpy())
+    # a bare muscle name is that muscle's pressure: one-hip:hip with paper:hip_left
+    out3 = tmp_path / "cmp3"
+    assert main(["compare", f"{tmp_path / 'one-hip'}:hip", f"{tmp_path / 'paper'}:hip_left",
+                 "--out", str(out3), "--quiet"]) == 0
+    bare = pd.read_csv(out3 / "hip-pressure.csv")
+    assert bare.equals(table)
 
 
 @pytest.mark.parametrize("damage, words", [

@@ -549,9 +549,9 @@ def build_parser() -> argparse.ArgumentParser:
                        epilog="signals: 'source pressure', 'exhaust pressure', 'hip_left pressure', "
                               "'hip_left volume', 'hip_left charge flow', 'hip_left charged air', "
                               "'hip_left charge valve', 'pump on', ... or a column name of timeseries.csv; "
-                              "a wrong name lists those available. RUN:SIGNAL takes that run's own signal "
-                              "(muscles named differently): frogsim compare one-hip:'hip pressure' "
-                              "paper-cycle:'hip_left pressure' --out cmp. Example: frogsim compare runs/slow "
+                              "a wrong name lists those available; a muscle's name alone is its pressure. RUN:SIGNAL "
+                              "takes that run's own signal (muscles named differently): frogsim compare "
+                              "one-hip:hip paper-cycle:hip_left --out cmp. Example: frogsim compare runs/slow "
                               "runs/fast paper-cycle --signal 'hip_left pressure' --out cmp")
     s.add_argument("inputs", nargs="+", metavar="RUN[:SIGNAL]",
                    help="a folder written by frogsim simulate or swim (its timeseries.csv is read), a CSV "

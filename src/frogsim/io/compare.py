@@ -224,6 +224,10 @@ def prepare(inputs: list[str], signal: str | None) -> list[Run]:
                                                              f"or write it RUN:SIGNAL")
             r.signal_name = signal
     for r in runs:
+        # a bare muscle name means its pressure: one:hip overlays with two:hip_left
+        if r.signal() is None and r.lookup(f"{r.signal_name} pressure") is not None:
+            r.signal_name = f"{r.signal_name} pressure"
+    for r in runs:
         if r.signal() is None:
             own = r.signal_name != signal
             names = list(dict.fromkeys(signal_of(c)[0] for c in r.columns if not _is_time(c)))
