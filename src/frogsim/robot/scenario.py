@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 from frogsim.scenario.fields import build, choice, flag, quantity, unwrap
 from frogsim.scenario.core import Scenario
+from frogsim.scenario.motion import whole_steps
 from frogsim.scenario.schema import Motion, Muscle, Program
 from frogsim.control.gait import Gait, muscle_programs
 from frogsim.scenario.kinds import KINDS
@@ -136,19 +137,12 @@ def check_joint_setpoints(sc: Scenario, robot: RobotParams) -> None:
                                 f"(joints.{c.joint.split('_')[0]}.range)")
 
 
-def whole_steps(value: float, step: float) -> bool:
-    """True if ``value`` is a whole number (at least one) of ``step``s, to a millionth of a step
-    (the rule of :func:`frogsim.scenario.motion.output_times`)."""
-    r = value / step
-    return round(r) >= 1 and abs(r - round(r)) <= 1e-6
-
-
 def check_step_grid(output_interval: float, period: float, timestep: float) -> None:
     """The coupled engine records whole MuJoCo steps (t_k = k robot.timestep): the output interval
     and the gait's period (so the run's duration) must be whole numbers of steps, or a recorded
     row would not be at the time its name says."""
     for path, value in (("output_interval", output_interval), ("gait.period", period)):
-        if not whole_steps(value, timestep):
+        if whole_steps(value, timestep) is None:
             raise ScenarioError(path, f"{value * 1e3:g} ms", f"must be a whole number of robot.timestep "
                                                              f"steps ({timestep * 1e3:g} ms): the robot is "
                                                              f"recorded at its MuJoCo steps")

@@ -152,27 +152,29 @@ def muscle_knots(mname, m, mt, rate, file_key, base_dir) -> MotionKnots:
     return knots
 
 
+def whole_steps(value: float, step: float) -> int | None:
+    """The whole number n >= 1 of ``step``s that ``value`` is, to a millionth of a step (the
+    ratio's rounding error, 0.3 / 0.1 = 2.9999999999999996, is far below that); None if it is not
+    a whole number of steps."""
+    r = value / step
+    n = round(r)
+    return n if n >= 1 and abs(r - n) <= 1e-6 else None
+
+
 def output_times(duration: float, interval: float) -> np.ndarray:
     """The output grid [s]: whole sample indices t_k = k * interval, the last row at the duration
     exactly.
 
-    The number of whole intervals n is counted so that a duration that is a whole multiple of the
-    interval up to rounding gives n itself, with its last sample set to the duration: 0.3 s / 0.1 s
-    is 2.9999999999999996 in floating point and 3 * 0.1 = 0.30000000000000004, one unit in the last
-    place past the end, a row no run reaches. A duration that is not a whole multiple (its last
-    interval would differ from the others by more than a millionth of an interval) gets one more,
-    shorter, last row at the duration. So every row lies in [0, duration],
-    the grid is strictly increasing and ends at the duration: a run that reaches its end writes
-    every row.
+    When the duration is a whole number n of intervals (:func:`whole_steps`), the grid has n + 1
+    rows and its last time is set to the duration: 0.3 s / 0.1 s is 2.9999999999999996 in floating
+    point and 3 * 0.1 = 0.30000000000000004, one unit in the last place past the end, a row no run
+    reaches. Otherwise one more, shorter, last row at the duration follows the whole intervals. So
+    every row lies in [0, duration], the grid is strictly increasing and ends at the duration: a
+    run that reaches its end writes every row.
     """
-    r = duration / interval
-    n = round(r)
-    whole = n >= 1 and abs(r - n) <= 1e-6
-    if not whole:
-        n = math.floor(r)
-    t = np.arange(n + 1) * interval
-    if whole:
+    n = whole_steps(duration, interval)
+    if n is not None:
+        t = np.arange(n + 1) * interval
         t[-1] = duration
-    else:
-        t = np.append(t, duration)
-    return t
+        return t
+    return np.append(np.arange(math.floor(duration / interval) + 1) * interval, duration)
