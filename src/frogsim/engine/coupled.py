@@ -86,16 +86,20 @@ class CoupledModel:
 
 
 def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joints, duration,
-              output_interval) -> CoupledModel:
+              output_interval, hysteresis=None) -> CoupledModel:
     """Allocate every array the kernel needs and put the static added masses into the model.
 
-    ``circuit`` = (g, mp, y, u, sched_t, sched_u, atol).
+    ``circuit`` = (g, mp, y, u, sched_t, sched_u, atol). ``hysteresis``: None (the force law
+    without memory), or (anchors (n, N), stiffness (N,), slip (N,)): the muscles' slip elements
+    (:func:`frogsim.physics.hysteresis.muscle_hysteresis_force`), anchors at their start.
     """
     mujoco = import_mujoco()
     g, mp, y, u, sched_t, sched_u, atol = circuit
     el, strip_s, strip_k, pa = tables
     pal_t, pal_target = palms_cmd
     n = mu.shape[0]
+    # no elements (N = 0) when the law has no memory: the kernel then skips the hysteresis
+    hyst = hysteresis if hysteresis is not None else (np.zeros((n, 0)), np.zeros(0), np.zeros(0))
     ids = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joints]
     leg_qpos = np.array([m.jnt_qposadr[i] for i in ids], np.int64)
     leg_dof = np.array([m.jnt_dofadr[i] for i in ids], np.int64)
@@ -119,6 +123,7 @@ def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joint
         ds=ds, cs=cs, mot_t=np.zeros((n, 4)), mot_L=np.zeros((n, 4)), mot_d=np.zeros((n, 4)),
         mot_n=np.full(n, 4, np.int64), sched_t=sched_t, sched_u=sched_u, laws=laws, atol=atol,
         stats=np.zeros(STATS_SIZE, np.int64), vprev=np.zeros((el.shape[0], 3)), tension=np.zeros(n),
+        anchors=hyst[0], slip_k=hyst[1], slip_f=hyst[2],
         rec=np.full((record_rows(n_steps, rec_every), cols["size"]), np.nan), leg_qpos=leg_qpos,
         leg_dof=leg_dof)
     apply_added_mass(el, arrays["pa"], frac, False, m.body_mass, m.body_ipos, m.body_inertia,
@@ -198,15 +203,29 @@ def build_coupled(rs) -> CoupledModel:
                     rs.pneumatic.solver.rtol, rs.pneumatic.solver.max_step, rs.robot.muscle_force)
     # the muscles' air at ambient temperature in their actual initial volumes
     y = pm.y0.copy()
+    contraction = np.zeros(len(names))
     for i in range(len(names)):
         L = d.ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
         V = muscle_volume(L, pm.mp[i, CL.M_B0], pm.mp[i, CL.M_N]) + pm.mp[i, CL.M_DEAD]
         y[CL.mass_index(i)] = y[CL.pressure_index(i)] * V / (pm.g[CL.G_R] * pm.g[CL.G_TAMB])
+        contraction[i] = 1.0 - L / pm.mp[i, CL.M_L0]
     circuit = (pm.g, pm.mp, y, pm.u0.copy(), pm.sched_t, pm.sched_u, pm.atol)
     joints = [f"{j}_{s}" for s in ("left", "right") for j in ("hip", "knee", "ankle")]
     return _assemble(rs.name, rs, xml, m, d, pm, circuit, mu, tables,
                      palm_commands(rs.gait, rs.pneumatic.controller.rate), sc, joints,
-                     rs.duration, rs.pneumatic.output_interval)
+                     rs.duration, rs.pneumatic.output_interval,
+                     _hysteresis(rs.robot.muscle_force, contraction))
+
+
+def _hysteresis(law, contraction):
+    """The muscles' slip elements for the kernel (see :func:`_assemble`), or None for a law without
+    memory. Every element's anchor starts at its muscle's contraction at t = 0: the muscle starts
+    relaxed, without a hysteresis force, whatever path it took to its start."""
+    if law.hysteresis == "none":
+        return None
+    from frogsim.physics.hysteresis import element_table
+    k, f = element_table(law.slip_elements, law.slip_per_pressure, law.slip_strain)
+    return np.repeat(contraction[:, None], k.size, axis=1), k, f
 
 
 def build_bare(xml: str, tables, density: float, gravity: float, duration: float,
@@ -230,7 +249,8 @@ def build_bare(xml: str, tables, density: float, gravity: float, duration: float
 
 #: step_kernel's groups of arrays (before MuJoCo's), by their names in CoupledModel.arrays
 KERNEL_GROUPS = (("sc", "st", "rec"), ("el", "strip_s", "strip_k", "pa", "vprev"),
-                 ("pal_t", "pal_target", "frac", "frac_new", "leg_qpos", "leg_dof"), ("mu", "tension"),
+                 ("pal_t", "pal_target", "frac", "frac_new", "leg_qpos", "leg_dof"),
+                 ("mu", "tension", "anchors", "slip_k", "slip_f"),
                  ("y", "u", "ds", "cs", ("g", "mp", "mot_t", "mot_L", "mot_d", "mot_n"), "sched_t", "sched_u",
                   "laws", "atol", "stats"))
 
@@ -258,7 +278,7 @@ def kernel_args(cm: CoupledModel) -> tuple:
     a = cm.arrays          # written out (the order of KERNEL_GROUPS): called once per controller period
     return ((a["sc"], a["st"], a["rec"]), (a["el"], a["strip_s"], a["strip_k"], a["pa"], a["vprev"]),
             (a["pal_t"], a["pal_target"], a["frac"], a["frac_new"], a["leg_qpos"], a["leg_dof"]),
-            (a["mu"], a["tension"]),
+            (a["mu"], a["tension"], a["anchors"], a["slip_k"], a["slip_f"]),
             (a["y"], a["u"], a["ds"], a["cs"], (a["g"], a["mp"], a["mot_t"], a["mot_L"], a["mot_d"], a["mot_n"]),
              a["sched_t"], a["sched_u"], a["laws"], a["atol"], a["stats"]), _mujoco_views(cm))
 
@@ -446,7 +466,7 @@ class CoupledStepper:
         a["ds"], a["cs"] = ds, cs
         a["st"][T_PALM_TARGET] = 0.0
         self._keys = ("st", "y", "u", "ds", "cs", "frac", "frac_new", "vprev", "mot_t", "mot_L",
-                      "mot_d", "mot_n", "stats", "tension")
+                      "mot_d", "mot_n", "stats", "tension", "anchors")
         self._saved = {k: a[k].copy() for k in self._keys}
         m = cm.mjm
         self._model_saved = {k: getattr(m, k).copy() for k in

@@ -7,7 +7,10 @@ Each MuJoCo step of length dt (``robot.timestep``) runs
 and the kernel does, with the state at the start of the step:
 
 1. muscle tensions from the muscle pressures at t and the tendon lengths MuJoCo reports
-   (:func:`frogsim.physics.muscle_force.muscle_force`), written as actuator controls;
+   (:func:`frogsim.physics.muscle_force.muscle_force`; with hysteresis on, less the slip
+   elements' force, :func:`frogsim.physics.muscle_force.hysteretic_tension`, which slides their
+   anchors: the memory is updated once per MuJoCo step, exactly, as the model is rate independent),
+   written as actuator controls;
 2. the steering motors move the palms toward their commanded opening at their travel rate;
 3. the water's forces on every part (:mod:`frogsim.physics.hydro`, :mod:`frogsim.robot.water`):
    strip drag, buoyancy and added mass, written to ``xfrc_applied``;
@@ -56,7 +59,7 @@ from frogsim.engine.integrator import D_REUSE_F, advance
 from frogsim.physics.hydro import (added_mass_rate_force, buoyancy, cross, fan_added_mass,
                                    isotropic_added_mass, kirchhoff_velocity_force, munk_moment,
                                    strip_drag_wrench)
-from frogsim.physics.muscle_force import muscle_force
+from frogsim.physics.muscle_force import hysteretic_tension, muscle_force
 from frogsim.robot.water import (E_BODY, E_C0, E_FAN, E_HEAVE, E_I0, E_IA, E_LIMB, E_M0, E_MA,
                                  E_VOL, E_XA, E_XB, P_PHI_FOLD, P_PHI_OPEN, P_RATE)
 
@@ -116,7 +119,7 @@ def apply_added_mass(el, pa, frac, only_palms, body_mass, body_ipos, body_inerti
 
 @jit
 def step_kernel_loose(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, pal_t, pal_target, frac,
-                      frac_new, leg_qpos, leg_dof, mu, tension, y, u, ds, cs, g, mp, mot_t, mot_L, mot_d, mot_n,
+                      frac_new, leg_qpos, leg_dof, mu, tension, anchors, slip_k, slip_f, y, u, ds, cs, g, mp, mot_t, mot_L, mot_d, mot_n,
                       sched_t, sched_u, laws, atol, stats, ten_length, ten_velocity, xpos, xmat, xipos, cvel,
                       subtree_com, body_rootid, body_parentid, body_mass, body_ipos, body_inertia,
                       body_subtreemass, ctrl, xfrc, qpos, qvel):
@@ -124,7 +127,8 @@ def step_kernel_loose(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, v
     groups' arrays in their order, loose (:func:`frogsim.engine.coupled.kernel_loose_args`), which
     Numba's dispatcher unboxes faster than tuples; the groups are made again in compiled code."""
     return step_kernel(k, stepping, row, (sc, st, rec), (el, strip_s, strip_k, pa, vprev),
-                       (pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof), (mu, tension),
+                       (pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof),
+                       (mu, tension, anchors, slip_k, slip_f),
                        (y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), sched_t, sched_u, laws, atol, stats),
                        (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid,
                         body_mass, body_ipos, body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel))
@@ -143,7 +147,9 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
       each part's velocity at the last step (vprev);
     * ``body``: palms' command times and targets (pal_t, pal_target), their openings now and after
       the step (frac, frac_new), the leg joints' qpos and dof addresses (leg_qpos, leg_dof);
-    * ``muscles``: the muscle table (mu: U_*) and the muscles' tensions;
+    * ``muscles``: the muscle table (mu: U_*), the muscles' tensions, and their hysteresis: the
+      slip elements' anchors (n, N: the memory), stiffness and slip per pascal (N each); N = 0
+      for a force law without memory (:func:`frogsim.physics.hysteresis.muscle_hysteresis_force`);
     * ``pneumatics``, as :func:`frogsim.engine.integrator.advance` takes them: state y, valve
       states u, driver and controller states ds and cs, the circuit (g, mp and the muscles'
       length paths mot_*: advance's ``model`` tuple), schedule (sched_t, sched_u), sampled rules
@@ -160,7 +166,7 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
     sc, st, rec = records
     el, strip_s, strip_k, pa, vprev = water
     pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof = body
-    mu, tension = muscles
+    mu, tension, anchors, slip_k, slip_f = muscles
     y, u, ds, cs, circuit, sched_t, sched_u, laws, atol, stats = pneumatics
     g, mp, mot_t, mot_L, mot_d, mot_n = circuit
     (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass,
@@ -196,11 +202,15 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
     # -- 1. muscle tensions from the pressures at t ------------------------------------------------
     patm = g[CL.G_PATM]
     law = int(sc[S_LAW])
+    elements = anchors.shape[1]
     for i in range(n):
         L = ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
         tension[i] = muscle_force(law, y[CL.pressure_index(i)] - patm, L, mp[i, CL.M_L0],
                                   mp[i, CL.M_B0], mp[i, CL.M_N], sc[S_BLADDER], sc[S_BLADDER + 1],
                                   sc[S_BLADDER + 2], sc[S_BLADDER + 3], sc[S_BLADDER + 4])
+        if elements > 0:
+            tension[i] = hysteretic_tension(tension[i], y[CL.pressure_index(i)] - patm,
+                                            1.0 - L / mp[i, CL.M_L0], anchors[i], slip_k, slip_f)
         ctrl[int(mu[i, U_ACT])] = tension[i]
     # -- 2. palms: commands on the controller grid, motors at their travel rate ----------------------
     npal = pa.shape[0]

@@ -22,12 +22,18 @@ max(0, .) is the slack muscle: a tension-only actuator carries no compression. T
 are fitted to the force-contraction curves of FESTO's sizing data for the DMSP-20 at 1, 3 and 5 bar
 (:mod:`frogsim.components.dmsp20`) and checked against the 2, 4 and 6 bar curves in the tests.
 With them the muscle pulls 1499 N at 6 bar and 0 % contraction and about 110 N at 25 %.
+
+Hysteresis (off unless the parameter set's ``[muscle_force] hysteresis = "maxwell-slip"``):
+:func:`hysteretic_tension` subtracts the force of Maxwell-slip elements on the contraction
+(:mod:`frogsim.physics.hysteresis`), T = max(0, F - F_h), so the muscle pulls less while it shortens
+and more while it is stretched. With it off the engines call :func:`muscle_force` alone.
 """
 from __future__ import annotations
 
 import math
 
 from frogsim._jit import jit
+from frogsim.physics.hysteresis import muscle_hysteresis_force
 
 MODEL_IDEAL = 0      # Chou-Hannaford alone (slack below zero)
 MODEL_DMSP20 = 1     # Chou-Hannaford minus the fitted bladder force
@@ -80,4 +86,18 @@ def muscle_force(model: int, p_gauge: float, L: float, L0: float, b0: float, n: 
     if model == MODEL_DMSP20:
         f -= bladder_force(1.0 - L / L0, force_scale, strain_scale, stiffness, stretch_stiffness,
                            stretch_quadratic)
+    return f if f > 0.0 else 0.0
+
+
+@jit
+def hysteretic_tension(static_tension: float, p_gauge: float, contraction: float, anchors,
+                       stiffness, slip) -> float:
+    """Tension with hysteresis: max(0, F - F_h) [N], F the static tension (:func:`muscle_force`),
+    F_h :func:`frogsim.physics.hysteresis.muscle_hysteresis_force` (its anchors slide, in place).
+
+    Never negative; a muscle the static law leaves slack can pull while it is stretched (F_h < 0:
+    its braid's friction resists the stretch). Args as muscle_hysteresis_force's, p_gauge [Pa],
+    contraction 1 - L/L0 [-].
+    """
+    f = static_tension - muscle_hysteresis_force(p_gauge, contraction, anchors, stiffness, slip)
     return f if f > 0.0 else 0.0

@@ -20,13 +20,21 @@ SIDES = ("left", "right")
 
 @dataclass(frozen=True)
 class MuscleForceLaw:
-    """Force law of the DMSP-20 muscles (:mod:`frogsim.physics.muscle_force`)."""
+    """Force law of the DMSP-20 muscles (:mod:`frogsim.physics.muscle_force`), with its optional
+    hysteresis (off: ``hysteresis = "none"``, the default; :mod:`frogsim.physics.hysteresis`)."""
     model: str = choice(("dmsp20", "ideal"), doc="ideal: Chou-Hannaford only")
     force_scale: float = quantity("force", ge=0.0, display="N")
     strain_scale: float = quantity("dimensionless", gt=0.0, le=1.0, display="%")
     stiffness: float = quantity("force", ge=0.0, display="N", doc="per unit contraction")
     stretch_stiffness: float = quantity("force", ge=0.0, display="N", doc="per unit strain")
     stretch_quadratic: float = quantity("force", ge=0.0, display="N", doc="per unit strain squared")
+    hysteresis: str = choice(("none", "maxwell-slip"), default="none",
+                             doc="maxwell-slip: slip elements on the contraction (physics/hysteresis.py)")
+    slip_elements: int = integer(ge=1, le=32, default=4, doc="number of Maxwell-slip elements")
+    slip_per_pressure: float = quantity("area", ge=0.0, le=1e-2, display="N/bar", default=0.0,
+                                        doc="half the loop's height per gauge pressure")
+    slip_strain: float = quantity("dimensionless", gt=0.0, le=0.5, display="%", default=0.01,
+                                  doc="the widest element's slide-free contraction")
 
 
 @dataclass(frozen=True)
