@@ -15,6 +15,19 @@ its unit in brackets, one row per measured point, several pressures in one file:
 * ``force``: the muscle's tension (``[N]``, ``[kN]``, ``[lbf]``). Rows with a negative force (a push
   needed to hold the muscle shorter than it contracts on its own) cannot be matched by a
   tension-only law: they are left out, and the fit's warnings say how many.
+* ``direction`` (optional, no unit): ``loading`` or ``unloading`` on each row, the branch of a
+  measured hysteresis loop the point lies on, given explicitly (not derived from the order of the
+  rows: a table may list its points in any order, and a datasheet's loop is read off a figure
+  branch by branch). At constant pressure, loading is the muscle being stretched (its contraction
+  falling, its tension rising) and unloading the muscle shortening (contraction rising, tension
+  falling).
+
+With hysteresis (the parameter set's ``hysteresis = "maxwell-slip"``, or a fit of
+``muscle_force.slip_per_pressure`` / ``muscle_force.slip_strain``), a row's model force is the
+static law less the Maxwell-slip force on its branch of the major loop between the smallest and
+largest contraction the table holds at that pressure (each branch leaves its turning point with
+the elements settled there: :func:`frogsim.physics.hysteresis.settle_on_major_loop`). A row
+without a direction is on the static law (the loop's middle).
 
 The model of a row is :func:`frogsim.components.dmsp20.law_forces`: the parameter set's force law
 (:mod:`frogsim.physics.muscle_force`) for the braid of one muscle type of the base scenario
@@ -35,8 +48,13 @@ from frogsim.scenario.units import parse_quantity
 
 #: the force law's constants, in the order of :func:`frogsim.physics.muscle_force.muscle_force`
 CONSTANTS = ("force_scale", "strain_scale", "stiffness", "stretch_stiffness", "stretch_quadratic")
+#: the hysteresis's fittable settings (the element count and the switch are not fitted)
+HYSTERESIS = ("slip_per_pressure", "slip_strain")
 PREFIX = "muscle_force."
 COLUMNS = ("pressure", "contraction", "force")
+#: the optional label column: its values, and the branch each means (+1: contraction rising)
+DIRECTION = "direction"
+DIRECTIONS = {"loading": -1, "unloading": 1}
 #: braid settings of a muscle type that also enter the force law
 GEOMETRY = ("inner_diameter", "braid_angle")
 
@@ -45,7 +63,7 @@ def law_meta() -> dict:
     """Dotted path -> field metadata of the force law's constants (``muscle_force.<name>``)."""
     from frogsim.robot.params import MuscleForceLaw
     return {PREFIX + f.name: dict(f.metadata) for f in dataclasses.fields(MuscleForceLaw)
-            if f.name in CONSTANTS}
+            if f.name in CONSTANTS + HYSTERESIS}
 
 
 def base_law(scenario):
@@ -70,6 +88,7 @@ class ForceTable:
     force: np.ndarray
     columns: dict               # quantity -> header as written
     dropped: int = 0
+    direction: np.ndarray | None = None     # per row: +1 unloading, -1 loading (None: no column)
 
     @property
     def name(self) -> str:
@@ -104,8 +123,12 @@ def read_force_table(path, scenario) -> ForceTable:
         raise ScenarioError(f"force table {fname!r}", UNKNOWN, "holds no rows of data")
     patm = scenario.air.atmospheric_pressure_abs
     cols, unknown = {}, []
+    direction = None
     for col in df.columns:
         col = str(col)
+        if col.strip().lower() == DIRECTION:
+            direction = _directions(df, fname, col)
+            continue
         name, unit = _parse_header(fname, col)
         key = name.lower()
         if key not in COLUMNS:
@@ -123,7 +146,7 @@ def read_force_table(path, scenario) -> ForceTable:
     if unknown:
         raise ScenarioError(f"force table {fname!r}", UNKNOWN,
                             f"columns it cannot use: {', '.join(map(repr, unknown))} (a force table has "
-                            "pressure, contraction and force, each with its unit)")
+                            "pressure, contraction and force, each with its unit, and optionally direction)")
     missing = [k for k in COLUMNS if k not in cols]
     if missing:
         raise ScenarioError(f"force table {fname!r}", UNKNOWN,
@@ -148,7 +171,20 @@ def read_force_table(path, scenario) -> ForceTable:
         raise _col_error(fname, cols["force"][0], "no row with a positive force (tension) to fit")
     return ForceTable(path=str(path), pressure=np.maximum(p[keep], 0.0), contraction=eps[keep],
                       force=force[keep], columns={k: c[0] for k, c in cols.items()},
-                      dropped=int((~keep).sum()))
+                      dropped=int((~keep).sum()),
+                      direction=None if direction is None else direction[keep])
+
+
+def _directions(df, fname: str, col: str) -> np.ndarray:
+    """The direction column as +1 (unloading) / -1 (loading), or a ScenarioError naming the row."""
+    out = np.zeros(df.shape[0], np.int64)
+    for k, v in enumerate(df[col]):
+        key = str(v).strip().lower()
+        if key not in DIRECTIONS:
+            raise _col_error(fname, col, f"{str(v)[:40]!r} in data row {k + 1}: expected loading (the muscle "
+                                         "stretched) or unloading (the muscle shortening)")
+        out[k] = DIRECTIONS[key]
+    return out
 
 
 class ForceModel:
@@ -169,13 +205,54 @@ class ForceModel:
         pre = f"muscle_types.{self.muscle_type}."
         return tuple(float(point.get(pre + g, self.geometry[g])) for g in GEOMETRY)
 
-    def forces(self, point: dict, pressure=None, contraction=None) -> np.ndarray:
-        """Model forces [N] at the table's rows (or at the given pressures and contractions)."""
+    def hysteresis(self, point: dict) -> tuple | None:
+        """(stiffness, slip) per pascal of the law's slip elements at this point, or None when the
+        law has no memory (module docstring)."""
+        from frogsim.physics.hysteresis import element_table
+        fitted = any(PREFIX + k in point for k in HYSTERESIS)
+        if self.law.hysteresis == "none" and not fitted:
+            return None
+        c, s = (float(point.get(PREFIX + k, getattr(self.law, k))) for k in HYSTERESIS)
+        return element_table(self.law.slip_elements, c, s)
+
+    def forces(self, point: dict, pressure=None, contraction=None, direction=None) -> np.ndarray:
+        """Model forces [N] at the table's rows (or at the given pressures, contractions and
+        directions: +1 unloading, -1 loading, 0 or None the static law)."""
         from frogsim.components.dmsp20 import law_forces
-        pressure = self.table.pressure if pressure is None else pressure
-        contraction = self.table.contraction if contraction is None else contraction
+        rows = pressure is None
+        pressure = self.table.pressure if rows else np.asarray(pressure, float)
+        contraction = self.table.contraction if rows else np.asarray(contraction, float)
+        if rows:
+            direction = self.table.direction
         d, theta = self.braid(point)
-        return law_forces(pressure, contraction, self.constants(point), d, theta, model=self.model)
+        static = law_forces(pressure, contraction, self.constants(point), d, theta, model=self.model)
+        elements = self.hysteresis(point)
+        if elements is None or direction is None:
+            return static
+        return branch_forces(static, pressure, contraction, np.asarray(direction), *elements,
+                             self.table.pressure, self.table.contraction)
+
+
+def branch_forces(static, pressure, contraction, direction, stiffness, slip, table_pressure,
+                  table_contraction) -> np.ndarray:
+    """Tensions [N] on the major loop's branches: at each row, the static tension less the slip
+    elements' force after the branch (direction +1 rising, -1 falling contraction) has left its
+    turning point, the table's smallest / largest contraction at that row's pressure; rows of
+    direction 0 keep the static tension."""
+    from frogsim.physics.hysteresis import settle_on_major_loop
+    from frogsim.physics.muscle_force import hysteretic_tension
+    out = np.array(static, dtype=float)
+    anchors = np.zeros(stiffness.size)
+    for k in range(out.size):
+        if direction[k] == 0:
+            continue
+        at = table_contraction[table_pressure == pressure[k]]
+        low, high = (float(at.min()), float(at.max())) if at.size else (contraction[k], contraction[k])
+        settle_on_major_loop(anchors, min(low, contraction[k]), max(high, contraction[k]), stiffness,
+                             slip, direction[k] > 0)
+        out[k] = hysteretic_tension(float(static[k]), float(pressure[k]), float(contraction[k]), anchors,
+                                    stiffness, slip)
+    return out
 
 
 

@@ -111,6 +111,17 @@ def element_table(elements: int, slip_per_pressure: float, slip_strain: float):
     return slip / widths, slip
 
 
+def settle_on_major_loop(anchors, low: float, high: float, stiffness, slip, rising: bool) -> None:
+    """Put the anchors (in place) where a path swinging between ``low`` and ``high`` leaves them at
+    its last turning point: ``low`` if ``rising`` (the branch that follows climbs from it), else
+    ``high``. Two full swings wipe out the memory of any start inside [low, high] (every element
+    that can slide within the swing has slid to the same place); elements narrower than the swing
+    keep nothing of the start, the others do not slide at all and start at its middle."""
+    anchors[:] = 0.5 * (low + high)
+    for x in ((high, low, high, low) if rising else (low, high, low, high)):
+        maxwell_slip_force(x, anchors, stiffness, slip)
+
+
 @jit
 def slip_work(anchors_before, anchors_after, slip) -> float:
     """Work the elements' slipping dissipates over one update: sum_i f_i |a_i' - a_i|  [J]."""

@@ -1,0 +1,286 @@
+"""Force hysteresis of the muscle (Maxwell-slip on the contraction, frogsim.physics.hysteresis), as the
+engines and the force-table fit use it, against closed forms and the energy balance.
+
+* a loop closes and repeats; its area in the (length, tension) plane equals the work the slipping
+  elements dissipate (sum of f_j |da_j|) and the closed form sum_j 4 f_j (X - w_j): the static law
+  is conservative and adds nothing to the area;
+* a minor loop returns to the major loop where it left it (return-point memory);
+* the loop does not depend on the rate (how finely the same path is sampled) in the model, nor on
+  the cycling frequency in the coupled engine beyond what the dynamics change;
+* off (the default): the coupled engine's tensions are the static law's, bit for bit, computed
+  again from the recorded pressures and lengths; on, they are the static law less the slip force
+  replayed over the recorded path;
+* force tables: a direction column (loading / unloading) is read and checked, and the fit recovers
+  the slip parameters of a loop made with known ones and noise.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import frogsim
+from frogsim.errors import ScenarioError
+from frogsim.physics.hysteresis import (element_table, loop_area, maxwell_slip_force,
+                                        muscle_hysteresis_force, settle_on_major_loop, slip_work)
+from frogsim.physics.muscle import braid_parameters
+from frogsim.physics.muscle_force import MODEL_DMSP20, hysteretic_tension, muscle_force
+from frogsim.scenario.load import merged_raw
+
+BAR = 1e5
+L0 = 0.18
+B0, NT = braid_parameters(L0, 0.020, math.radians(25.3))
+BLADDER = (141.6, 0.02155, 552.9, 6302.0, 229100.0)          # fan2017 [muscle_force]
+C_SLIP = 10.0 / BAR        # 10 N/bar: half the loop's height per gauge pressure [N/Pa]
+S_SLIP = 0.01              # the widest element's width (1 % contraction)
+K, F = element_table(4, C_SLIP, S_SLIP)
+
+
+def static(p, eps):
+    return muscle_force(MODEL_DMSP20, p, L0 * (1.0 - eps), L0, B0, NT, *BLADDER)
+
+
+def run(p, path, anchors):
+    """Tensions along a contraction path at gauge pressure p, and the slip work [J] (per unit
+    contraction x L0: the work in the length coordinate)."""
+    T, work = [], 0.0
+    for eps in path:
+        before = anchors.copy()
+        T.append(hysteretic_tension(static(p, eps), p, eps, anchors, K, F))
+        work += slip_work(before, anchors, p * F) * L0
+    return np.array(T), work
+
+
+def cycle(lo, hi, n=2001):
+    up = np.linspace(lo, hi, n)
+    return np.concatenate([up, up[::-1][1:]])
+
+
+def test_element_table_splits_the_slip_force_and_widens_the_elements_evenly():
+    widths = F / K
+    np.testing.assert_allclose(widths, S_SLIP * np.array([1, 2, 3, 4]) / 4, rtol=1e-14)
+    assert F.sum() == pytest.approx(C_SLIP, rel=1e-14)
+    # fully slid, the elements give the loop's half height c p_g
+    a = np.zeros(4)
+    assert muscle_hysteresis_force(6 * BAR, 0.05, a, K, F) == pytest.approx(C_SLIP * 6 * BAR, rel=1e-12)
+    assert muscle_hysteresis_force(6 * BAR, -0.05, a, K, F) == pytest.approx(-C_SLIP * 6 * BAR, rel=1e-12)
+
+
+def test_loop_closes_and_its_area_is_the_slip_work_and_the_closed_form():
+    p, lo, hi = 4 * BAR, 0.04, 0.10
+    a = np.full(4, 0.07)
+    run(p, cycle(lo, hi), a)                           # settle onto the loop
+    path = cycle(lo, hi)
+    T, work = run(p, path, a)
+    assert T[-1] == pytest.approx(T[0], abs=1e-9)     # closes
+    T2, _ = run(p, path, a.copy())
+    np.testing.assert_allclose(T2, T, atol=1e-9)       # and repeats
+    L = L0 * (1.0 - path)
+    area = abs(np.trapezoid(T, L))                     # work the muscle takes in over the cycle
+    X = (hi - lo) / 2                                  # swing about the middle, in contraction
+    closed = loop_area(K * p, F * p, X) * L0           # sum_j 4 f_j (X - w_j), in the length coordinate
+    assert closed == pytest.approx(sum(4 * f * p * (X - f / k) for k, f in zip(K, F)) * L0, rel=1e-12)
+    assert work == pytest.approx(closed, rel=1e-9)
+    assert area == pytest.approx(work, rel=2e-3)
+    # the loop's height where every element slides: 2 c p_g, shortening below stretching
+    mid = np.searchsorted(path[:2001], 0.07)         # 2 s away from both turning points
+    up, down = T[mid], T[len(path) - 1 - mid]
+    assert down - up == pytest.approx(2 * C_SLIP * p, rel=1e-9)
+
+
+def test_minor_loop_returns_to_the_major_loop_where_it_left_it():
+    p, lo, hi, x1, x2 = 5 * BAR, 0.02, 0.12, 0.08, 0.065
+    a = np.full(4, 0.07)
+    run(p, cycle(lo, hi), a)
+    up_to_x1 = np.linspace(lo, x1, 600)
+    onward = np.linspace(x1, hi, 400)[1:]
+    T_major, _ = run(p, np.concatenate([up_to_x1, onward]), a.copy())
+    a1 = a.copy()
+    T_left, _ = run(p, up_to_x1, a1)
+    T_minor, _ = run(p, np.concatenate([np.linspace(x1, x2, 300), np.linspace(x2, x1, 300)[1:]]), a1)
+    assert T_minor[-1] == pytest.approx(T_left[-1], abs=1e-9)
+    assert T_minor.min() < T_left[-1] - 1.0 or T_minor.max() > T_left[-1] + 1.0   # a real minor loop
+    T_after, _ = run(p, onward, a1)
+    np.testing.assert_allclose(T_after, T_major[600:], atol=1e-9)
+
+
+def test_the_loop_does_not_depend_on_the_rate_or_the_step():
+    p, lo, hi = 3 * BAR, 0.03, 0.09
+    coarse = cycle(lo, hi, 11)
+    fine = cycle(lo, hi, 1001)
+    T_c, w_c = run(p, coarse, np.full(4, 0.06))
+    T_f, w_f = run(p, fine, np.full(4, 0.06))
+    np.testing.assert_allclose(T_f[::100], T_c, atol=1e-9)
+    assert w_f == pytest.approx(w_c, rel=1e-12)
+
+
+def test_zero_pressure_or_zero_slip_force_gives_the_static_law_exactly():
+    a = np.zeros(4)
+    for eps in cycle(0.0, 0.1, 51):
+        s = static(3 * BAR, eps)
+        assert hysteretic_tension(s, 0.0, eps, a, K, F) == s
+        assert hysteretic_tension(s, 3 * BAR, eps, a, K * 0.0, F * 0.0) == s
+
+
+def test_settled_branches_are_the_loop_the_path_traces():
+    lo, hi = 0.03, 0.11
+    a = np.full(4, 0.07)
+    for x in cycle(lo, hi, 201):
+        maxwell_slip_force(x, a, K, F)
+    # the path has just come down to lo: the rising branch starts here
+    b = np.zeros(4)
+    settle_on_major_loop(b, lo, hi, K, F, True)
+    np.testing.assert_allclose(b, a, atol=1e-15)
+
+
+# --- the coupled engine ----------------------------------------------------------------------------
+def hip_run(hysteresis: dict | None, frequency="2 Hz", period="1 s"):
+    """The left hip tracking a sine in air (hip-angle-in-air), every MuJoCo step recorded."""
+    raw, base = merged_raw("hip-angle-in-air")
+    ctl = dict(raw["controllers"]["hip"],
+               setpoint={"kind": "sine", "mean": "20 deg", "amplitude": "8 deg", "frequency": frequency,
+                         "start": "0.3 s"}, settle="0.3 s")
+    law = dict(raw["muscle_force"], **(hysteresis or {}))
+    raw = {**raw, "base_dir": base, "output_interval": "1 ms", "gait": {**raw["gait"], "period": period},
+           "controllers": {"hip": ctl}, "muscle_force": law}
+    rs = frogsim.load_robot_scenario(raw)
+    return rs, frogsim.swim(rs)
+
+
+ON = {"hysteresis": "maxwell-slip", "slip_per_pressure": "10 N/bar", "slip_strain": "1 %"}
+
+
+@pytest.fixture(scope="module")
+def runs():
+    return {"off": hip_run(None), "on": hip_run(ON)}
+
+
+def static_tensions(rs, r, i):
+    """The static law at muscle i's recorded pressures and lengths (the kernel's inputs)."""
+    from frogsim.circuit import layout as CL
+    from frogsim.circuit.model import build_model
+    law = rs.robot.muscle_force
+    mp = build_model(rs.pneumatic).mp[i]
+    bl = (law.force_scale, law.strain_scale, law.stiffness, law.stretch_stiffness, law.stretch_quadratic)
+    patm = r.atmospheric_pressure
+    return np.array([muscle_force(MODEL_DMSP20, float(p) - patm, float(L), mp[CL.M_L0], mp[CL.M_B0],
+                                  mp[CL.M_N], *bl)
+                     for p, L in zip(r.pressures[:, i], r.lengths[:, i])]), mp[CL.M_L0]
+
+
+def test_off_the_tensions_are_the_static_law_bit_for_bit(runs):
+    rs, r = runs["off"]
+    assert rs.robot.muscle_force.hysteresis == "none"          # the default: fan2017 unchanged
+    for i in range(len(r.muscle_names)):
+        expect, _ = static_tensions(rs, r, i)
+        assert np.array_equal(expect, r.tensions[:, i])
+
+
+def test_on_the_tensions_are_the_static_law_less_the_slip_force_replayed_over_the_path(runs):
+    rs, r = runs["on"]
+    assert not np.array_equal(r.tensions, runs["off"][1].tensions)
+    patm = r.atmospheric_pressure
+    moved = 0
+    for name in ("hip_left", "hip_left_recovery"):
+        i = r.muscle_names.index(name)
+        st, l0 = static_tensions(rs, r, i)
+        eps = 1.0 - r.lengths[:, i] / l0
+        a = np.full(K.size, eps[0])                 # the muscle starts relaxed
+        replay = np.array([hysteretic_tension(s, float(p) - patm, float(e), a, K, F)
+                           for s, p, e in zip(st, r.pressures[:, i], eps)])
+        np.testing.assert_allclose(r.tensions[:, i], replay, rtol=0, atol=1e-9)
+        gap = st - r.tensions[:, i]
+        moved += int(np.sum(np.abs(gap) > 0.5 * C_SLIP * (r.pressures[:, i] - patm)))
+    assert moved > 100                              # the elements slid: the loop is there
+
+
+def test_hysteresis_settings_are_checked_in_one_line():
+    raw, base = merged_raw("hip-angle-in-air")
+    for key, value in (("hysteresis", "coulomb"), ("slip_strain", "0 %"), ("slip_elements", 0),
+                       ("slip_per_pressure", "-1 N/bar")):
+        bad = {**raw, "base_dir": base, "muscle_force": {**raw["muscle_force"], key: value}}
+        with pytest.raises(ScenarioError) as e:
+            frogsim.load_robot_scenario(bad)
+        assert f"muscle_force.{key}" in str(e.value) and "\n" not in str(e.value)
+
+
+# --- force tables with a direction ---------------------------------------------------------------
+TRUE_SLIP = {"slip_per_pressure": 8.0 / BAR, "slip_strain": 0.015}     # chosen by the test
+SLIP_BOUNDS = {"muscle_force.slip_per_pressure": {"min": "0 N/bar", "max": "40 N/bar", "start": "15 N/bar"},
+               "muscle_force.slip_strain": {"min": "0.2 %", "max": "5 %", "start": "0.5 %"}}
+
+
+def loop_rows(lo=0.02, hi=0.14, n=25):
+    """A measured-loop stand-in: at 2, 4, 6 bar the contraction swept lo -> hi -> lo twice, the
+    second sweep written down, each point with its branch; forces from the physics module's law
+    and elements followed along the path (not from the fit's branch model)."""
+    k, f = element_table(4, TRUE_SLIP["slip_per_pressure"], TRUE_SLIP["slip_strain"])
+    rows = []
+    up = np.linspace(lo, hi, n)
+    for bar in (2, 4, 6):
+        p = bar * BAR
+        a = np.full(4, lo)
+        for sweep in range(2):
+            for eps, d in [(e, "unloading") for e in up] + [(e, "loading") for e in up[::-1][1:]]:
+                t = hysteretic_tension(static(p, eps), p, float(eps), a, k, f)
+                if sweep == 1:
+                    rows.append((bar, float(eps), t, d))
+    return rows
+
+
+def write_loop(path, rows, noise_n=0.0, seed=0):
+    import pandas as pd
+    rng = np.random.default_rng(seed)
+    bar, eps, force, d = zip(*rows)
+    force = np.array(force) + rng.normal(0.0, noise_n, len(force)) * (noise_n > 0)
+    pd.DataFrame({"pressure [bar gauge]": bar, "contraction [%]": np.array(eps) * 100, "force [N]": force,
+                  "direction": d}).to_csv(path, index=False, float_format="%.12g")
+    return path
+
+
+@pytest.fixture(scope="module")
+def rig_dir(tmp_path_factory):
+    from fit_helpers import write_rig
+    folder = tmp_path_factory.mktemp("loop")
+    write_rig(folder)
+    return folder
+
+
+def loop_spec(folder, table, noise="5 N", **extra):
+    return {"base_dir": str(folder), "scenario": "rig.toml",
+            "force_tables": [{"table": table, "muscle": "hip", "noise": noise}], "parameters": SLIP_BOUNDS, **extra}
+
+
+def test_fit_recovers_the_slip_parameters_from_a_loop(rig_dir):
+    from frogsim.fit import fit
+    write_loop(rig_dir / "loop.csv", loop_rows())
+    res = fit(loop_spec(rig_dir, "loop.csv", starts=2))
+    truth = np.array([TRUE_SLIP["slip_per_pressure"], TRUE_SLIP["slip_strain"]])
+    assert np.all(np.abs(res.values - truth) / truth < 1e-4), res.values
+    write_loop(rig_dir / "loop-noisy.csv", loop_rows(), noise_n=5.0, seed=3)
+    res = fit(loop_spec(rig_dir, "loop-noisy.csv", starts=1))
+    assert np.all((res.ci_low <= truth) & (truth <= res.ci_high)), (res.ci_low, res.values, res.ci_high)
+
+
+def test_without_a_direction_the_table_is_the_static_law_and_the_slip_cannot_be_fitted(rig_dir):
+    from frogsim.fit import fit
+    import pandas as pd
+    rows = loop_rows()
+    write_loop(rig_dir / "nodir.csv", rows)
+    df = pd.read_csv(rig_dir / "nodir.csv").drop(columns=["direction"])
+    df.to_csv(rig_dir / "nodir.csv", index=False)
+    res = fit(loop_spec(rig_dir, "nodir.csv", starts=1))
+    assert any("no effect" in w for w in res.warnings)
+
+
+@pytest.mark.parametrize("value", ["up", "", "1"])
+def test_a_bad_direction_is_refused_naming_file_column_and_row(rig_dir, value):
+    import frogsim
+    from frogsim.fit.force import read_force_table
+    (rig_dir / "bad.csv").write_text("pressure [bar gauge],contraction [%],force [N],direction\n"
+                                     f"4,5,800,loading\n4,6,780,{value}\n")
+    with pytest.raises(ScenarioError) as e:
+        read_force_table(rig_dir / "bad.csv", frogsim.load_scenario(rig_dir / "rig.toml"))
+    msg = str(e.value)
+    assert "bad.csv" in msg and "direction" in msg and "row 2" in msg and "\n" not in msg
