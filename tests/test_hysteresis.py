@@ -284,3 +284,37 @@ def test_a_bad_direction_is_refused_naming_file_column_and_row(rig_dir, value):
         read_force_table(rig_dir / "bad.csv", frogsim.load_scenario(rig_dir / "rig.toml"))
     msg = str(e.value)
     assert "bad.csv" in msg and "direction" in msg and "row 2" in msg and "\n" not in msg
+
+
+# --- the pneumatic engine: tensions as an output ---------------------------------------------------
+def test_pneumatic_result_tensions_off_are_the_static_law_and_on_lag_the_motion():
+    import dataclasses
+    from frogsim.circuit import layout as CL
+    from frogsim.robot.params import parameter_set_law
+    r = frogsim.simulate("paper-cycle")
+    law = parameter_set_law(r.model.scenario)
+    assert law.hysteresis == "none"
+    T = r.tensions()
+    patm = r.atmospheric_pressure
+    mp = r.model.mp
+    bl = (law.force_scale, law.strain_scale, law.stiffness, law.stretch_stiffness, law.stretch_quadratic)
+    i = 0
+    expect = [muscle_force(MODEL_DMSP20, float(p) - patm, float(L), mp[i, CL.M_L0], mp[i, CL.M_B0], mp[i, CL.M_N],
+                           *bl) for p, L in zip(r.muscle_pressure(r.names[i]), r.lengths[:, i])]
+    assert np.array_equal(np.array(expect), T[:, i])
+    on = dataclasses.replace(law, hysteresis="maxwell-slip", slip_per_pressure=C_SLIP, slip_strain=S_SLIP)
+    T_on = r.tensions(on)
+    shortening = 0
+    for i, name in enumerate(r.names):
+        p = r.muscle_pressure(name) - patm
+        gap = T[:, i] - T_on[:, i]
+        pulling = (T_on[:, i] > 0) & (T[:, i] > 0)
+        assert np.all(np.abs(gap[pulling]) <= C_SLIP * p[pulling] * (1 + 1e-12) + 1e-9)
+        eps = 1.0 - r.lengths[:, i] / mp[i, CL.M_L0]
+        d = np.diff(eps, prepend=eps[0])
+        # after a contraction change of 2 s in one direction every element slides: F_h = +-c p_g
+        run_up = np.convolve(d > 0, np.ones(5), "same") == 5
+        slid = pulling & run_up & (p > 1 * BAR)
+        assert np.all(gap[slid] > 0)          # shortening: the muscle pulls less than the static law
+        shortening += int(slid.sum())
+    assert shortening > 100

@@ -213,6 +213,40 @@ class Result:
         """Muscle lengths [m], shape (time, muscle)."""
         return self._diagnostics[2]
 
+    def tensions(self, law=None) -> np.ndarray:
+        """Muscle tensions [N], shape (time, muscle), from the force law at the output points'
+        pressures and lengths (the pneumatic engine moves the muscles along their paths; the force
+        does not act back on them).
+
+        ``law``: a :class:`frogsim.robot.params.MuscleForceLaw`; default: the scenario's parameter
+        set's ``[muscle_force]``. With its hysteresis on, each muscle's slip elements start relaxed
+        at its first contraction and follow the output grid: exact (the model is rate independent)
+        when every turning point of the length lies on the grid, as it does for paths whose knots
+        are output points; between, a turning point is cut to the nearer sample.
+        """
+        from frogsim.physics.hysteresis import element_table
+        from frogsim.robot.params import parameter_set_law
+        from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL, hysteretic_tension, muscle_force
+        law = law if law is not None else parameter_set_law(self.model.scenario)
+        code = MODEL_DMSP20 if law.model == "dmsp20" else MODEL_IDEAL
+        bl = (law.force_scale, law.strain_scale, law.stiffness, law.stretch_stiffness, law.stretch_quadratic)
+        mp = self.model.mp
+        patm = self.atmospheric_pressure
+        out = np.empty((self.t.size, self.n))
+        elements = None if law.hysteresis == "none" else element_table(
+            law.slip_elements, law.slip_per_pressure, law.slip_strain)
+        for i, name in enumerate(self.names):
+            p = self.muscle_pressure(name) - patm
+            Lm = self.lengths[:, i]
+            L0 = mp[i, L.M_L0]
+            anchors = None if elements is None else np.full(elements[0].size, 1.0 - Lm[0] / L0)
+            for k in range(self.t.size):
+                f = muscle_force(code, float(p[k]), float(Lm[k]), L0, mp[i, L.M_B0], mp[i, L.M_N], *bl)
+                if anchors is not None:
+                    f = hysteretic_tension(f, float(p[k]), 1.0 - float(Lm[k]) / L0, anchors, *elements)
+                out[k, i] = f
+        return out
+
     def charge_flow(self, muscle: str) -> np.ndarray:
         """Mass flow through the muscle's charge valve [kg/s] (negative: back to the source)."""
         return self._diagnostics[0][:, 2 * self.index(muscle)]
@@ -364,3 +398,4 @@ class Result:
         df = pd.DataFrame(cols)
         df.attrs["units"] = unit_of
         return df
+

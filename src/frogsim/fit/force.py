@@ -68,14 +68,8 @@ def law_meta() -> dict:
 
 def base_law(scenario):
     """The base scenario's parameter set's force law (:class:`frogsim.robot.params.MuscleForceLaw`)."""
-    from frogsim.robot.params import MuscleForceLaw
-    from frogsim.scenario.fields import build
-    from frogsim.scenario.load import load_parameter_set
-    raw = load_parameter_set(scenario.parameters, scenario.base_dir)
-    if "muscle_force" not in raw:
-        raise ScenarioError(f"parameters {scenario.parameters!r}", UNKNOWN,
-                            "has no [muscle_force] table: a force table cannot be fitted with it")
-    return build(MuscleForceLaw, raw["muscle_force"], "muscle_force")
+    from frogsim.robot.params import parameter_set_law
+    return parameter_set_law(scenario, "a force table cannot be fitted with it")
 
 
 @dataclass(frozen=True)

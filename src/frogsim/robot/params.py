@@ -175,3 +175,15 @@ def robot_params_from_raw(raw: dict, muscle_types: dict) -> RobotParams:
     return RobotParams(muscle_force=build(MuscleForceLaw, raw["muscle_force"], "muscle_force"),
                        body=body, legs=build(Legs, raw["legs"], "legs"), joints=joints,
                        palms=palms, water=water, hydro=build(Hydro, raw["hydro"], "hydro"))
+
+
+def parameter_set_law(scenario, purpose: str = "muscle tensions need a force law") -> MuscleForceLaw:
+    """The ``[muscle_force]`` law of a scenario's parameter set (a pneumatic scenario holds none of
+    its own), or a ScenarioError saying the set has none and what needed it (``purpose``)."""
+    from frogsim.errors import UNKNOWN
+    from frogsim.scenario.load import load_parameter_set
+    raw = load_parameter_set(scenario.parameters, scenario.base_dir)
+    if "muscle_force" not in raw:
+        raise ScenarioError(f"parameters {scenario.parameters!r}", UNKNOWN,
+                            f"has no [muscle_force] table: {purpose}")
+    return build(MuscleForceLaw, raw["muscle_force"], "muscle_force")
