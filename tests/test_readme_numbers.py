@@ -102,3 +102,14 @@ def test_readme_check_catches_a_moved_number():
     assert same_as_written("0.081", 0.0806)
     assert not same_as_written("0.078", 0.0806)
     assert not same_as_written("88", 86.9)
+
+
+def test_force_hysteresis_table(study):
+    runs = study("hysteresis").summary["hysteresis"]["runs"]
+    rows = table_rows("## Force hysteresis at the joint")
+    for key, label in (("off", "off"), ("10_N_per_bar", "10 N/bar"), ("25_N_per_bar", "25 N/bar")):
+        cells, r = rows[label], runs[key]
+        check(cells[1], [(NUM + " deg", r["step"]["tracking_error_rms_deg"])])
+        check(cells[2], [(NUM + " deg", r["step"]["final_error_deg"])])
+        check(cells[3], [(NUM + " deg", r["sine"]["tracking_error_rms_deg"])])
+        check(cells[4], [(NUM + " deg", r["sine"]["loop_width_deg"])])

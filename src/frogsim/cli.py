@@ -5,7 +5,7 @@
     frogsim reproduce [STUDY ...] --out DIR reproduce the paper's studies (the pneumatic ones by
                                             default; name leg-in-air for the robot's in-air study)
     frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
-    frogsim control [STUDY ...] --out DIR   the closed-loop control studies (control-pressure, control-joint)
+    frogsim control [STUDY ...] --out DIR   the closed-loop control studies (control-pressure, control-joint, hysteresis)
     frogsim simulate SCENARIO --out DIR     run one scenario (TOML path or shipped name)
     frogsim swim SCENARIO [--cycles N] --out DIR  run the robot in MuJoCo (swim, leg-in-air): CSV,
                                             figure, summary.json, MJCF, animation
@@ -521,7 +521,7 @@ def build_parser() -> argparse.ArgumentParser:
     _writes(s, workers="one per core")
     s.set_defaults(func=cmd_reproduce)
     for name, what, func in (("design", "the design studies (main tubes, endurance, valves)", cmd_design),
-                             ("control", "the closed-loop control studies (control-pressure, control-joint)",
+                             ("control", "the closed-loop control studies (control-pressure, control-joint, hysteresis)",
                               cmd_control)):
         s = sub.add_parser(name, help=f"run {what}: a PNG and a CSV per study, DIR/summary.json with written "
                                       "conclusions")

@@ -42,14 +42,16 @@ EXPERIMENTS = {
 }
 
 
-def scenario(experiment: str, level_bar: float):
-    """The shipped hip-angle-in-air scenario with one experiment's setpoint and one p0."""
+def scenario(experiment: str, level_bar: float, muscle_force: dict | None = None, name: str = "control-joint"):
+    """The shipped hip-angle-in-air scenario with one experiment's setpoint and one p0, and
+    ``muscle_force``'s settings over the parameter set's ``[muscle_force]`` (e.g. its hysteresis)."""
     raw, base = merged_raw("hip-angle-in-air")
     e = EXPERIMENTS[experiment]
     ctl = dict(raw["controllers"]["hip"], setpoint=e["setpoint"], settle=e["settle"],
                co_contraction=f"{level_bar:g} bar")
-    return load_robot_scenario({**raw, "name": f"control-joint-{experiment}-{level_bar:g}bar",
+    return load_robot_scenario({**raw, "name": f"{name}-{experiment}-{level_bar:g}bar",
                                 "gait": {**raw["gait"], "period": e["period"]},
+                                "muscle_force": {**raw["muscle_force"], **(muscle_force or {})},
                                 "controllers": {"hip": ctl}, "base_dir": base})
 
 
