@@ -318,3 +318,47 @@ def test_pneumatic_result_tensions_off_are_the_static_law_and_on_lag_the_motion(
         assert np.all(gap[slid] > 0)          # shortening: the muscle pulls less than the static law
         shortening += int(slid.sum())
     assert shortening > 100
+
+
+def test_the_pneumatic_engines_loop_does_not_change_with_the_cycling_rate():
+    """A sealed hip muscle (3 bar gauge at the start, valves shut) cycled between 2 and 10 %
+    contraction twice, once in 1 s and once in 4 s: its air is adiabatic, so its pressure is the
+    same function of the length at both rates (to the solver's tolerance), and the slip elements
+    are rate independent: the second cycle's hysteresis force at the same contraction on the same
+    branch, and the loop's area, are the same."""
+    import dataclasses
+    from frogsim.circuit import layout as CL
+    from frogsim.robot.params import parameter_set_law
+
+    def cycle_loop(T):
+        sc = frogsim.load_scenario({
+            "name": "sealed", "parameters": "fan2017", "duration": f"{4 * T:g} s", "output_interval": "1 ms",
+            "programs": {"hold": {"steps": [{"at": "0 s", "state": "hold"}]}},
+            "muscles": {"hip": {"type": "hip", "initial_pressure_gauge": "3 bar", "program": "hold",
+                                "motion": {"kind": "table", "time_s": [0, T, 2 * T, 3 * T, 4 * T],
+                                           "contraction_percent": [2, 10, 2, 10, 2]}}}})
+        r = frogsim.simulate(sc)
+        law = dataclasses.replace(parameter_set_law(sc), hysteresis="maxwell-slip")
+        on, off = r.tensions(law)[:, 0], r.tensions()[:, 0]
+        eps = 1.0 - r.lengths[:, 0] / r.model.mp[0, CL.M_L0]
+        t = r.t
+        up = (t >= 2 * T) & (t <= 3 * T)
+        down = (t >= 3 * T) & (t <= 4 * T)
+        grid = np.linspace(0.021, 0.099, 157)
+        f_up = np.interp(grid, eps[up], (off - on)[up])
+        f_down = np.interp(grid, eps[down][::-1], (off - on)[down][::-1])
+        last = t >= 2 * T
+        area = abs(np.trapezoid(on[last], r.lengths[last, 0]))
+        # linear interpolation across an element's kink (slope change <= its stiffness k_j p_g)
+        # errs by at most k_j p_g h / 4 for samples h apart in contraction
+        k, _ = element_table(law.slip_elements, law.slip_per_pressure, law.slip_strain)
+        p_max = float(np.max(r.muscle_pressure("hip"))) - r.atmospheric_pressure
+        kink = k.max() * p_max * float(np.max(np.abs(np.diff(eps[last])))) / 4
+        return f_up, f_down, area, kink
+
+    fast, slow = cycle_loop(0.25), cycle_loop(1.0)
+    tol = fast[3] + slow[3] + 0.01                    # interpolation, plus the solver's pressures
+    np.testing.assert_allclose(fast[0], slow[0], atol=tol)
+    np.testing.assert_allclose(fast[1], slow[1], atol=tol)
+    assert np.max(fast[0] - fast[1]) > 40.0            # a loop: shortening minus stretching, ~2 c p_g
+    assert fast[2] == pytest.approx(slow[2], rel=2e-3)

@@ -29,7 +29,8 @@ BAR = 1e5
 CO_CONTRACTION_BAR = 3.0
 #: slip force per gauge pressure of each run [N/bar]: 0 = the law without memory (hysteresis off)
 SLIP_N_PER_BAR = (0.0, 10.0, 25.0)
-SLIP = header("slip force", "N/bar")
+#: the table's run label: the slip force at the co-contraction pressure, c x p0 (half the loop's height)
+SLIP = header(f"slip force at {CO_CONTRACTION_BAR:g} bar", "N")
 EXTENSOR_TENSION = header("extensor tension", "N")
 
 
@@ -80,7 +81,7 @@ def hysteresis() -> StudyData:
                 entry.update(setpoint_loop(r.t, sp, th, 1.0))
             runs[key][exp] = entry
             i_ext = r.muscle_names.index("hip_left")
-            frames.append(pd.DataFrame({SLIP: slip, "experiment": exp, TIME: r.t, SETPOINT: sp, ANGLE: th,
+            frames.append(pd.DataFrame({SLIP: slip * CO_CONTRACTION_BAR, "experiment": exp, TIME: r.t, SETPOINT: sp, ANGLE: th,
                                         EXTENSOR_TENSION: r.tensions[:, i_ext]}))
     off, on = runs["off"], runs[f"{SLIP_N_PER_BAR[1]:g}_N_per_bar"]
     strong = runs[f"{SLIP_N_PER_BAR[2]:g}_N_per_bar"]
@@ -127,10 +128,10 @@ def _draw(data: StudyData, path: str) -> None:
     for col, exp in enumerate(EXPERIMENTS):
         a = ax[0, col]
         sub = t[t["experiment"] == exp]
-        first = sub[sub[SLIP] == SLIP_N_PER_BAR[0]]
+        first = sub[sub[SLIP] == SLIP_N_PER_BAR[0] * CO_CONTRACTION_BAR]
         a.plot(first[TIME], first[SETPOINT], "k:", lw=1.2, label="setpoint")
         for slip in SLIP_N_PER_BAR:
-            s = sub[sub[SLIP] == slip]
+            s = sub[sub[SLIP] == slip * CO_CONTRACTION_BAR]
             key = "off" if slip == 0.0 else f"{slip:g}_N_per_bar"
             m = runs[key][exp]
             extra = (f", final error {m['final_error_deg']:.2f} deg" if exp == "step"
@@ -146,7 +147,7 @@ def _draw(data: StudyData, path: str) -> None:
     a = ax[1, 0]
     sub = t[t["experiment"] == "sine"]
     for slip in SLIP_N_PER_BAR:
-        s = sub[(sub[SLIP] == slip) & (sub[TIME] >= sub[TIME].max() - 1.0 - 1e-9)]
+        s = sub[(sub[SLIP] == slip * CO_CONTRACTION_BAR) & (sub[TIME] >= sub[TIME].max() - 1.0 - 1e-9)]
         a.plot(s[SETPOINT], s[ANGLE], color=colors[slip], lw=1.1,
                label="no hysteresis" if slip == 0.0 else f"hysteresis {slip:g} N/bar")
     lim = [sub[SETPOINT].min() - 1, sub[SETPOINT].max() + 1]
@@ -158,11 +159,11 @@ def _draw(data: StudyData, path: str) -> None:
     # the extensor's tension over the sine's last period against the angle
     a = ax[1, 1]
     for slip in SLIP_N_PER_BAR:
-        s = sub[(sub[SLIP] == slip) & (sub[TIME] >= sub[TIME].max() - 1.0 - 1e-9)]
+        s = sub[(sub[SLIP] == slip * CO_CONTRACTION_BAR) & (sub[TIME] >= sub[TIME].max() - 1.0 - 1e-9)]
         a.plot(s[ANGLE], s[EXTENSOR_TENSION], color=colors[slip], lw=1.1,
                label="no hysteresis" if slip == 0.0 else f"hysteresis {slip:g} N/bar")
     a.set_xlabel("hip angle [deg]")
     a.set_ylabel("extensor (hip_left) tension [N]")
-    a.set_title("sine, last period: the extensor's tension against the angle")
+    a.set_title("sine, last period: the extensor's tension against the angle\n(a loop without hysteresis too: the controller moves the pressures)", fontsize=10)
     a.legend(fontsize=8)
     save(fig, path, "frogsim control hysteresis; slip forces assumed (params/fan2017.toml), angles from the flexed stop")
