@@ -362,3 +362,16 @@ def test_the_pneumatic_engines_loop_does_not_change_with_the_cycling_rate():
     np.testing.assert_allclose(fast[1], slow[1], atol=tol)
     assert np.max(fast[0] - fast[1]) > 40.0            # a loop: shortening minus stretching, ~2 c p_g
     assert fast[2] == pytest.approx(slow[2], rel=2e-3)
+
+
+def test_the_studys_loop_width_and_area_are_the_ellipses_closed_forms():
+    """Angle lagging a sine setpoint by phi: th = m + A sin(wt - phi) against sp = m + A sin(wt)
+    crosses the mean at m -+ A sin(phi) (width 2 A sin(phi)) and encloses pi A^2 sin(phi)."""
+    from frogsim.studies.hysteresis import setpoint_loop
+    A, m, phi = 8.0, 20.0, 0.3
+    t = np.linspace(0.0, 3.0, 3001)
+    sp = m + A * np.sin(2 * np.pi * t)
+    th = m + A * np.sin(2 * np.pi * t - phi)
+    out = setpoint_loop(t, sp, th, 1.0)
+    assert out["loop_width_deg"] == pytest.approx(2 * A * np.sin(phi), rel=1e-4)
+    assert out["loop_area_deg2"] == pytest.approx(np.pi * A * A * np.sin(phi), rel=1e-4)

@@ -7,6 +7,13 @@ own, :mod:`frogsim.engine.integrator` and :mod:`frogsim.control.sampled`), and o
 per-step record rec[row, R_*], whose variable part the rec_* functions (for compiled code) and
 :func:`record_columns` (slices, for Python) lay out, inlined into the kernel as
 :mod:`frogsim.circuit.layout`'s index functions are. No other module computes a record column.
+
+The muscles' hysteresis memory is a plain 2-D array, anchors[i, j] (muscle i, slip element j;
+:func:`frogsim.physics.hysteresis.muscle_hysteresis_force`), with N = 0 columns when the force law
+has no memory. It is per-muscle state, but not an entry of the pneumatic state y
+(:data:`frogsim.circuit.layout.MUSCLE_FIELDS`): the anchors are not integrated (they jump as an
+element slides, once per MuJoCo step), and entries added to y would enter the solver's error norm
+and change every run with hysteresis off.
 """
 from __future__ import annotations
 

@@ -45,16 +45,15 @@ def setpoint_loop(t, sp, th, period: float) -> dict:
     last full period (samples on the output grid): the angle where the setpoint falls through its
     mean minus where it rises through it (interpolated between samples), and the area enclosed."""
     last = t >= t[-1] - period - 1e-12
-    tt, r, y = t[last], sp[last], th[last]
-    mean = 0.5 * (r.max() + r.min())
-    up, down = [], []
-    for k in range(r.size - 1):
-        a, b = r[k] - mean, r[k + 1] - mean
-        if a < 0.0 <= b or a > 0.0 >= b:
-            w = a / (a - b)
-            (up if b > a else down).append(y[k] + w * (y[k + 1] - y[k]))
-    width = float(down[-1] - up[-1]) if up and down else float("nan")
-    area = float(abs(0.5 * np.sum(r[:-1] * y[1:] - r[1:] * y[:-1]) + 0.5 * (r[-1] * y[0] - r[0] * y[-1])))
+    ref, ang = sp[last], th[last]
+    mean = 0.5 * (ref.max() + ref.min())
+    a, b = ref[:-1] - mean, ref[1:] - mean
+    w = a / np.where(a != b, a - b, 1.0)                       # where the segment crosses the mean
+    at = ang[:-1] + w * (ang[1:] - ang[:-1])
+    up = at[(a < 0.0) & (b >= 0.0)]
+    down = at[(a > 0.0) & (b <= 0.0)]
+    width = float(down[-1] - up[-1]) if up.size and down.size else float("nan")
+    area = float(abs(0.5 * np.sum(ref * np.roll(ang, -1) - np.roll(ref, -1) * ang)))   # shoelace, closed
     return {"loop_width_deg": width, "loop_area_deg2": area}
 
 
