@@ -38,8 +38,8 @@ from frogsim.engine.coupled_layout import (  # noqa: F401
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
     R_EXERGY, R_HULL, R_PE, R_POSITION, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
     R_V, R_VELOCITY, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
-    STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_SIZE, STOP_UPPER, S_TRUNK, S_VMAX, S_WMAX, T_FAIL, T_FAIL_ARG,
-    T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK, T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE,
+    STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_SIZE, STOP_UPPER, S_TRUNK, S_VMAX, S_WMAX,
+    T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK, T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE,
     U_TENDON, V_SIZE, record_columns)
 from frogsim.engine.integrator import D_F_VALID, D_SI, STATS_SIZE, STATUS_TEXT, start
 from frogsim.errors import SimulationError
@@ -246,7 +246,8 @@ def build_bare(xml: str, tables, density: float, gravity: float, duration: float
 
 #: step_kernel's groups of arrays (before MuJoCo's), by their names in CoupledModel.arrays
 KERNEL_GROUPS = (("sc", "st", "rec"), ("el", "strip_s", "strip_k", "pa", "vprev"),
-                 ("pal_t", "pal_target", "frac", "frac_new", "leg_qpos", "leg_dof", "stops"), ("mu", "tension"),
+                 ("pal_t", "pal_target", "frac", "frac_new", "leg_qpos", "leg_dof", "stops"),
+                 ("mu", "tension"),
                  ("y", "u", "ds", "cs", ("g", "mp", "mot_t", "mot_L", "mot_d", "mot_n"), "sched_t", "sched_u",
                   "laws", "atol", "stats"))
 

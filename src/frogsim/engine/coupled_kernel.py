@@ -48,11 +48,12 @@ damper (:mod:`frogsim.physics.stop`): the spring, from the joint's angle at t, i
 ``qfrc_applied``; the pad's damping is added to the joint's ``dof_damping``, which MuJoCo's
 implicitfast integrator takes at the step's end velocity (an explicit damping would overshoot
 on the light distal segments in air). mj_step1 has already applied -dof_damping v with the last
-step's coefficient; ``qfrc_applied`` makes up the difference. The stop used to be MuJoCo's limit constraint with a 5 ms time constant:
-it stopped a swimming leg, with about 2.5 kg m^2 of leg and water about the hip, in a few
-milliseconds, and the legs' added-mass reaction -M_A a made a -100 to -175 N thrust step at every
-hip stop (in the added mass, correctly: the constraint solver saw the added mass in the mass
-matrix; the force was the stop's). A pad of a real stiffness takes tens of milliseconds for the
+step's coefficient; ``qfrc_applied`` makes up the difference (the same step as a model damped so
+from the start, bit for bit). The stop used to be MuJoCo's limit constraint with a 5 ms time
+constant: it stopped a swimming leg, with about 2.5 kg m^2 of leg and water about the hip, in a
+few milliseconds, and the legs' added-mass reaction -M_A a made a -100 to -175 N thrust step at
+every hip stop (the added mass was right: the constraint solver saw it in the mass matrix; the
+stop was too stiff for a real one). A pad of a real stiffness takes tens of milliseconds for the
 same momentum; :mod:`frogsim.physics.stop` bounds the jump it can make.
 
 Every step checks the state: a non-finite position or velocity, a leg joint faster than
@@ -71,8 +72,8 @@ from frogsim.control.sampled import CS_PUMP, observe_joints
 from frogsim.engine.coupled_layout import (
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
     R_EXERGY, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME, R_V,
-    R_X, R_YAW, STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_UPPER, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_TRUNK, S_VMAX,
-    S_WMAX, T_EXERGY, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_LAST_HEADING, T_LAST_HULL,
+    R_X, R_YAW, STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_UPPER, S_BLADDER, S_CTRL_DT, S_DT,
+    S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_TRUNK, S_VMAX, S_WMAX, T_EXERGY, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_LAST_HEADING, T_LAST_HULL,
     T_LAST_THRUST, T_LAST_THRUST_AM, T_PALM_CMD, T_PALM_TARGET, T_PEAK, T_PEAK_TIME, U_ACT,
     U_FITTINGS, U_TENDON, V_MA, V_VEL, rec_angle, rec_charged, rec_length, rec_omega, rec_palm,
     rec_pressure, rec_qpos, rec_tension, rec_valve)
@@ -141,9 +142,9 @@ def apply_added_mass(el, pa, frac, only_palms, body_mass, body_ipos, body_inerti
 
 @jit
 def step_kernel_loose(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, pal_t, pal_target, frac,
-                      frac_new, leg_qpos, leg_dof, stops, mu, tension, y, u, ds, cs, g, mp, mot_t, mot_L, mot_d, mot_n,
-                      sched_t, sched_u, laws, atol, stats, ten_length, ten_velocity, xpos, xmat, xipos, cvel,
-                      subtree_com, body_rootid, body_parentid, body_mass, body_ipos, body_inertia,
+                      frac_new, leg_qpos, leg_dof, stops, mu, tension, y, u, ds, cs, g, mp, mot_t, mot_L,
+                      mot_d, mot_n, sched_t, sched_u, laws, atol, stats, ten_length, ten_velocity, xpos,
+                      xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass, body_ipos, body_inertia,
                       body_subtreemass, ctrl, xfrc, qpos, qvel, qfrc, dof_damping):
     """:func:`step_kernel` for callers in Python (the Python loops, one call per MuJoCo step): its
     groups' arrays in their order, loose (:func:`frogsim.engine.coupled.kernel_loose_args`), which

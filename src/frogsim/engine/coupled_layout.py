@@ -2,7 +2,7 @@
 
 The compiled kernel (:mod:`frogsim.engine.coupled_kernel`) reads and writes plain float arrays;
 these constants name their columns: the muscle table mu[i, U_*], the leg joints' end stops
-stops[j, STOP_*], the constants sc[S_*], the
+stops[j, STOP_*], each water part's last state vprev[e, V_*], the constants sc[S_*], the
 kernel's own state st[T_*] (the pneumatic driver's and the controllers' state are arrays of their
 own, :mod:`frogsim.engine.integrator` and :mod:`frogsim.control.sampled`), and one row of the
 per-step record rec[row, R_*], whose variable part the rec_* functions (for compiled code) and
