@@ -38,8 +38,9 @@ from frogsim.engine.coupled_layout import (  # noqa: F401
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
     R_EXERGY, R_HULL, R_PE, R_POSITION, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
     R_V, R_VELOCITY, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
-    S_TRUNK, S_VMAX, S_WMAX, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK,
-    T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE, U_TENDON, record_columns)
+    STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_SIZE, STOP_UPPER, S_TRUNK, S_VMAX, S_WMAX,
+    T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK, T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE,
+    U_TENDON, V_SIZE, record_columns)
 from frogsim.engine.integrator import D_F_VALID, D_SI, STATS_SIZE, STATUS_TEXT, start
 from frogsim.errors import SimulationError
 from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL
@@ -86,12 +87,14 @@ class CoupledModel:
 
 
 def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joints, duration,
-              output_interval, hysteresis=None) -> CoupledModel:
+              output_interval, hysteresis=None, stops=None) -> CoupledModel:
     """Allocate every array the kernel needs and put the static added masses into the model.
 
     ``circuit`` = (g, mp, y, u, sched_t, sched_u, atol). ``hysteresis``: None (the force law
     without memory), or (anchors (n, N), stiffness (N,), slip (N,)): the muscles' slip elements
     (:func:`frogsim.physics.hysteresis.muscle_hysteresis_force`), anchors at their start.
+    ``stops``: per joint of ``joints`` its end stops (STOP_* columns of
+    :mod:`frogsim.engine.coupled_layout`), none for a bare body.
     """
     mujoco = import_mujoco()
     g, mp, y, u, sched_t, sched_u, atol = circuit
@@ -122,10 +125,11 @@ def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joint
         pal_target=pal_target, frac=frac, frac_new=frac.copy(), mu=mu, mp=mp, g=g, y=y, u=u,
         ds=ds, cs=cs, mot_t=np.zeros((n, 4)), mot_L=np.zeros((n, 4)), mot_d=np.zeros((n, 4)),
         mot_n=np.full(n, 4, np.int64), sched_t=sched_t, sched_u=sched_u, laws=laws, atol=atol,
-        stats=np.zeros(STATS_SIZE, np.int64), vprev=np.zeros((el.shape[0], 3)), tension=np.zeros(n),
+        stats=np.zeros(STATS_SIZE, np.int64), vprev=np.zeros((el.shape[0], V_SIZE)), tension=np.zeros(n),
         anchors=hyst[0], slip_k=hyst[1], slip_f=hyst[2],
         rec=np.full((record_rows(n_steps, rec_every), cols["size"]), np.nan), leg_qpos=leg_qpos,
-        leg_dof=leg_dof)
+        leg_dof=leg_dof, stops=(np.zeros((len(joints), STOP_SIZE)) if stops is None
+                                else np.ascontiguousarray(stops, float)))
     apply_added_mass(el, arrays["pa"], frac, False, m.body_mass, m.body_ipos, m.body_inertia,
                      m.body_subtreemass, m.body_parentid)
     # MuJoCo keeps the mass-matrix entries of "simple" dofs (a body whose dofs do not couple)
@@ -214,7 +218,7 @@ def build_coupled(rs) -> CoupledModel:
     return _assemble(rs.name, rs, xml, m, d, pm, circuit, mu, tables,
                      palm_commands(rs.gait, rs.pneumatic.controller.rate), sc, joints,
                      rs.duration, rs.pneumatic.output_interval,
-                     _hysteresis(rs.robot.muscle_force, contraction))
+                     _hysteresis(rs.robot.muscle_force, contraction), stop_table(rs, joints))
 
 
 def _hysteresis(law, contraction):
@@ -226,6 +230,19 @@ def _hysteresis(law, contraction):
     from frogsim.physics.hysteresis import element_table
     k, f = element_table(law.slip_elements, law.slip_per_pressure, law.slip_strain)
     return np.repeat(contraction[:, None], k.size, axis=1), k, f
+
+
+def stop_table(rs, joints) -> np.ndarray:
+    """The end stops of the named leg joints ("hip_left", ...): per row the range's two ends
+    [rad], the pads' stiffness [N m/rad] and damping [N m s/rad] (:mod:`frogsim.physics.stop`)
+    and the joint's own damping [N m s/rad]."""
+    out = np.zeros((len(joints), STOP_SIZE))
+    for i, name in enumerate(joints):
+        jp = rs.robot.joints[name.split("_")[0]]
+        out[i, STOP_LOWER], out[i, STOP_UPPER] = 0.0, jp.range
+        out[i, STOP_K], out[i, STOP_C] = jp.stop_stiffness, jp.stop_damping
+        out[i, STOP_DAMPING] = jp.damping
+    return out
 
 
 def build_bare(xml: str, tables, density: float, gravity: float, duration: float,
@@ -249,7 +266,7 @@ def build_bare(xml: str, tables, density: float, gravity: float, duration: float
 
 #: step_kernel's groups of arrays (before MuJoCo's), by their names in CoupledModel.arrays
 KERNEL_GROUPS = (("sc", "st", "rec"), ("el", "strip_s", "strip_k", "pa", "vprev"),
-                 ("pal_t", "pal_target", "frac", "frac_new", "leg_qpos", "leg_dof"),
+                 ("pal_t", "pal_target", "frac", "frac_new", "leg_qpos", "leg_dof", "stops"),
                  ("mu", "tension", "anchors", "slip_k", "slip_f"),
                  ("y", "u", "ds", "cs", ("g", "mp", "mot_t", "mot_L", "mot_d", "mot_n"), "sched_t", "sched_u",
                   "laws", "atol", "stats"))
@@ -268,7 +285,8 @@ def _mujoco_views(cm: CoupledModel) -> tuple:
         cm._views = (m, d, (
             d.ten_length, d.ten_velocity, d.xpos, d.xmat, d.xipos, d.cvel, d.subtree_com,
             m.body_rootid, m.body_parentid, m.body_mass, m.body_ipos, m.body_inertia,
-            m.body_subtreemass, d.ctrl, d.xfrc_applied, d.qpos, d.qvel))
+            m.body_subtreemass, d.ctrl, d.xfrc_applied, d.qpos, d.qvel, d.qfrc_applied,
+            m.dof_damping))
     return cm._views[2]
 
 
@@ -277,7 +295,7 @@ def kernel_args(cm: CoupledModel) -> tuple:
     pneumatics (:data:`KERNEL_GROUPS`), then MuJoCo's views; for the compiled loop."""
     a = cm.arrays          # written out (the order of KERNEL_GROUPS): called once per controller period
     return ((a["sc"], a["st"], a["rec"]), (a["el"], a["strip_s"], a["strip_k"], a["pa"], a["vprev"]),
-            (a["pal_t"], a["pal_target"], a["frac"], a["frac_new"], a["leg_qpos"], a["leg_dof"]),
+            (a["pal_t"], a["pal_target"], a["frac"], a["frac_new"], a["leg_qpos"], a["leg_dof"], a["stops"]),
             (a["mu"], a["tension"], a["anchors"], a["slip_k"], a["slip_f"]),
             (a["y"], a["u"], a["ds"], a["cs"], (a["g"], a["mp"], a["mot_t"], a["mot_L"], a["mot_d"], a["mot_n"]),
              a["sched_t"], a["sched_u"], a["laws"], a["atol"], a["stats"]), _mujoco_views(cm))
@@ -470,7 +488,8 @@ class CoupledStepper:
         self._saved = {k: a[k].copy() for k in self._keys}
         m = cm.mjm
         self._model_saved = {k: getattr(m, k).copy() for k in
-                             ("body_mass", "body_ipos", "body_inertia", "body_subtreemass")}
+                             ("body_mass", "body_ipos", "body_inertia", "body_subtreemass",
+                              "dof_damping")}
         self._d0 = mujoco.MjData(m)
         mujoco.mj_copyData(self._d0, m, cm.mjd)
         self._copy = mujoco.mj_copyData

@@ -10,7 +10,8 @@ and the kernel does, with the state at the start of the step:
    (:func:`frogsim.physics.muscle_force.muscle_force`; with hysteresis on, less the slip
    elements' force, :func:`frogsim.physics.muscle_force.hysteretic_tension`, which slides their
    anchors: the memory is updated once per MuJoCo step, exactly, as the model is rate independent),
-   written as actuator controls;
+   written as actuator controls; the joints' end stops (:mod:`frogsim.physics.stop`), as joint
+   torques and dof damping ("The stops" below);
 2. the steering motors move the palms toward their commanded opening at their travel rate;
 3. the water's forces on every part (:mod:`frogsim.physics.hydro`, :mod:`frogsim.robot.water`):
    strip drag, buoyancy and added mass, written to ``xfrc_applied``;
@@ -35,6 +36,29 @@ and the change of an opening palm's added mass, -dM_A/dt v and -dI_A/dt omega
 (:func:`frogsim.physics.hydro.added_mass_rate_force`), are applied as forces. The weight MuJoCo
 gives the extra mass is cancelled by an equal upward force at the same point.
 
+The record. The thrust and hull force recorded at t_k are the water's forces over the step that
+ended there, [t_k-1, t_k], all of them from that one step: its drag and velocity terms (computed
+at t_k-1, kept in st[T_LAST_*]) and its -M_A a, with the added masses and axes of that step
+(vprev[e, V_MA]) and its acceleration, (v_k - v_k-1) / dt, known only once MuJoCo has taken the
+step. Before, a record took the drag and velocity terms of the step starting at t_k but -M_A a of
+the step before it: wherever a force changed at once (a palm's motor reaching its end, where
+-dM_A/dt v stops; a joint touching its stop) the record showed the change one step before the
+water's answer to it, a one-sample dip of up to 35 N that the next sample took back. At t = 0 the
+record holds the first step's forces without acceleration (the robot starts at rest).
+
+The stops. A joint past either end of its range meets an elastomer pad, a one-sided spring and
+damper (:mod:`frogsim.physics.stop`): the spring, from the joint's angle at t, is written to
+``qfrc_applied``; the pad's damping is added to the joint's ``dof_damping``, which MuJoCo's
+implicitfast integrator takes at the step's end velocity (an explicit damping would overshoot
+on the light distal segments in air). mj_step1 has already applied -dof_damping v with the last
+step's coefficient; ``qfrc_applied`` makes up the difference (the same step as a model damped so
+from the start, bit for bit). The stop used to be MuJoCo's limit constraint with a 5 ms time
+constant: it stopped a swimming leg, with about 2.5 kg m^2 of leg and water about the hip, in a
+few milliseconds, and the legs' added-mass reaction -M_A a made a -100 to -175 N thrust step at
+every hip stop (the added mass was right: the constraint solver saw it in the mass matrix; the
+stop was too stiff for a real one). A pad of a real stiffness takes tens of milliseconds for the
+same momentum; :mod:`frogsim.physics.stop` bounds the jump it can make.
+
 Every step checks the state: a non-finite position or velocity, a leg joint faster than
 ``sc[S_WMAX]`` or a hull faster than ``sc[S_VMAX]`` stops the run with a FAIL_* code that
 :mod:`frogsim.engine.coupled` turns into a message.
@@ -51,15 +75,17 @@ from frogsim.control.sampled import CS_PUMP, observe_joints
 from frogsim.engine.coupled_layout import (
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
     R_EXERGY, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME, R_V,
-    R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_TRUNK, S_VMAX,
-    S_WMAX, T_EXERGY, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_CMD, T_PALM_TARGET, T_PEAK,
-    T_PEAK_TIME, U_ACT, U_FITTINGS, U_TENDON, rec_angle, rec_charged, rec_length, rec_omega, rec_palm,
+    R_X, R_YAW, STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_UPPER, S_BLADDER, S_CTRL_DT, S_DT,
+    S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_TRUNK, S_VMAX, S_WMAX, T_EXERGY, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_LAST_HEADING, T_LAST_HULL,
+    T_LAST_THRUST, T_LAST_THRUST_AM, T_PALM_CMD, T_PALM_TARGET, T_PEAK, T_PEAK_TIME, U_ACT,
+    U_FITTINGS, U_TENDON, V_MA, V_VEL, rec_angle, rec_charged, rec_length, rec_omega, rec_palm,
     rec_pressure, rec_qpos, rec_tension, rec_valve)
 from frogsim.engine.integrator import D_REUSE_F, advance
 from frogsim.physics.hydro import (added_mass_rate_force, buoyancy, cross, fan_added_mass,
                                    isotropic_added_mass, kirchhoff_velocity_force, munk_moment,
                                    strip_drag_wrench)
 from frogsim.physics.muscle_force import hysteretic_tension, muscle_force
+from frogsim.physics.stop import pad_spring_and_damping
 from frogsim.robot.water import (E_BODY, E_C0, E_FAN, E_HEAVE, E_I0, E_IA, E_LIMB, E_M0, E_MA,
                                  E_VOL, E_XA, E_XB, P_PHI_FOLD, P_PHI_OPEN, P_RATE)
 
@@ -119,19 +145,20 @@ def apply_added_mass(el, pa, frac, only_palms, body_mass, body_ipos, body_inerti
 
 @jit
 def step_kernel_loose(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, pal_t, pal_target, frac,
-                      frac_new, leg_qpos, leg_dof, mu, tension, anchors, slip_k, slip_f, y, u, ds, cs, g, mp, mot_t, mot_L, mot_d, mot_n,
-                      sched_t, sched_u, laws, atol, stats, ten_length, ten_velocity, xpos, xmat, xipos, cvel,
-                      subtree_com, body_rootid, body_parentid, body_mass, body_ipos, body_inertia,
-                      body_subtreemass, ctrl, xfrc, qpos, qvel):
+                      frac_new, leg_qpos, leg_dof, stops, mu, tension, anchors, slip_k, slip_f, y, u, ds, cs, g,
+                      mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, laws, atol, stats, ten_length, ten_velocity,
+                      xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass, body_ipos,
+                      body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel, qfrc, dof_damping):
     """:func:`step_kernel` for callers in Python (the Python loops, one call per MuJoCo step): its
     groups' arrays in their order, loose (:func:`frogsim.engine.coupled.kernel_loose_args`), which
     Numba's dispatcher unboxes faster than tuples; the groups are made again in compiled code."""
     return step_kernel(k, stepping, row, (sc, st, rec), (el, strip_s, strip_k, pa, vprev),
-                       (pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof),
+                       (pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof, stops),
                        (mu, tension, anchors, slip_k, slip_f),
                        (y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), sched_t, sched_u, laws, atol, stats),
                        (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid,
-                        body_mass, body_ipos, body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel))
+                        body_mass, body_ipos, body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel, qfrc,
+                        dof_damping))
 
 
 @jit
@@ -146,7 +173,8 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
     * ``water``: the parts in the water (el, strip_s, strip_k, pa: :mod:`frogsim.robot.water`) and
       each part's velocity at the last step (vprev);
     * ``body``: palms' command times and targets (pal_t, pal_target), their openings now and after
-      the step (frac, frac_new), the leg joints' qpos and dof addresses (leg_qpos, leg_dof);
+      the step (frac, frac_new), the leg joints' qpos and dof addresses (leg_qpos, leg_dof) and
+      their end stops (stops: STOP_*);
     * ``muscles``: the muscle table (mu: U_*), the muscles' tensions, and their hysteresis: the
       slip elements' anchors (n, N: the memory), stiffness and slip per pascal (N each); N = 0
       for a force law without memory (:func:`frogsim.physics.hysteresis.muscle_hysteresis_force`);
@@ -156,7 +184,7 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
       (laws), atol, stats;
     * ``mujoco``: MuJoCo's arrays (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com,
       body_rootid, body_parentid, body_mass, body_ipos, body_inertia, body_subtreemass, ctrl,
-      xfrc_applied, qpos, qvel).
+      xfrc_applied, qpos, qvel, qfrc_applied, dof_damping).
 
     The compiled loop (:func:`frogsim.engine.coupled_loop.run_steps`) passes the groups on from
     compiled code, at no cost per step. Python calls :func:`step_kernel_loose` instead: Numba's
@@ -165,12 +193,12 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
     """
     sc, st, rec = records
     el, strip_s, strip_k, pa, vprev = water
-    pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof = body
+    pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof, stops = body
     mu, tension, anchors, slip_k, slip_f = muscles
     y, u, ds, cs, circuit, sched_t, sched_u, laws, atol, stats = pneumatics
     g, mp, mot_t, mot_L, mot_d, mot_n = circuit
     (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass,
-     body_ipos, body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel) = mujoco
+     body_ipos, body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel, qfrc, dof_damping) = mujoco
     dt = sc[S_DT]
     t = k * dt
     n = mu.shape[0]
@@ -212,6 +240,19 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
             tension[i] = hysteretic_tension(tension[i], y[CL.pressure_index(i)] - patm,
                                             1.0 - L / mp[i, CL.M_L0], anchors[i], slip_k, slip_f)
         ctrl[int(mu[i, U_ACT])] = tension[i]
+    # -- 1b. the joints' end stops (elastomer pads): the spring as a joint torque, the damping as
+    # MuJoCo's dof damping, which its implicitfast integrator takes at the step's end velocity.
+    # mj_step1 has already applied -dof_damping v with the coefficient left by the last step:
+    # the joint torque makes up the difference, so that the force is -(damping + pad) v at once.
+    for j in range(nj):
+        dof = leg_dof[j]
+        w = qvel[dof]
+        spring, pad = pad_spring_and_damping(qpos[leg_qpos[j]], w, stops[j, STOP_LOWER],
+                                             stops[j, STOP_UPPER], stops[j, STOP_K], stops[j, STOP_C])
+        c_new = stops[j, STOP_DAMPING] + pad
+        qfrc[dof] = spring - (c_new - dof_damping[dof]) * w
+        if stepping != 0:
+            dof_damping[dof] = c_new
     # -- 2. palms: commands on the controller grid, motors at their travel rate ----------------------
     npal = pa.shape[0]
     while int(st[T_PALM_CMD]) < pal_t.size and pal_t[int(st[T_PALM_CMD])] <= t + 1e-12:
@@ -227,10 +268,18 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
     rho = sc[S_RHO]
     grav = sc[S_G]
     hx, hy, hz = xmat[tb, 0], xmat[tb, 3], xmat[tb, 6]          # heading: the hull's x axis
+    # the record's forces (module docstring, "The record"): this step's drag and velocity terms
+    # along this step's heading, and the last step's -M_A a along the last step's heading
     thrust = 0.0
     thrust_am = 0.0
     hull = 0.0
+    inert_limb = 0.0
+    inert_hull = 0.0
     first = st[T_FIRST] > 0.5
+    if first:
+        px_, py_, pz_ = hx, hy, hz
+    else:
+        px_, py_, pz_ = st[T_LAST_HEADING], st[T_LAST_HEADING + 1], st[T_LAST_HEADING + 2]
     for e in range(el.shape[0]):
         b = int(el[e, E_BODY])
         xfrc[b, 0] = 0.0
@@ -273,11 +322,25 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
         if first:
             acx, acy, acz = 0.0, 0.0, 0.0
         else:
-            acx = (vx - vprev[e, 0]) / dt
-            acy = (vy - vprev[e, 1]) / dt
-            acz = (vz - vprev[e, 2]) / dt
+            acx = (vx - vprev[e, V_VEL]) / dt
+            acy = (vy - vprev[e, V_VEL + 1]) / dt
+            acz = (vz - vprev[e, V_VEL + 2]) / dt
+            # the last step's -M_A a: its added masses and axes, the acceleration over it
+            fix = -(vprev[e, V_MA] * acx + vprev[e, V_MA + 3] * acy + vprev[e, V_MA + 4] * acz)
+            fiy = -(vprev[e, V_MA + 3] * acx + vprev[e, V_MA + 1] * acy + vprev[e, V_MA + 5] * acz)
+            fiz = -(vprev[e, V_MA + 4] * acx + vprev[e, V_MA + 5] * acy + vprev[e, V_MA + 2] * acz)
+            if el[e, E_LIMB] > 0.5:
+                inert_limb += fix * px_ + fiy * py_ + fiz * pz_
+            else:
+                inert_hull += fix * px_ + fiy * py_ + fiz * pz_
         if stepping != 0:
-            vprev[e, 0], vprev[e, 1], vprev[e, 2] = vx, vy, vz
+            vprev[e, V_VEL], vprev[e, V_VEL + 1], vprev[e, V_VEL + 2] = vx, vy, vz
+            vprev[e, V_MA] = m1 * e1x * e1x + m2 * e2x * e2x + m3 * e3x * e3x
+            vprev[e, V_MA + 1] = m1 * e1y * e1y + m2 * e2y * e2y + m3 * e3y * e3y
+            vprev[e, V_MA + 2] = m1 * e1z * e1z + m2 * e2z * e2z + m3 * e3z * e3z
+            vprev[e, V_MA + 3] = m1 * e1x * e1y + m2 * e2x * e2y + m3 * e3x * e3y
+            vprev[e, V_MA + 4] = m1 * e1x * e1z + m2 * e2x * e2z + m3 * e3x * e3z
+            vprev[e, V_MA + 5] = m1 * e1y * e1z + m2 * e2y * e2z + m3 * e3y * e3z
         v1 = e1x * vx + e1y * vy + e1z * vz
         v2 = e2x * vx + e2y * vy + e2z * vz
         v3 = e3x * vx + e3y * vy + e3z * vz
@@ -294,7 +357,7 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
         g1 = (miso - m1) * a1 + vel1                                   # applied (explicit) part
         g2 = (miso - m2) * a2 + vel2
         g3 = (miso - m3) * a3 + vel3
-        am1, am2, am3 = -m1 * a1 + vel1, -m2 * a2 + vel2, -m3 * a3 + vel3   # whole added-mass force
+        am1, am2, am3 = vel1, vel2, vel3               # added-mass force less -M_A a (recorded apart)
         mu1, mu2, mu3 = munk_moment(m1, m2, m3, v1, v2, v3)
         mu1 += added_mass_rate_force(i1, j1, dt, w1)
         mu2 += added_mass_rate_force(i2, j2, dt, w2)
@@ -332,10 +395,18 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
             thrust_am += am_h
         else:
             hull += drag_h + am_h
+    if first:                   # t = 0: this step's forces, at rest (no acceleration yet)
+        thrust_rec, thrust_am_rec, hull_rec = thrust, thrust_am, hull
+    else:                       # the last step's forces, all of them
+        thrust_rec = st[T_LAST_THRUST] + inert_limb
+        thrust_am_rec = st[T_LAST_THRUST_AM] + inert_limb
+        hull_rec = st[T_LAST_HULL] + inert_hull
     if stepping != 0:
         st[T_FIRST] = 0.0
-    if thrust > st[T_PEAK]:
-        st[T_PEAK] = thrust
+        st[T_LAST_THRUST], st[T_LAST_THRUST_AM], st[T_LAST_HULL] = thrust, thrust_am, hull
+        st[T_LAST_HEADING], st[T_LAST_HEADING + 1], st[T_LAST_HEADING + 2] = hx, hy, hz
+    if thrust_rec > st[T_PEAK]:
+        st[T_PEAK] = thrust_rec
         st[T_PEAK_TIME] = t
     # -- 4. record the state at t -------------------------------------------------------------------
     if row >= 0:
@@ -344,9 +415,9 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
         rr[R_X], rr[R_X + 1], rr[R_X + 2] = xpos[tb, 0], xpos[tb, 1], xpos[tb, 2]
         rr[R_YAW] = math.atan2(xmat[tb, 3], xmat[tb, 0])
         rr[R_V], rr[R_V + 1], rr[R_V + 2] = vbx, vby, vbz
-        rr[R_THRUST] = thrust
-        rr[R_THRUST_AM] = thrust_am
-        rr[R_HULL] = hull
+        rr[R_THRUST] = thrust_rec
+        rr[R_THRUST_AM] = thrust_am_rec
+        rr[R_HULL] = hull_rec
         rr[R_PS] = y[CL.Y_PS]
         rr[R_PE] = y[CL.Y_PE]
         q = 0.0

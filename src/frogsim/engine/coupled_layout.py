@@ -1,7 +1,8 @@
 """Index layouts of the coupled engine's flat arrays (:mod:`frogsim.engine.coupled`).
 
 The compiled kernel (:mod:`frogsim.engine.coupled_kernel`) reads and writes plain float arrays;
-these constants name their columns: the muscle table mu[i, U_*], the constants sc[S_*], the
+these constants name their columns: the muscle table mu[i, U_*], the leg joints' end stops
+stops[j, STOP_*], each water part's last state vprev[e, V_*], the constants sc[S_*], the
 kernel's own state st[T_*] (the pneumatic driver's and the controllers' state are arrays of their
 own, :mod:`frogsim.engine.integrator` and :mod:`frogsim.control.sampled`), and one row of the
 per-step record rec[row, R_*], whose variable part the rec_* functions (for compiled code) and
@@ -24,6 +25,14 @@ U_TENDON = 0     # MuJoCo tendon id
 U_ACT = 1        # MuJoCo actuator id
 U_FITTINGS = 2   # tendon length - muscle length [m]
 U_SIZE = 3
+
+# --- end stops stops[j, :] (per leg joint, frogsim.physics.stop) -----------------------------------
+STOP_LOWER = 0   # flexed end of the range [rad]
+STOP_UPPER = 1   # extended end of the range [rad]
+STOP_K = 2       # pad stiffness about the joint axis [N m/rad]
+STOP_C = 3       # pad damping [N m s/rad]
+STOP_DAMPING = 4  # the joint's own viscous damping, MuJoCo's dof_damping off the pads [N m s/rad]
+STOP_SIZE = 5
 
 # --- constants sc[:] ---------------------------------------------------------------------------------
 S_DT = 0         # MuJoCo step [s]
@@ -49,7 +58,19 @@ T_FAIL_VAL = 5   # the offending value
 T_EXERGY = 6     # isothermal exergy of the air charged into muscles since t = 0 [J]
 T_PEAK = 7       # largest thrust so far [N]
 T_PEAK_TIME = 8
-T_SIZE = 9
+# the water's forces of the last step other than -M_A a (drag, Kirchhoff's velocity terms, an
+# opening palm's -dM_A/dt v), along that step's heading [N]: the record's thrust of a step is
+# these plus -M_A a with that step's acceleration, known one step later (coupled_kernel)
+T_LAST_THRUST = 9       # on the legs
+T_LAST_THRUST_AM = 10   # its added-mass part (velocity terms)
+T_LAST_HULL = 11        # on the hull
+T_LAST_HEADING = 12     # the last step's heading, world (3)
+T_SIZE = 15
+
+# --- per part in the water, vprev[e, :]: its state at the last step --------------------------------
+V_VEL = 0        # velocity of the added-mass centre, world (3) [m/s]
+V_MA = 3         # added-mass matrix in world axes: xx, yy, zz, xy, xz, yz (6) [kg]
+V_SIZE = 9
 
 FAIL_PNEUMATIC = 1
 FAIL_QPOS = 2

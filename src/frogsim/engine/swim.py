@@ -9,9 +9,9 @@ Definitions used by :meth:`SwimResult.summary` (all from the run's own records):
 
 * forward: along the heading the hull had at t = 0 (the way the frog faces);
 * thrust: the water's force on both legs (thighs, cruses, palms: drag and added-mass reaction)
-  along the hull's current heading; the hull's own drag is reported apart. Its peak over the run
-  may fall where a leg hits a joint stop (the water's added mass runs on); the peak during
-  extension is given apart (on the output grid);
+  along the hull's current heading, over the MuJoCo step that ends at the sample; the hull's own
+  drag is reported apart. Its peak over the run may fall where a leg meets a joint's stop pad (the
+  water's added mass runs on); the peak during extension is given apart (on the output grid);
 * extension / recovery: the hip driving muscles' pressurise phase of each cycle / the rest of it;
 * air used: mass charged into the muscles through their charge valves, as litres at the ISO 8778
   standard state (100 kPa, 293.15 K);

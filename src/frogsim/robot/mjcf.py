@@ -2,8 +2,14 @@
 
 Bodies: the hull ("body", Table 1 length and width, ellipsoidal, with its ballast) and per leg
 thigh, crus and palm ("thigh_left", ...), joined by hinges "hip_left", "knee_left", "ankle_left"
-about the vertical (range, friction and damping from ``[joints]``). The hull is free (6 DoF),
-held to the horizontal plane (slide x, slide y, hinge yaw) or fixed on a base.
+about the vertical (friction and damping from ``[joints]``). The hull is free (6 DoF), held to the
+horizontal plane (slide x, slide y, hinge yaw) or fixed on a base.
+
+A joint's ``range`` is written for readers (viewer, ``jnt_range``) but is not a MuJoCo limit
+(``limited="false"``): the end stops are elastomer pads, a spring and damper the coupled engine
+applies on a pad as a joint torque and the joint's dof damping (:mod:`frogsim.physics.stop`). MuJoCo's limit constraint fixes the
+joint's acceleration per unit of its effective inertia, so it cannot hold a pad's stiffness in
+N m/rad; the old 5 ms constraint stopped a swimming leg and its water within milliseconds.
 
 Muscles are spatial tendons between an anchor site on the parent segment and a pin site on the
 child's crank (:mod:`frogsim.robot.geometry`), each driven by a ``general`` actuator whose control
@@ -27,13 +33,6 @@ from frogsim.robot.params import JOINTS, SIDES
 SEGMENT = {"hip": "thigh", "knee": "crus", "ankle": "palm"}
 PALM_STRIPS = 6          # boxes that draw the palm's fan (visual only)
 MUSCLE_Z = {"drive": 0.012, "recover": -0.012}   # the two muscles of a joint above and below [m]
-
-
-def limit_time_constant(timestep: float) -> float:
-    """Time constant of the joint stops' soft constraint [s]: 5 ms (a stiff mechanical stop; a
-    leg driven by 600 N on a 30 mm crank enters it by a fraction of a degree), never below the
-    2.5 timesteps MuJoCo needs to resolve it."""
-    return max(0.005, 2.5 * timestep)
 
 
 def _f(x: float) -> str:
@@ -157,8 +156,7 @@ def _leg(w, rs, side: str) -> None:
         w(f'{indent}<body name="{name}" pos="{_vec(x0, sy * y0, 0)}" quat="{_quat_z(psi)}">')
         ind = indent + "  "
         w(f'{ind}<joint name="{joint}_{side}" type="hinge" axis="0 0 {_f(sy)}" range="0 {_f(jp.range)}" '
-          f'damping="{_f(jp.damping)}" frictionloss="{_f(jp.friction)}" '
-          f'solreflimit="{_f(limit_time_constant(rs.options.timestep))} 1"/>')
+          f'limited="false" damping="{_f(jp.damping)}" frictionloss="{_f(jp.friction)}"/>')
         L = legs.segment_length(joint)
         m = lay.segment_mass[joint]
         Ix, Iy, Iz = lay.segment_inertia[joint]

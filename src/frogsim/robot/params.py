@@ -83,10 +83,13 @@ class Legs:
 
 @dataclass(frozen=True)
 class Joint:
-    """One joint: its muscles' type and crank, its range of motion, friction and recovery spring.
+    """One joint: its muscles' type and crank, its range of motion and end stops, friction and
+    recovery spring.
 
     The joint angle is 0 at the flexed stop (driving muscle at its rest length) and grows with
-    extension up to ``range``; ``extended_angle`` is the segment's angle to its parent there.
+    extension up to ``range``; ``extended_angle`` is the segment's angle to its parent there. At
+    both ends an elastomer pad stops the joint: ``stop_stiffness`` and ``stop_damping`` about the
+    joint axis (:mod:`frogsim.physics.stop`).
     """
     muscle_type: str = field(metadata={})
     range: float = quantity("angle", gt=0.0, lt=math.pi, display="deg")
@@ -95,6 +98,10 @@ class Joint:
     damping: float = quantity("rotational_damping", ge=0.0, display="N*m*s")
     spring_stiffness: float = quantity("stiffness", ge=0.0, display="N/m")
     spring_preload: float = quantity("force", ge=0.0, display="N")
+    stop_stiffness: float = quantity("rotational_stiffness", gt=0.0, display="N*m/rad",
+                                     doc="end stops' pads about the joint axis")
+    stop_damping: float = quantity("rotational_damping", ge=0.0, display="N*m*s",
+                                   doc="end stops' pads, per radian")
 
 
 @dataclass(frozen=True)

@@ -53,6 +53,7 @@ SI_UNITS = {
     "stiffness": ("N/m", "a spring stiffness such as \"3000 N/m\""),
     "torque": ("N*m", "a torque such as \"0.2 N*m\""),
     "rotational_damping": ("N*m*s", "a rotational damping such as \"0.02 N*m*s\" (per radian)"),
+    "rotational_stiffness": ("N*m/rad", "a rotational stiffness such as \"3800 N*m/rad\""),
     "pressure_per_angle": ("Pa/rad", "a gain such as \"10 bar/rad\""),
     "pressure_time_per_angle": ("Pa*s/rad", "a gain such as \"0.2 bar*s/rad\""),
     "pressure_per_angle_time": ("Pa/(rad*s)", "a gain such as \"20 bar/(rad*s)\""),
