@@ -423,3 +423,15 @@ def test_the_joint_angle_law_runs_on_the_angle_sensors_counts_in_the_coupled_eng
     angle = plan.channels[2]
     # one count of the 0.5-4.5 V angle sensor over 180 deg at 5 V is 180 deg / 819.2
     assert math.degrees(angle.unit_per_count) == pytest.approx(180 / 819.2)
+
+
+def test_tables_end_at_their_last_change_and_a_pair_shares_its_setpoint():
+    rs = frogsim.load_robot_scenario(with_firmware("hip-angle-in-air"))
+    plan = fwm.firmware_plan(rs)
+    # steps 10 deg -> 30 deg at 1 s, 1 kHz: the setpoint's table ends at sample 1000 (1001 entries,
+    # then its rate, zero, as many), read by both muscles of the pair; the ten muscles that hold
+    # their valves shut have no mode change (one empty table, shared)
+    assert plan.table_bytes == 4 * 2 * 1001 + 4
+    assert plan.c_source.count("FS_TABLE =") == 2
+    ja = [law for law in plan.laws if law.module is joint_angle]
+    assert len(ja) == 2 and ja[0].P[8] == 1001 and ja[0].T[1000] != ja[0].T[999]

@@ -112,6 +112,9 @@ class JointAngleSettings(SensedLoop):
         per_rad = fixed.q4_per_unit(aline, fw, full)
         dt = 1.0 / sc.controller.rate
         sp, dsp = fixed.setpoint_series(row, sc, 0.0)
+        sp_q, dsp_q = fixed.trimmed(fixed.q4(aline, fw, sp, full),
+                                    np.clip(np.floor(dsp * dt * per_rad * 256.0 + 0.5), -2**24, 2**24)
+                                    .astype(np.int64))
         ratio = per_pa / per_rad * fixed.Q16            # Pa/rad gain -> pressure Q4 per angle Q4, Q16
         gains = [self.proportional_gain * ratio, self.derivative_gain / dt / 256.0 * ratio,
                  self.integral_gain * dt * ratio]
@@ -122,9 +125,8 @@ class JointAngleSettings(SensedLoop):
                                 "the gains or widen the transducer's pressure range")
         P = [int(row[L_SIGN]), fixed.q4(pline, fw, self.co_contraction, full), fixed.q4(pline, fw, 0.0, full),
              fixed.q4(pline, fw, fixed.top_pressure(sc), full)] + gains + [
-            int(round(0.5 * self.band * per_pa)), sp.size, VELOCITY_SHIFT]
-        T = np.concatenate([fixed.q4(aline, fw, sp, full),
-                            np.clip(np.floor(dsp * dt * per_rad * 256.0 + 0.5), -2**24, 2**24).astype(np.int64)])
+            int(round(0.5 * self.band * per_pa)), sp_q.size, VELOCITY_SHIFT]
+        T = np.concatenate([sp_q, dsp_q])
         return fixed.firmware_row(row, sc, P, T)
 
 
