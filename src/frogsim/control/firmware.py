@@ -86,6 +86,11 @@ class Law:
     pressure: int
     angle: int
 
+    def __post_init__(self):
+        # the Numba twin's arguments, made once (float arrays holding the whole numbers)
+        object.__setattr__(self, "_Pf", np.asarray(self.P, float))
+        object.__setattr__(self, "_Tf", np.asarray(self.T, float))
+
 
 @dataclass(frozen=True)
 class FirmwarePlan:
@@ -268,7 +273,7 @@ def firmware_modes(plan: FirmwarePlan, k: int, adc, mem: np.ndarray) -> np.ndarr
     for j, law in enumerate(plan.laws):
         cp = int(adc[law.pressure]) if law.pressure >= 0 else 0
         ca = int(adc[law.angle]) if law.angle >= 0 else 0
-        modes[j] = law.module.fw_law(np.asarray(law.P, float), law.T.astype(float), mem[j], int(k), cp, ca)
+        modes[j] = law.module.fw_law(law._Pf, law._Tf, mem[j], int(k), cp, ca)
     return modes
 
 
