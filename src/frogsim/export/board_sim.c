@@ -12,6 +12,7 @@
  *     simavr paces the bytes at the baud rate the firmware set.
  * The AVR runs only inside board_run_until, up to a given cycle count.
  */
+#include <stdarg.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,7 +27,7 @@
 #define UART_CAP (1 << 20)
 
 typedef struct board_t board_t;
-typedef struct { board_t *b; int index; } watch_t;
+typedef struct { board_t *b; int index; int last; } watch_t;
 
 struct board_t {
     avr_t *avr;
@@ -40,6 +41,8 @@ struct board_t {
     uint8_t uart[UART_CAP];
     uint64_t uart_cycle[UART_CAP];
     long uart_head, uart_tail, uart_lost;
+    /* board_run_until_pin: stop when watch `stop_index` changes to `stop_value` */
+    int stop_index, stop_value, stop_hit;
 };
 
 static void pin_changed(struct avr_irq_t *irq, uint32_t value, void *param) {
@@ -51,6 +54,9 @@ static void pin_changed(struct avr_irq_t *irq, uint32_t value, void *param) {
     b->ev_index[k] = w->index;
     b->ev_value[k] = (int32_t)value;
     b->ev_tail++;
+    if (w->index == b->stop_index && (int)value == b->stop_value && w->last != (int)value)
+        b->stop_hit = 1;
+    w->last = (int)value;
 }
 
 static void uart_out(struct avr_irq_t *irq, uint32_t value, void *param) {
@@ -62,11 +68,17 @@ static void uart_out(struct avr_irq_t *irq, uint32_t value, void *param) {
     b->uart_tail++;
 }
 
+/* simavr's messages (the ELF loader's "Loaded N .text") go nowhere: frogsim reports itself */
+static void quiet(struct avr_t *avr, const int level, const char *format, va_list ap) {
+    (void)avr; (void)level; (void)format; (void)ap;
+}
+
 /* Load an ELF for the ATmega2560 at `frequency` Hz with AVcc = AREF = `vref_mv`.
  * Returns NULL if the file cannot be read or the core cannot be made. */
 board_t *board_open(const char *elf, uint32_t frequency, uint32_t vref_mv) {
     elf_firmware_t fw;
     memset(&fw, 0, sizeof(fw));
+    avr_global_logger_set(quiet);
     if (elf_read_firmware(elf, &fw) != 0)
         return NULL;
     avr_t *avr = avr_make_mcu_by_name("atmega2560");
@@ -79,6 +91,7 @@ board_t *board_open(const char *elf, uint32_t frequency, uint32_t vref_mv) {
     avr->vcc = avr->avcc = avr->aref = vref_mv;
     board_t *b = (board_t *)calloc(1, sizeof(board_t));
     b->avr = avr;
+    b->stop_index = -1;
     uint32_t flags = 0;
     avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
     flags &= ~AVR_UART_FLAG_STDIO;                      /* bytes go to board_uart_read only */
@@ -101,6 +114,7 @@ int board_watch(board_t *b, char port, int bit, int index) {
     watch_t *w = &b->watch[b->n_watch++];
     w->b = b;
     w->index = index;
+    w->last = 0;                                      /* every pin is low out of reset */
     avr_irq_register_notify(irq, pin_changed, w);
     return 0;
 }
@@ -127,7 +141,34 @@ int board_run_until(board_t *b, uint64_t cycle) {
     return 0;
 }
 
+/* Run until watched pin `index` changes (from the other level) to `value` (the change is queued as an event) or the
+ * cycle counter reaches `max_cycle`. Returns 1 if the pin changed, 0 if the cycle limit came
+ * first, -1 if the firmware stopped or crashed. */
+int board_run_until_pin(board_t *b, int index, int value, uint64_t max_cycle) {
+    b->stop_index = index;
+    b->stop_value = value;
+    b->stop_hit = 0;
+    while (!b->stop_hit && b->avr->cycle < max_cycle) {
+        int st = avr_run(b->avr);
+        if (st == cpu_Done || st == cpu_Crashed) {
+            b->stop_index = -1;
+            return -1;
+        }
+    }
+    b->stop_index = -1;
+    return b->stop_hit;
+}
+
 uint64_t board_cycle(board_t *b) { return b->avr->cycle; }
+
+/* Copy `n` bytes of data memory from address `addr` (the data space: 0 = R0, 0x200 the first
+ * SRAM byte on the ATmega2560) into `out`; returns n, or -1 if the range is outside it. */
+long board_read_ram(board_t *b, uint32_t addr, uint8_t *out, long n) {
+    if (addr + (uint64_t)n > (uint64_t)b->avr->ramend + 1)
+        return -1;
+    memcpy(out, b->avr->data + addr, (size_t)n);
+    return n;
+}
 
 /* Move up to `max` queued pin events into the arrays; returns how many. */
 long board_events(board_t *b, uint64_t *cycle, int32_t *index, int32_t *value, long max) {

@@ -94,6 +94,10 @@ def _lib():
         lib.board_set_adc_mv.argtypes = [vp, ctypes.c_int, ctypes.c_uint32]
         lib.board_set_pin.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
         lib.board_run_until.argtypes = [vp, u64]
+        lib.board_read_ram.restype = ctypes.c_long
+        lib.board_read_ram.argtypes = [vp, ctypes.c_uint32, ctypes.c_char_p, ctypes.c_long]
+        lib.board_run_until_pin.restype = ctypes.c_int
+        lib.board_run_until_pin.argtypes = [vp, ctypes.c_int, ctypes.c_int, u64]
         lib.board_cycle.restype = u64
         lib.board_cycle.argtypes = [vp]
         ptr = np.ctypeslib.ndpointer
@@ -106,6 +110,17 @@ def _lib():
         del i32
         _LIB = lib
     return _LIB
+
+
+def symbol_address(elf, name: str) -> int:
+    """The data-space address of variable ``name`` in ``elf`` (from ``avr-nm``; the AVR tool chain
+    places data at 0x800000 + address); FrogsimError if the ELF has no such symbol."""
+    out = subprocess.run([require("avr-nm"), str(elf)], capture_output=True, text=True, check=True).stdout
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) == 3 and parts[2] == name:
+            return int(parts[0], 16) - 0x800000
+    raise FrogsimError(f"{elf}: no symbol {name!r} (a firmware of another frogsim version?)")
 
 
 class EmulatedBoard:
@@ -170,6 +185,23 @@ class EmulatedBoard:
         """Run the firmware until the cycle counter reaches ``cycle``; FrogsimError if it stopped."""
         if self._lib.board_run_until(self._h, int(cycle)) != 0:
             raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
+
+    def read_ram(self, address: int, size: int) -> bytes:
+        """``size`` bytes of the AVR's data memory at ``address`` (data space; an ELF symbol's
+        address less 0x800000, see :func:`symbol_address`)."""
+        buf = ctypes.create_string_buffer(int(size))
+        if self._lib.board_read_ram(self._h, int(address), buf, int(size)) != size:
+            raise FrogsimError(f"data memory {address:#x}..{address + size:#x}: outside the ATmega2560's")
+        return buf.raw
+
+    def run_until_pin(self, index: int, value: int, max_cycle: int) -> bool:
+        """Run the firmware until watched pin ``index`` (from :meth:`watch`) changes to ``value``
+        (True; the change is among :meth:`events`) or the cycle counter reaches ``max_cycle``
+        (False). FrogsimError if the firmware stopped."""
+        st = self._lib.board_run_until_pin(self._h, int(index), 1 if value else 0, int(max_cycle))
+        if st < 0:
+            raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
+        return st == 1
 
     def events(self, limit: int = 1 << 16) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The watched pins' changes since the last call: (cycle, watch index, value) arrays."""
