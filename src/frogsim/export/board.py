@@ -1,6 +1,9 @@
 """The Arduino Mega 2560 the robot's valves run from (paper, Sec. 4: "The switch valves are
 controlled by the control card (Arduino Mega 2560)"): the facts a firmware design is checked
-against, and the ATmega2560's ADC conversion timing.
+against, and the ATmega2560's ADC conversion timing. The part's own facts (memories, pins, the
+ADC's timing and transfer function) live in :mod:`frogsim.components.atmega2560`, where the
+scenario and control layers read them; they are re-exported here, beside the pin map read from
+the installed Arduino core.
 
 Sources:
 
@@ -21,96 +24,17 @@ Sources:
 """
 from __future__ import annotations
 
-import math
 import re
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-F_CPU = 16_000_000            # [Hz] the Mega 2560's crystal
-FLASH_BYTES = 256 * 1024      # [B] program memory
-BOOTLOADER_BYTES = 8 * 1024   # [B] taken by the Arduino bootloader (stk500v2)
-SRAM_BYTES = 8 * 1024         # [B] data memory
-DIGITAL_PINS = 70             # D0..D69 (D54..D69 are A0..A15)
-ANALOG_INPUTS = 16            # A0..A15
-SERIAL_PINS = (0, 1)          # USART0 RX, TX: the USB serial port the log streams over
-ADC_PRESCALERS = (2, 4, 8, 16, 32, 64, 128)
-ADC_CYCLES = 13               # ADC clock cycles of a normal single-ended conversion
-ADC_CYCLES_FIRST = 25         # ... of the first one after the ADC is enabled
-ADC_FULL_RESOLUTION_HZ = 200e3  # ADC clock at or below which the 10-bit result is specified
-ADC_MAX_CLOCK_HZ = 1e6        # highest recommended ADC clock; 8 bits expected there
-#: external interrupt pins of the Mega 2560 (INT4, INT5, INT3, INT2, INT1, INT0)
-INTERRUPT_PINS = (2, 3, 18, 19, 20, 21)
+from frogsim.components.atmega2560 import (  # noqa: F401  (the part's facts, re-exported)
+    ADC_CYCLES, ADC_CYCLES_FIRST, ADC_FULL_RESOLUTION_HZ, ADC_MAX_CLOCK_HZ, ADC_PRESCALERS, ANALOG_INPUTS,
+    BOOTLOADER_BYTES, DIGITAL_PINS, F_CPU, FLASH_BYTES, INTERRUPT_PINS, SERIAL_PINS, SRAM_BYTES, AdcPlan,
+    adc_bits, adc_count, analog_pin, conversion_time, cycles, plan_adc)
 
 ARDUINO_CORE = Path("/usr/share/arduino/hardware/arduino/avr")     # Debian's arduino-core-avr
-
-
-def conversion_time(prescaler: int, f_cpu: float = F_CPU, first: bool = False) -> float:
-    """Time of one single-ended conversion [s]: 13 ADC clock cycles (25 for the first after the
-    ADC is enabled) of the ADC clock f_cpu / prescaler (datasheet Table 26-1).
-
-    >>> round(conversion_time(128) * 1e6, 1)     # Arduino's default: 125 kHz ADC clock
-    104.0
-    """
-    return (ADC_CYCLES_FIRST if first else ADC_CYCLES) * prescaler / f_cpu
-
-
-def adc_bits(prescaler: int, f_cpu: float = F_CPU) -> int:
-    """The resolution [bits] the datasheet supports at the ADC clock f_cpu / prescaler: 10 up to
-    200 kHz, 8 up to 1 MHz (the firmware then reads the left-adjusted high byte ADCH only);
-    ValueError above 1 MHz (not recommended at all)."""
-    f_adc = f_cpu / prescaler
-    if f_adc <= ADC_FULL_RESOLUTION_HZ:
-        return 10
-    if f_adc <= ADC_MAX_CLOCK_HZ:
-        return 8
-    raise ValueError(f"ADC clock {f_adc / 1e3:g} kHz is above the recommended 1 MHz")
-
-
-@dataclass(frozen=True)
-class AdcPlan:
-    """How a control period's conversions are made: the prescaler, the resolution it allows, the
-    time of the period's conversions and the share of the period they take."""
-    channels: int
-    prescaler: int
-    bits: int
-    conversion_s: float
-    total_s: float
-    period_s: float
-
-    @property
-    def share(self) -> float:
-        return self.total_s / self.period_s
-
-    def describe(self) -> str:
-        return (f"{self.channels} conversions x {self.conversion_s * 1e6:.1f} us (13 ADC clocks at "
-                f"{F_CPU / self.prescaler / 1e3:g} kHz, prescaler {self.prescaler}) = "
-                f"{self.total_s * 1e6:.0f} us of the {self.period_s * 1e6:.0f} us period "
-                f"({100 * self.share:.0f} %), {self.bits}-bit results")
-
-
-def plan_adc(channels: int, period: float, budget: float = 0.6, f_cpu: float = F_CPU) -> AdcPlan:
-    """The slowest (most accurate) ADC clock whose ``channels`` conversions take at most
-    ``budget`` of the control ``period`` [s], leaving the rest for the law, the valve writes and
-    the serial log. ValueError with the arithmetic if none fits (not even at the 1 MHz the
-    datasheet allows) or the board has too few analog inputs."""
-    if channels > ANALOG_INPUTS:
-        raise ValueError(f"{channels} analog channels: the Mega 2560 has {ANALOG_INPUTS} analog inputs (A0-A15)")
-    if channels == 0:
-        return AdcPlan(0, 128, 10, conversion_time(128, f_cpu), 0.0, period)
-    for prescaler in sorted(ADC_PRESCALERS, reverse=True):
-        if f_cpu / prescaler > ADC_MAX_CLOCK_HZ:
-            break
-        t = conversion_time(prescaler, f_cpu)
-        if channels * t <= budget * period:
-            return AdcPlan(channels, prescaler, adc_bits(prescaler, f_cpu), t, channels * t, period)
-    fastest = min(p for p in ADC_PRESCALERS if f_cpu / p <= ADC_MAX_CLOCK_HZ)
-    t = conversion_time(fastest, f_cpu)
-    raise ValueError(f"{channels} conversions do not fit the {period * 1e6:.0f} us control period: even at "
-                     f"the fastest recommended ADC clock ({f_cpu / fastest / 1e6:g} MHz, 8 bits) they take "
-                     f"{channels} x {t * 1e6:.1f} us = {channels * t * 1e6:.0f} us, more than "
-                     f"{100 * budget:.0f} % of it ({budget * period * 1e6:.0f} us); lower the controller "
-                     f"rate or sense fewer channels")
 
 
 @dataclass(frozen=True)
@@ -146,12 +70,3 @@ def pin_map() -> dict:
             out[k] = Pin(k, port.group(1), int(bit.group(1)))
     return out
 
-
-def analog_pin(channel: int) -> int:
-    """The digital pin number of analog input A<channel> (A0 = D54)."""
-    return 54 + channel
-
-
-def cycles(seconds: float, f_cpu: float = F_CPU) -> int:
-    """Whole CPU cycles in ``seconds`` (rounded to the nearest)."""
-    return int(math.floor(seconds * f_cpu + 0.5))
