@@ -115,34 +115,51 @@ def test_a_plan_that_cannot_fit_its_period_overruns(built, tmp_path):
     assert run.sil["cpu_load_percent"]["max"] > 100.0
 
 
-def test_log_reads_the_boards_bytes_through_a_pseudo_terminal(sil_run, built, tmp_path):
-    """The bytes the emulated board sent, written into a pty, read by `frogsim log` (pyserial on
-    the other end): the same CSV as SIL's serial.csv."""
-    pytest.importorskip("serial")
-    from frogsim.cli import main
-    model, rec, run = sil_run
-    _, out, _, _ = built
-    write_log_csv(tmp_path / "sil.csv", parse_log(run.serial, rec), rec)
-    master, slave = os.openpty()
+def _log_through_pty(data: bytes, argv: list, out: Path) -> int:
+    """Run `frogsim log` on one end of a pseudo-terminal while ``data`` is written into the other."""
     import tty
+    from frogsim.cli import main
+    master, slave = os.openpty()
     tty.setraw(slave)
     port = os.ttyname(slave)
 
     def feed():
         time.sleep(0.5)
-        data = run.serial
         for k in range(0, len(data), 64):
             os.write(master, data[k:k + 64])
             time.sleep(0.002)
     th = threading.Thread(target=feed)
     th.start()
-    code = main(["log", "--port", port, "--firmware", str(out), "--duration", "2.5",
-                 "--out", str(tmp_path / "log"), "--quiet"])
-    th.join()
-    os.close(master)
-    os.close(slave)
-    assert code == 0
+    try:
+        return main(["log", "--port", port, *argv, "--duration", "2.5", "--out", str(out), "--quiet"])
+    finally:
+        th.join()
+        os.close(master)
+        os.close(slave)
+
+
+def test_log_reads_the_boards_bytes_through_a_pseudo_terminal(sil_run, built, tmp_path):
+    """The bytes the emulated board sent, written into a pty, read by `frogsim log` (pyserial on
+    the other end): the same CSV as SIL's serial.csv."""
+    pytest.importorskip("serial")
+    model, rec, run = sil_run
+    _, out, _, _ = built
+    write_log_csv(tmp_path / "sil.csv", parse_log(run.serial, rec), rec)
+    assert _log_through_pty(run.serial, ["--firmware", str(out)], tmp_path / "log") == 0
     assert (tmp_path / "log" / "serial.csv").read_text() == (tmp_path / "sil.csv").read_text()
+
+
+def test_log_without_the_firmware_folder_writes_raw_counts(sil_run, tmp_path):
+    pytest.importorskip("serial")
+    import pandas as pd
+    _, rec, run = sil_run
+    assert _log_through_pty(run.serial, [], tmp_path / "log") == 0
+    df = pd.read_csv(tmp_path / "log" / "serial.csv")
+    assert list(df.columns) == ["time [s]", "hip pressure [count]", "hip charge valve [1 = open]",
+                                "hip discharge valve [1 = open]"]
+    records = parse_log(run.serial, rec).records
+    assert df["hip pressure [count]"].tolist() == [r[1] for r in records]
+    assert df["time [s]"].tolist() == pytest.approx([r[0] / 1000 for r in records])
 
 
 def test_log_table_units_and_scaling(sil_run):

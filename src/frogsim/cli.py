@@ -24,7 +24,7 @@
     frogsim sil SCENARIO --firmware DIR --out DIR
                                             the built firmware on an emulated ATmega2560 in
                                             lockstep with the plant (software in the loop)
-    frogsim log --port PORT --firmware DIR --out DIR
+    frogsim log --port PORT [--firmware DIR] --out DIR
                                             record a board's serial log as a CSV trace
 
 Output folders: a folder belongs to the command that first wrote it (its manifest.json says which:
@@ -397,21 +397,26 @@ def cmd_sil(args) -> int:
 
 
 def cmd_log(args) -> int:
-    from frogsim.errors import ScenarioError
+    from frogsim.errors import ScenarioError, SimulationError
     from frogsim.export.serial_log import first_lines, record_port, write_log_csv
     from frogsim.export.sketch import read_plan_record
     out = out_folder(args.out)
-    rec = read_plan_record(args.firmware)
+    rec = read_plan_record(args.firmware) if args.firmware else None
     if args.duration is not None and not args.duration > 0:
         raise ScenarioError("--duration", args.duration, "must be a time in seconds > 0")
     folder = _folder(args, "log", files=["serial.csv"])
 
     def work():
-        _progress(f"reading {args.port} at {rec['baud']} baud ({rec['name']}: "
-                  f"{', '.join(ch['signal'] for ch in rec['channels'])}) "
-                  + (f"for {args.duration:g} s" if args.duration else "until Ctrl-C") + " ...")
+        what = (f"{rec['baud']} baud ({rec['name']}: {', '.join(ch['signal'] for ch in rec['channels'])})" if rec
+                else "115200 baud (no --firmware: the channels from the board's header line, as raw counts)")
+        _progress(f"reading {args.port} at {what} " + (f"for {args.duration:g} s" if args.duration else
+                                                         "until Ctrl-C") + " ...")
         log = record_port(args.port, rec, args.duration, progress=_progress)
-        write_log_csv(out / "serial.csv", log, rec)
+        plan = rec or log.plan
+        if plan is None:
+            raise SimulationError(f"--port {args.port}: no frogsim header line came (the board sends it "
+                                  "when it starts): give --firmware DIR, or reset the board while logging")
+        write_log_csv(out / "serial.csv", log, plan)
         folder.finish()
         _progress(f"{first_lines(log)}; wrote {out / 'serial.csv'}")
         return 0
@@ -719,7 +724,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("log", help="record a board's serial log (pyserial) as serial.csv, a trace "
                                    "frogsim fit reads")
     _flag(s, "--port", required=True, metavar="PORT")
-    _flag(s, "--firmware", required=True, metavar="DIR")
+    _flag(s, "--firmware", "none: the channels come from the board's header line, as raw counts",
+          default=None, metavar="DIR")
     _flag(s, "--duration", type=float, default=None, metavar="S")
     _writes(s)
     s.set_defaults(func=cmd_log)

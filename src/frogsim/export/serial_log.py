@@ -4,14 +4,16 @@
 for the emulated one (software in the loop).
 
 Columns: ``time [s]`` (k / rate: the sample's time since the firmware started), one per channel
-(``hip pressure [bar gauge]``, from the count with the channel's scale: count x unit_per_count +
-offset, the lower edge of the count's voltage step; ``hip_left angle [deg]``), then
+(``hip pressure [bar gauge]``, ``hip_left angle [deg]``: the middle of the count's step through the
+channel's scale, (count + 1/2) x unit_per_count + offset, the estimate that is not biased by the
+converter's rounding down), then
 ``<muscle> charge valve [1 = open]`` and ``<muscle> discharge valve [1 = open]`` per muscle (the
 overrun counter goes to the run's summary, not into the table). The valve and pressure columns are the ones ``frogsim simulate`` writes, so the
 CSV is a trace ``frogsim fit`` reads as it is (it leaves the valve columns out by their names).
 """
 from __future__ import annotations
 
+import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,6 +23,8 @@ import numpy as np
 from frogsim.errors import ScenarioError
 
 BAR = 1e5
+DEFAULT_BAUD = 115200       # the [firmware] section's default baud rate
+_HEADER = re.compile(r"# frogsim (\S+) rate=(\S+) channels=(.*) muscles=(.*)$")
 
 
 @dataclass
@@ -31,13 +35,35 @@ class Log:
     header: str = ""
     dropped: int = 0
     bad: int = 0
+    plan: dict | None = None      # made from the header line when no firmware.json was given
 
 
-def parse_lines(lines, rec: dict, log: Log | None = None) -> Log:
+def plan_from_header(line: str) -> dict | None:
+    """A plan record made from the firmware's header line alone (no firmware.json at hand): the
+    channels' signals and the muscles, counts without a scale (quantity "count"); None if the
+    line is not a frogsim header."""
+    m = _HEADER.match(line.strip())
+    if not m:
+        return None
+    try:
+        rate = float(m.group(2))
+    except ValueError:
+        return None
+    channels = []
+    for item in filter(None, m.group(3).split(";")):
+        signal, _, pin = item.rpartition("@A")
+        channels.append({"signal": signal, "quantity": "count", "name": signal, "analog_input": int(pin or 0),
+                         "unit_per_count": 1.0, "offset": 0.0, "unit": "count"})
+    return {"format": 1, "name": m.group(1), "rate_hz": rate, "channels": channels,
+            "muscles": [x for x in m.group(4).split(";") if x], "baud": DEFAULT_BAUD}
+
+
+def parse_lines(lines, rec: dict | None, log: Log | None = None) -> Log:
     """Add text lines (without their newline) to ``log``: a line is kept when it has exactly the
-    plan's number of fields, all whole numbers; '#' lines are the header and the dropped count."""
+    plan's number of fields, all whole numbers; '#' lines are the header and the dropped count.
+    Without a plan (``rec`` None) the header line makes one (:func:`plan_from_header`, kept in
+    ``log.plan``); lines before it are not read."""
     log = log or Log()
-    n = len(rec["channels"]) + 3
     for line in lines:
         line = line.strip()
         if not line:
@@ -45,14 +71,20 @@ def parse_lines(lines, rec: dict, log: Log | None = None) -> Log:
         if line.startswith("#"):
             if line.startswith("# frogsim"):
                 log.header = line
+                if rec is None and log.plan is None:
+                    log.plan = plan_from_header(line)
             elif line.startswith("# dropped"):
                 try:
                     log.dropped = int(line.split()[-1])
                 except ValueError:
                     log.bad += 1
             continue
+        plan = rec if rec is not None else log.plan
+        if plan is None:
+            log.bad += 1
+            continue
         parts = line.split(",")
-        if len(parts) != n or not all(p.isdigit() for p in parts):
+        if len(parts) != len(plan["channels"]) + 3 or not all(p.isdigit() for p in parts):
             log.bad += 1
             continue
         log.records.append(tuple(int(p) for p in parts))
@@ -70,7 +102,8 @@ def columns(rec: dict) -> list[str]:
     """The table's headers (module docstring)."""
     cols = ["time [s]"]
     for ch in rec["channels"]:
-        cols.append(f"{ch['signal']} [bar gauge]" if ch["quantity"] == "pressure" else f"{ch['signal']} [deg]")
+        unit = {"pressure": "bar gauge", "angle": "deg"}.get(ch["quantity"], "count")
+        cols.append(f"{ch['signal']} [{unit}]")
     for m in rec["muscles"]:
         cols += [f"{m} charge valve [1 = open]", f"{m} discharge valve [1 = open]"]
     return cols
@@ -86,8 +119,11 @@ def log_table(log: Log, rec: dict, last_sample: int | None = None):
     a = np.array(rows, dtype=np.int64).reshape(len(rows), n_ch + 3)
     data = {"time [s]": a[:, 0] / rate}
     for i, ch in enumerate(rec["channels"]):
-        si = a[:, 1 + i] * ch["unit_per_count"] + ch["offset"]
         name = columns(rec)[1 + i]
+        if ch["quantity"] == "count":
+            data[name] = a[:, 1 + i]
+            continue
+        si = (a[:, 1 + i] + 0.5) * ch["unit_per_count"] + ch["offset"]
         data[name] = si / BAR if ch["quantity"] == "pressure" else np.degrees(si)
     bits = a[:, 1 + n_ch]
     for j, m in enumerate(rec["muscles"]):
@@ -103,10 +139,12 @@ def write_log_csv(path, log: Log, rec: dict, last_sample: int | None = None) -> 
     return Path(path)
 
 
-def record_port(port, rec: dict, duration: float | None = None, progress=None, baud: int | None = None,
+def record_port(port, rec: dict | None, duration: float | None = None, progress=None, baud: int | None = None,
                 opener=None) -> Log:
     """Read the firmware's lines from serial port ``port`` (pyserial) for ``duration`` [s] (None:
-    until interrupted with Ctrl-C). ScenarioError naming the port if it cannot be opened."""
+    until interrupted with Ctrl-C). Without a plan (``rec`` None) the header line makes one and
+    the port is read at the default 115200 baud. ScenarioError naming the port if it cannot be
+    opened."""
     if opener is None:
         try:
             import serial
@@ -115,7 +153,7 @@ def record_port(port, rec: dict, duration: float | None = None, progress=None, b
                 from None
         opener = serial.Serial
     try:
-        link = opener(port, baud or int(rec["baud"]), timeout=0.2)
+        link = opener(port, baud or int((rec or {}).get("baud", DEFAULT_BAUD)), timeout=0.2)
     except Exception as exc:     # pyserial raises SerialException, OSError, ValueError
         raise ScenarioError("--port", port, f"cannot be opened: {exc}") from None
     log = Log()
