@@ -239,7 +239,10 @@ PARTS = (
     ("motion", ("muscles", "muscle_types", "controller", "valves", "base_dir"), (), _motion_stage),
     ("volumes", (), ("motion",), _volumes_stage),
     ("g", ("air", "source", "exhaust", "pump", "supply", "valves"), (), _globals_stage),
-    ("laws", ("valves", "controllers", "controller", "joints"), ("g", "volumes"), _laws_stage),
+    # with [firmware] a law's integer tables also read the run's length, the source's and the
+    # exhaust's pressures (frogsim.control.fixed)
+    ("laws", ("valves", "controllers", "controller", "joints", "firmware", "duration", "source", "pump", "exhaust"),
+     ("g", "volumes"), _laws_stage),
     ("sched_u", ("controllers",), ("laws", "motion"), _schedule_stage),
     ("state", ("air", "source", "exhaust", "muscles", "solver"), ("volumes",), _state_stage),
     ("out_t", ("duration", "output_interval"), (), _output_stage),

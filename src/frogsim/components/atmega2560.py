@@ -35,6 +35,9 @@ SRAM_BYTES = 8 * 1024         # [B] data memory
 DIGITAL_PINS = 70             # D0..D69 (D54..D69 are A0..A15)
 ANALOG_INPUTS = 16            # A0..A15
 SERIAL_PINS = (0, 1)          # USART0 RX, TX: the USB serial port the log streams over
+#: [V] highest ADC reference: AREF lies between 1.0 V and AVCC, and AVCC at most VCC + 0.3 V with
+#: VCC at most 5.5 V (datasheet Sec. 26.5 and Table 31-1, "Operating Voltage")
+VREF_MAX = 5.5
 ADC_PRESCALERS = (2, 4, 8, 16, 32, 64, 128)
 ADC_CYCLES = 13               # ADC clock cycles of a normal single-ended conversion
 ADC_CYCLES_FIRST = 25         # ... of the first one after the ADC is enabled

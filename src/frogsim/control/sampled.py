@@ -46,10 +46,11 @@ from frogsim.control.signals import (  # noqa: F401  (the memory layout and sign
     B_A_FILT, B_A_FILT_ON, B_A_SENSED, B_ANGLE, B_CLIPS, B_CMD_C, B_CMD_D, B_FILT, B_FILT_ON, B_INT, B_MODE,
     B_OMEGA, B_PHASE, B_PULSE, B_Q0, B_QC_HEAD, B_QC_N, B_QD_HEAD, B_QD_N, B_SENSED, B_SP, B_SW_C, B_SW_D,
     B_TARGET, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_PUMP, CS_Q, CS_SAMPLE, CS_SIZE, MODE_CHARGE,
-    MODE_HOLD, MODE_VENT, TOL, pump_band, sense, sense_joint, sensor_noise, setpoint)
+    MODE_HOLD, MODE_VENT, TOL, B_FW0, FW_MEM, adc_count, pump_band, sense, sense_joint, sensor_noise, setpoint)
 from frogsim.control.table import (  # noqa: F401  (the table's layout, re-exported)
-    KIND_EXTERNAL, KIND_PUMP_BAND, L_DEAD_C, L_DEAD_D, L_HIGH, L_INPUT, L_JOINT1, L_KIND, L_LOW, L_MUSCLE,
-    L_SIZE, laws_table)
+    KIND_EXTERNAL, KIND_PUMP_BAND, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0, L_ADC_V0,
+    L_ADC_VREF, L_DEAD_C, L_DEAD_D, L_FW, L_HIGH, L_INPUT, L_JOINT1, L_KIND, L_LOW, L_MUSCLE, L_PATM, L_SIZE,
+    laws_table)
 
 
 def sampled_laws(g):
@@ -239,6 +240,10 @@ def sample_controllers(laws, mp, t, y, u, cs):
         valves = True
         b = _block(cs, c)
         i = int(laws[c, L_MUSCLE])
+        if laws[c, L_FW] > 0.0 and kind != KIND_EXTERNAL:
+            # [firmware]: the law's integer twin on the ADC's counts (frogsim.control.fixed)
+            command_valves(laws, c, cs, firmware_mode(laws, c, cs, b, y, k, ts), ts)
+            continue
         p = sense(laws, c, y[pressure_index(i)], cs, b, k, dt)
         cs[b + B_SENSED] = p
         if kind == KIND_EXTERNAL:
@@ -259,6 +264,53 @@ def sample_controllers(laws, mp, t, y, u, cs):
     if valves and apply_due(laws, t, u, cs):       # commands without dead time act at once
         changed = True
     return changed
+
+
+@jit
+def count_value(v0, kv, q0, full, vref, count):
+    """The reading [Pa gauge or rad] in the middle of an ADC count (the inverse of
+    :func:`frogsim.control.signals.adc_count` at count + 1/2)."""
+    return q0 + ((count + 0.5) * vref / full - v0) / kv
+
+
+@jit
+def firmware_mode(laws, c, cs, b, y, k, ts):
+    """Law c's mode at sample k in firmware mode: its muscle's pressure (and its joint's angle,
+    observed in cs) converted to ADC counts, then its kind's integer twin (``fw_law`` of its
+    module) on its firmware block (parameters P, table T) and its memory cs[b + B_FW0:]. What
+    the model reports is written as the float law writes it: the sensed pressure and angle (the
+    counts' middles), the setpoint at ts, the clipped samples."""
+    kind = laws[c, L_KIND]
+    i = int(laws[c, L_MUSCLE])
+    patm = laws[c, L_PATM]
+    full = laws[c, L_ADC_FULL]
+    vref = laws[c, L_ADC_VREF]
+    cp = adc_count(laws[c, L_ADC_V0], laws[c, L_ADC_K], laws[c, L_ADC_Q0], full, vref, y[pressure_index(i)] - patm)
+    cs[b + B_SENSED] = patm + count_value(laws[c, L_ADC_V0], laws[c, L_ADC_K], laws[c, L_ADC_Q0], full, vref, cp)
+    ca = 0
+    if laws[c, L_JOINT1] > 0.0:
+        ca = adc_count(laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], full, vref, cs[b + B_ANGLE])
+        cs[b + B_A_SENSED] = count_value(laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], full, vref,
+                                         ca)
+    sp, _ = setpoint(laws, c, ts)
+    cs[b + B_SP] = sp
+    at = int(laws[c, L_FW])
+    n_p = int(laws[c, at])
+    n_t = int(laws[c, at + 1])
+    P = laws[c, at + 2:at + 2 + n_p]
+    T = laws[c, at + 2 + n_p:at + 2 + n_p + n_t]
+    mem = cs[b + B_FW0:b + B_FW0 + FW_MEM]
+    mode = 0
+    if kind == bang_bang.CODE:
+        mode = bang_bang.fw_law(P, T, mem, k, cp, ca)
+    elif kind == pwm.CODE:
+        mode = pwm.fw_law(P, T, mem, k, cp, ca)
+    elif kind == sliding_mode.CODE:
+        mode = sliding_mode.fw_law(P, T, mem, k, cp, ca)
+    elif kind == joint_angle.CODE:
+        mode = joint_angle.fw_law(P, T, mem, k, cp, ca)
+        cs[b + B_CLIPS] = mem[3]
+    return float(mode)
 
 
 @jit_alloc

@@ -55,7 +55,9 @@ B_W_SENSED = 21
 B_INT = 22       # integral of the angle error [rad s]
 B_TARGET = 23    # this muscle's pressure target at the last sample [Pa abs]
 B_CLIPS = 24     # samples at which the pair's targets p0 +- dp/2 were clipped to [atmosphere, source]
-B_Q0 = 25        # queues: charge (due, state) x Q, then discharge (due, state) x Q
+B_FW0 = 25       # [firmware]: the integer twin's memory (FW_MEM slots, whole numbers; the C
+FW_MEM = 4       # twin's int32_t mem[FW_MEM]), see frogsim.control.fixed
+B_Q0 = 29        # queues: charge (due, state) x Q, then discharge (due, state) x Q
 TOL = 1e-9       # [s] a due time this close to a sample is that sample
 
 
@@ -195,6 +197,33 @@ def sense_joint(laws, c, cs, b, k, dt):
     cs[b + B_A_SENSED] = th
     cs[b + B_W_SENSED] = w
     return th, w
+
+
+@jit
+def adc_count(v0, k, q0, full, vref, q):
+    """The ATmega2560's count of a sensor reading quantity q (a gauge pressure [Pa] or an angle
+    [rad]): the sensor's voltage V = v0 + k (q - q0) [V], then the datasheet's single-ended
+    conversion ADC = V full / V_REF (full = 2^bits), truncated and clipped to 0..full - 1
+    (:func:`frogsim.components.atmega2560.adc_count` for one voltage)."""
+    x = math.floor((v0 + k * (q - q0)) * full / vref)
+    return int(min(max(x, 0.0), full - 1.0))
+
+
+@jit
+def fw_at(T, k, n):
+    """Entry k of a firmware table of n entries, its last after the end (both twins: T[min(k, n-1)])."""
+    return int(T[k if k < n else n - 1])
+
+
+@jit
+def fw_relay(cq, target, half_band):
+    """The three-position relay in Q4 counts: charge below target - half_band, vent above
+    target + half_band, else hold (the integer twin of :func:`bang_bang`)."""
+    if cq < target - half_band:
+        return 1
+    if cq > target + half_band:
+        return -1
+    return 0
 
 
 # --- the relay the laws share ---------------------------------------------------------------------------

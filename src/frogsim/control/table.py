@@ -13,6 +13,10 @@ The table holds no valve constant: a law that models the valves (the sliding-mod
 their ISO 6358 constants from the model's muscle rows ``mp[i, M_CC..M_DRL]`` (i = the row's
 L_MUSCLE), the plant's own numbers, which the compiled sample receives with the table.
 
+With a ``[firmware]`` section each valve row also carries its sensors' transfer functions
+(columns L_ADC_*, L_AADC_*) and, after its knots, its firmware block (column L_FW points to it):
+the integer parameters and flash tables of the kind's integer twin (:mod:`frogsim.control.fixed`).
+
 Pressures are absolute [Pa] inside; times [s]; the PWM period and minimum pulse in controller
 samples (the commands change only on the controller's grid).
 """
@@ -86,8 +90,18 @@ L_A_SEED = 40    # angle sensor: noise seed
 L_A_BITS = 41    # angle sensor: encoder bits (0: no quantisation)
 L_A_FS = 42      # angle sensor: full scale [rad] (the range is 0..full scale)
 L_A_LAG = 43     # angle sensor: first-order lag time constant [s] (0: none)
-L_SIZE = 44
-L_SP0 = L_SIZE   # knots (t_j, p_j) from here on
+# [firmware] (frogsim.control.fixed): the row's law runs in its integer twin on ADC counts
+L_FW = 44        # column where the row's firmware block starts (0: none, the float law runs)
+L_ADC_V0 = 45    # pressure transducer: volts at L_ADC_Q0 [V]
+L_ADC_K = 46     # ... volts per Pa [V/Pa]
+L_ADC_Q0 = 47    # ... its low pressure [Pa gauge]
+L_ADC_FULL = 48  # the ADC's 2^bits (1024 at 10 bits)
+L_ADC_VREF = 49  # the ADC's reference [V]
+L_AADC_V0 = 50   # angle sensor: volts at L_AADC_Q0 [V]
+L_AADC_K = 51    # ... volts per rad [V/rad]
+L_AADC_Q0 = 52   # ... its low angle [rad]
+L_SIZE = 53
+L_SP0 = L_SIZE   # knots (t_j, p_j) from here on; the firmware block after them
 
 
 def pump_row(g) -> np.ndarray:

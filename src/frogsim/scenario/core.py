@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from frogsim.errors import UNKNOWN, ScenarioError
 from frogsim.scenario import rules
 from frogsim.scenario.fields import check_value, quantity, unknown_key_error
+from frogsim.scenario.firmware import Firmware
 from frogsim.scenario.kinds import ControllerSettings
 from frogsim.scenario.schema import (MOTION_KINDS, Air, Chamber, Controller, Motion, Muscle, MuscleType,
                                      Program, Pump, Solver, Supply, Valves)
@@ -51,6 +52,7 @@ class Scenario:
     programs: dict[str, Program] = field(default_factory=dict)
     controllers: dict[str, ControllerSettings] = field(default_factory=dict)
     joints: dict = field(default_factory=dict)      # robot: joint -> (extensor, flexor or None)
+    firmware: Firmware | None = None                # [firmware]: the board (frogsim.scenario.firmware)
     base_dir: str = "."
     raw: dict = field(default_factory=dict, repr=False, compare=False)
 

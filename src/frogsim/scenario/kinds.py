@@ -68,6 +68,12 @@ class ControllerSettings:
         """The muscles whose valves the controller commands."""
         return (self.muscle,)
 
+    def sensed(self) -> tuple:
+        """What the controller reads, as (quantity, name) pairs: ("pressure", muscle) for each
+        muscle of a closed-loop controller; a kind that reads otherwise says so (an open-loop
+        PWM reads nothing, a joint-angle controller also its joint's angle)."""
+        return tuple(("pressure", m) for m in self.driven()) if self.closed_loop else ()
+
     def where(self, path: str) -> tuple:
         """(the setting that names what the controller drives, its value), for messages."""
         return f"{path}.{self.NAMED}", getattr(self, self.NAMED)

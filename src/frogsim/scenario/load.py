@@ -21,6 +21,7 @@ from frogsim.scenario.schema import (
     Air, Chamber, Controller, Muscle, MuscleType, Program, Pump, Solver, Supply, Valves, Setpoint,
     with_table,
 )
+from frogsim.scenario.firmware import Firmware
 from frogsim.scenario.kinds import ControllerSettings
 from frogsim.errors import MISSING, ScenarioError, Shown
 
@@ -32,7 +33,9 @@ PARAM_SECTIONS = ("air", "source", "exhaust", "pump", "valves", "supply", "muscl
 RUN_KEYS = ("name", "description", "parameters", "duration", "output_interval", "controller",
             "solver", "programs", "muscles", "controllers",
             # robot scenarios (frogsim.robot.scenario): options and gait instead of muscles
-            "robot", "gait")
+            "robot", "gait",
+            # the board the valve controllers run on (frogsim.scenario.firmware)
+            "firmware")
 
 
 def read_toml(path: str | os.PathLike, what: str) -> dict:
@@ -279,6 +282,7 @@ def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None 
         raise ScenarioError("controllers", controllers_raw, "expected a table of named controllers")
     controllers = {c: _read_tables(ControllerSettings.from_raw(v, f"controllers.{c}"), base_dir, f"controllers.{c}")
                    for c, v in controllers_raw.items()}
+    firmware = Firmware.from_raw(raw["firmware"], "firmware") if "firmware" in raw else None
     joints = dict(joints or {})
     for c, ctl in controllers.items():
         if ctl.NAMED == "joint" and ctl.joint in joints:
@@ -287,7 +291,7 @@ def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None 
     scenario = Scenario(name=name, parameters=raw["parameters"], duration=duration,
                         output_interval=interval, controller=controller, solver=solver,
                         muscle_types=muscle_types, muscles=muscles, programs=programs,
-                        controllers=controllers, joints=joints,
+                        controllers=controllers, joints=joints, firmware=firmware,
                         base_dir=base_dir, raw=raw, **sections)
     check(scenario)
     return scenario

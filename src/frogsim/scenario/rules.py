@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 from frogsim._budget import ASK_ABOVE, Need, check as check_size
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.fields import shown
+from frogsim.scenario.firmware import check_firmware
 from frogsim.scenario.motion import build_motions
 from frogsim.scenario.schema import MOTION_KINDS
 from frogsim.scenario.view import Settings
@@ -196,4 +197,5 @@ RULES = (
     (("valves", "controller", "source", "pump", "controllers", "muscles", "air", "joints", "duration"),
      check_controllers),
     (("controller", "muscles", "muscle_types", "base_dir"), _check_motions),
+    (("firmware", "name", "controllers", "muscles", "controller", "duration"), check_firmware),
 )

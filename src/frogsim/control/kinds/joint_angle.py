@@ -4,11 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from frogsim._jit import jit
 from frogsim.circuit.layout import Y_PS
+from frogsim.control import fixed
 from frogsim.control.kinds.common import SensedLoop
-from frogsim.control.signals import (B_CLIPS, B_INT, B_SP, B_TARGET, CS_DT, CS_SAMPLE, bang_bang, sense_joint,
-                                     setpoint)
+from frogsim.control.signals import (B_CLIPS, B_INT, B_SP, B_TARGET, CS_DT, CS_SAMPLE, bang_bang, fw_relay,
+                                     sense_joint, setpoint)
 from frogsim.control.table import (L_A_BITS, L_A_FS, L_A_LAG, L_A_NOISE, L_A_SEED, L_BAND, L_GAIN, L_JOINT1,
                                    L_KD, L_KI, L_KP, L_MUSCLE, L_P0, L_PATM, L_SIGN, L_STREAM, valve_row,
                                    with_setpoint)
@@ -45,6 +48,10 @@ class JointAngleSettings(SensedLoop):
 
     def driven(self) -> tuple:
         return (self.muscle, self.antagonist)
+
+    def sensed(self) -> tuple:
+        """Both muscles' pressures (each inner relay's) and the joint's angle."""
+        return (("pressure", self.muscle), ("pressure", self.antagonist), ("angle", self.joint))
 
     def check_target(self, sc, path: str) -> None:
         """A joint of the robot with an antagonistic pair. The setpoint's range against the
@@ -83,7 +90,41 @@ class JointAngleSettings(SensedLoop):
         flex[L_MUSCLE] = ctx.names.index(self.antagonist)
         flex[L_GAIN] = valve_row(ctx, CODE, self.antagonist, self.sensor)[L_GAIN]
         # a joint-angle setpoint is an angle [rad]: no atmosphere added
-        return [with_setpoint(row, self.setpoint, 0.0), with_setpoint(flex, self.setpoint, 0.0)]
+        rows = [with_setpoint(row, self.setpoint, 0.0), with_setpoint(flex, self.setpoint, 0.0)]
+        if ctx.sc.firmware is not None:
+            rows = [self.firmware_row(r, name, ctx) for r in rows]
+        return rows
+
+    def firmware_row(self, row, name: str, ctx):
+        """The integer twin's block (fixed point: :mod:`frogsim.control.fixed`). Pressures in Q4
+        counts of the transducer, angles in Q4 counts of the angle sensor, gains in Q16:
+        P = [sign (+1 extensor, -1 flexor), p0, atmosphere, source pressure (the targets' clip
+        limits; the firmware does not measure the source: its pressure at the start), Kp
+        (pressure Q4 per angle Q4, Q16), Kd / dt (per Q12 angle counts per sample, Q16),
+        Ki dt (Q16), half band, setpoint table length n]; T = the angle setpoint at each sample
+        (Q4), then its rate at each sample (Q12 counts per sample)."""
+        sc = ctx.sc
+        fw = sc.firmware
+        full = fixed.adc_full(sc)
+        pline, aline = fixed.pressure_volts(fw), fixed.angle_volts(fw)
+        per_pa = fixed.q4_per_unit(pline, fw, full)
+        per_rad = fixed.q4_per_unit(aline, fw, full)
+        dt = 1.0 / sc.controller.rate
+        sp, dsp = fixed.setpoint_series(row, sc, 0.0)
+        ratio = per_pa / per_rad * fixed.Q16            # Pa/rad gain -> pressure Q4 per angle Q4, Q16
+        gains = [self.proportional_gain * ratio, self.derivative_gain / dt / 256.0 * ratio,
+                 self.integral_gain * dt * ratio]
+        gains = [int(round(x)) for x in gains]
+        if max(gains) > fixed.INT32_MAX:
+            raise ScenarioError(f"controllers.{name}.proportional_gain", "(the gains)",
+                                f"with [firmware] each gain in Q16 must fit int32 (got {max(gains)}): lower "
+                                "the gains or widen the transducer's pressure range")
+        P = [int(row[L_SIGN]), fixed.q4(pline, fw, self.co_contraction, full), fixed.q4(pline, fw, 0.0, full),
+             fixed.q4(pline, fw, fixed.top_pressure(sc), full)] + gains + [
+            int(round(0.5 * self.band * per_pa)), sp.size]
+        T = np.concatenate([fixed.q4(aline, fw, sp, full),
+                            np.clip(np.floor(dsp * dt * per_rad * 256.0 + 0.5), -2**24, 2**24).astype(np.int64)])
+        return fixed.firmware_row(row, sc, P, T)
 
 
 @jit
@@ -124,3 +165,82 @@ def joint_angle_mode(laws, c, cs, b, y, p, ts, th, w):
     target = min(max(target, lo), hi)
     cs[b + B_TARGET] = target
     return bang_bang(p, target, laws[c, L_BAND])
+
+
+LIMIT = 2**30           # the integral and the pressure difference are clipped to +-LIMIT
+
+
+@jit
+def fw_law(P, T, mem, k, cp, ca):
+    """The integer twin of :func:`joint_angle_mode` (memory: mem[0] the integral of the error, sum
+    of Q4 errors; mem[1] the last angle (Q4); mem[2] 1 once it holds one; mem[3] the samples
+    with clipped targets). The angle is the count ca's middle 16 ca + 8, e = sp - angle; the
+    rate term is Kd (dsp - dtheta/dt) with the firmware's velocity the backward difference of
+    the angle (no velocity sensor; zero at the first sample): dsp - 256 dtheta in Q12 counts per
+    sample. dp = (Kp e + Kd' (dsp - 256 dtheta) + Ki' integral) >> 16 (int64 products); targets
+    p0 +- dp >> 1, clipped to [atmosphere, source]; a clip counts and keeps the integral
+    (anti-windup); the muscle's relay on its count cp against its target."""
+    n = int(P[8])
+    kk = k if k < n else n - 1
+    aq = 16 * ca + 8
+    e = int(T[kk]) - aq
+    dth = aq - int(mem[1]) if mem[2] > 0 else 0
+    mem[1] = aq
+    mem[2] = 1
+    integ = min(max(int(mem[0]) + e, -LIMIT), LIMIT)
+    acc = int(P[4]) * e + int(P[5]) * (int(T[n + kk]) - 256 * dth) + int(P[6]) * integ
+    dp = min(max(acc >> 16, -LIMIT), LIMIT)
+    half = dp >> 1
+    p0 = int(P[1])
+    lo = int(P[2])
+    hi = int(P[3])
+    up = p0 + half
+    down = p0 - half
+    if up > hi or up < lo or down > hi or down < lo:
+        if mem[3] < 2**31 - 1:
+            mem[3] = mem[3] + 1
+    else:
+        mem[0] = integ
+    target = up if P[0] > 0 else down
+    target = min(max(target, lo), hi)
+    return fw_relay(16 * cp + 8, target, int(P[7]))
+
+
+C_NAME = "fs_joint_angle"
+
+
+def c_source() -> str:
+    """The C twin of :func:`fw_law`."""
+    return """int8_t fs_joint_angle(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P,
+                      const int32_t *T) {
+    int32_t n = P[8];
+    uint32_t kk = k < (uint32_t)n ? k : (uint32_t)(n - 1);
+    int32_t aq = (int32_t)ca * 16 + 8;
+    int32_t e = (int32_t)FS_READ32(&T[kk]) - aq;
+    int32_t dth = mem[2] > 0 ? aq - mem[1] : 0;
+    int32_t integ = mem[0] + e, dp, half, up, down, target;
+    int64_t acc;
+    mem[1] = aq;
+    mem[2] = 1;
+    if (integ > 1073741824L) integ = 1073741824L;
+    if (integ < -1073741824L) integ = -1073741824L;
+    acc = (int64_t)P[4] * e + (int64_t)P[5] * (int64_t)((int32_t)FS_READ32(&T[n + kk]) - 256 * dth)
+        + (int64_t)P[6] * integ;
+    acc >>= 16;
+    if (acc > 1073741824L) acc = 1073741824L;
+    if (acc < -1073741824L) acc = -1073741824L;
+    dp = (int32_t)acc;
+    half = dp >> 1;
+    up = P[1] + half;
+    down = P[1] - half;
+    if (up > P[3] || up < P[2] || down > P[3] || down < P[2]) {
+        if (mem[3] < INT32_MAX) mem[3]++;
+    } else {
+        mem[0] = integ;
+    }
+    target = P[0] > 0 ? up : down;
+    if (target < P[2]) target = P[2];
+    if (target > P[3]) target = P[3];
+    return fs_relay((int32_t)cp * 16 + 8, target, P[7]);
+}
+"""

@@ -5,9 +5,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from frogsim._jit import jit
+from frogsim.control import fixed
 from frogsim.control.kinds.common import SensedLoop
-from frogsim.control.signals import B_PHASE, B_PULSE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, setpoint
+from frogsim.control.signals import B_PHASE, B_PULSE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, fw_at, setpoint
 from frogsim.control.table import (DUTY_CLOSED, DUTY_SCHEDULED, L_DUTY, L_MINPULSE_N, L_PBAND, L_PERIOD_N,
                                    L_REST, valve_row, with_setpoint)
 from frogsim.errors import MISSING, ScenarioError
@@ -34,6 +37,10 @@ class PwmSettings(SensedLoop):
     minimum_pulse: float = quantity("time", ge=0.0, le=1.0, display="ms", default=0.0,
                                     doc="shorter pulses are dropped, shorter gaps filled; below the period")
     rest: str = choice(("vent", "hold"), default="vent", doc="open loop: valve state between pulses")
+
+    def sensed(self) -> tuple:
+        """An open-loop PWM (a duty or a duty schedule) reads nothing; a closed-loop one its pressure."""
+        return (("pressure", self.muscle),) if self.setpoint is not None else ()
 
     @classmethod
     def parse_value(cls, key: str, raw, hint, meta, path: str):
@@ -79,10 +86,42 @@ class PwmSettings(SensedLoop):
         row[L_REST] = 1.0 if self.rest == "vent" else 0.0
         if self.duty_schedule is not None:
             # open loop: the setpoint columns carry the duty schedule (fractions, no offset)
-            return [with_setpoint(row, self.duty_schedule, 0.0)]
-        if self.setpoint is not None:
-            return [with_setpoint(row, self.setpoint, ctx.patm)]
+            row = with_setpoint(row, self.duty_schedule, 0.0)
+        elif self.setpoint is not None:
+            row = with_setpoint(row, self.setpoint, ctx.patm)
+        if ctx.sc.firmware is not None:
+            row = self.firmware_row(row, name, ctx)
         return [row]
+
+    def firmware_row(self, row, name: str, ctx):
+        """The integer twin's block: P = [N, how (0 closed loop, 1 a duty, 2 a duty schedule),
+        the constant duty's pulse round(duty N), the proportional band (Q4 counts), the minimum
+        pulse (samples), 1 to vent between open-loop pulses, the table's length]; T = the setpoint
+        at each sample (Q4 counts, closed loop) or the schedule's pulse round(duty N) at each
+        sample (open loop)."""
+        sc = ctx.sc
+        fw = sc.firmware
+        full = fixed.adc_full(sc)
+        line = fixed.pressure_volts(fw)
+        N = int(row[L_PERIOD_N])
+        how, n_const, T = 0, 0, [0]
+        pband = max(1, int(round(self.proportional_band * fixed.q4_per_unit(line, fw, full))))
+        if self.duty is not None:
+            how, n_const = 1, int(math.floor(self.duty * N + 0.5))
+        elif self.duty_schedule is not None:
+            how = 2
+            duty, _ = fixed.setpoint_series(row, sc, 0.0)
+            T = np.floor(duty * N + 0.5).astype(np.int64)
+        else:
+            sp, _ = fixed.setpoint_series(row, sc, ctx.patm)
+            T = fixed.q4(line, fw, sp, full)
+            if (2 * N + 1) * pband > fixed.INT32_MAX:
+                raise ScenarioError(f"controllers.{name}.frequency", f"{self.frequency:g} Hz",
+                                    f"with [firmware] a closed-loop pwm's period of {N} samples times its "
+                                    f"proportional band ({pband} sixteenths of a count) must stay below 2^30 "
+                                    "(int32 on the board): raise the frequency or narrow the band")
+        P = [N, how, n_const, pband, int(row[L_MINPULSE_N]), 1 if self.rest == "vent" else 0, len(T)]
+        return fixed.firmware_row(row, sc, P, T)
 
 
 def _check_duty_schedule(ds, path: str) -> None:
@@ -140,3 +179,74 @@ def pwm_mode(laws, c, cs, b, p, sp):
     if open_loop and laws[c, L_REST] > 0.5:
         return MODE_VENT
     return MODE_HOLD
+
+
+@jit
+def fw_law(P, T, mem, k, cp, ca):
+    """The integer twin of :func:`pwm_mode`: mem[0] the sample's place in the period, mem[1] this
+    period's pulse in samples (sign: charge +, vent -). At a period's first sample the pulse is
+    the constant's, the schedule's table entry, or round(min(|e| / band, 1) N) =
+    (2 |e| N + band) / (2 band) (whole-number division of non-negative numbers: the same in C)
+    with e = setpoint - (16 cp + 8) in Q4 counts; pulses shorter than the minimum are dropped,
+    gaps shorter than it filled."""
+    N = int(P[0])
+    how = int(P[1])
+    phase = int(mem[0])
+    if phase == 0:
+        sign = 1
+        if how == 1:
+            n_on = int(P[2])
+        elif how == 2:
+            n_on = fw_at(T, k, int(P[6]))
+        else:
+            e = fw_at(T, k, int(P[6])) - (16 * cp + 8)
+            if e < 0:
+                sign = -1
+                e = -e
+            pb = int(P[3])
+            n_on = N if e >= pb else (2 * e * N + pb) // (2 * pb)
+        nmin = int(P[4])
+        if 0 < n_on < nmin:
+            n_on = 0
+        elif n_on < N and N - n_on < nmin:
+            n_on = N
+        mem[1] = sign * n_on
+    mem[0] = (phase + 1) % N
+    pulse = int(mem[1])
+    if phase < abs(pulse):
+        return 1 if pulse > 0 else -1
+    if how != 0 and int(P[5]) > 0:
+        return -1
+    return 0
+
+
+C_NAME = "fs_pwm"
+
+
+def c_source() -> str:
+    """The C twin of :func:`fw_law`."""
+    return """int8_t fs_pwm(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P, const int32_t *T) {
+    int32_t N = P[0], how = P[1], phase = mem[0], pulse;
+    (void)ca;
+    if (phase == 0) {
+        int32_t sign = 1, n_on, nmin = P[4];
+        if (how == 1) {
+            n_on = P[2];
+        } else if (how == 2) {
+            n_on = fs_at(T, k, P[6]);
+        } else {
+            int32_t e = fs_at(T, k, P[6]) - ((int32_t)cp * 16 + 8), pb = P[3];
+            if (e < 0) { sign = -1; e = -e; }
+            n_on = e >= pb ? N : (2 * e * N + pb) / (2 * pb);
+        }
+        if (n_on > 0 && n_on < nmin) n_on = 0;
+        else if (n_on < N && N - n_on < nmin) n_on = N;
+        mem[1] = sign * n_on;
+    }
+    mem[0] = (phase + 1) % N;
+    pulse = mem[1];
+    if (phase < (pulse < 0 ? -pulse : pulse)) return pulse > 0 ? 1 : -1;
+    if (how != 0 && P[5] > 0) return -1;
+    return 0;
+}
+"""

@@ -5,10 +5,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from frogsim._jit import jit
-from frogsim.circuit.layout import M_CB, M_CC, M_CM, M_CRL, M_DB, M_DC, M_DM, M_DRL, Y_PE, Y_PS
+from frogsim.circuit.layout import M_CB, M_CC, M_CM, M_CRL, M_DB, M_DC, M_DM, M_DRL, M_SIZE, Y_PE, Y_PS
+from frogsim.control import fixed
 from frogsim.control.kinds.common import PressureTracking
-from frogsim.control.signals import B_MODE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, setpoint
+from frogsim.control.signals import B_MODE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, fw_at, setpoint
 from frogsim.control.table import (L_BRANCH, L_DEAD_C, L_DEAD_D, L_GAIN, L_HORIZON, L_MUSCLE, L_PENALTY,
                                    L_RHOREF, L_TAMB, L_TREF, valve_row, with_setpoint)
 from frogsim.physics.flow import iso6358_mass_flow
@@ -33,7 +36,55 @@ class SlidingModeSettings(PressureTracking):
         row = valve_row(ctx, CODE, self.muscle, self.sensor)
         row[L_HORIZON] = self.horizon
         row[L_PENALTY] = self.penalty
-        return [with_setpoint(row, self.setpoint, ctx.patm)]
+        row = with_setpoint(row, self.setpoint, ctx.patm)
+        if ctx.sc.firmware is not None:
+            row = firmware_row(row, ctx)
+        return [row]
+
+
+SHIFT = 20              # the dead time and the horizon in Q20 seconds (2^-20 s, about 1 us)
+S_MAX = 16383           # |s| is clipped here (Q4 counts) so that s^2 + rho^2 fits int32
+RATE_MAX = 2**24        # [Q4 counts/s] table entries are clipped here
+
+
+def firmware_row(row, ctx):
+    """The integer twin's block. P = [dead time (Q20 s), horizon lambda (Q20 s), rho^2 (Q4
+    counts squared, rho clipped to S_MAX), setpoint table length n, 2^bits]; T = the setpoint
+    (Q4 counts) at each sample, its rate (Q4 counts/s) at each sample, then per count c the
+    rates under charge and under vent (Q4 counts/s): the valve model :func:`mode_rates` at the
+    pressure in the middle of count c, with the source and the exhaust at their starting
+    pressures (the firmware measures neither), computed here for both twins."""
+    sc = ctx.sc
+    fw = sc.firmware
+    full = fixed.adc_full(sc)
+    line = fixed.pressure_volts(fw)
+    per_pa = fixed.q4_per_unit(line, fw, full)
+    sp, dsp = fixed.setpoint_series(row, sc, ctx.patm)
+    laws = np.ascontiguousarray(row[None, :])
+    i = int(row[L_MUSCLE])
+    mp = np.zeros((i + 1, M_SIZE))
+    vc, vd = sc.valves.charge, sc.valves.discharge
+    mp[i, M_CC], mp[i, M_CB], mp[i, M_CM], mp[i, M_CRL] = (vc.sonic_conductance, vc.critical_ratio,
+                                                           vc.subsonic_index, vc.laminar_ratio)
+    mp[i, M_DC], mp[i, M_DB], mp[i, M_DM], mp[i, M_DRL] = (vd.sonic_conductance, vd.critical_ratio,
+                                                           vd.subsonic_index, vd.laminar_ratio)
+    y = np.zeros(max(Y_PS, Y_PE) + 1)
+    y[Y_PS] = ctx.patm + fixed.top_pressure(sc)
+    y[Y_PE] = ctx.patm + sc.exhaust.initial_pressure_gauge
+    v0, k, q0 = line
+    rc = np.empty(full, np.int64)
+    rv = np.empty(full, np.int64)
+    for c in range(full):
+        p = max(ctx.patm + q0 + ((c + 0.5) * fw.vref / full - v0) / k, 1.0)
+        r_c, r_v = mode_rates(laws, mp, 0, y, p)
+        rc[c] = int(np.clip(np.floor(r_c * per_pa + 0.5), -RATE_MAX, RATE_MAX))
+        rv[c] = int(np.clip(np.floor(r_v * per_pa + 0.5), -RATE_MAX, RATE_MAX))
+    dead = max(row[L_DEAD_C], row[L_DEAD_D])
+    rho = min(int(round(row[L_PENALTY] * per_pa)), S_MAX)
+    P = [int(round(dead * 2**SHIFT)), int(round(row[L_HORIZON] * 2**SHIFT)), rho * rho, sp.size, full]
+    T = np.concatenate([fixed.q4(line, fw, sp, full),
+                        np.clip(np.floor(dsp * per_pa + 0.5), -RATE_MAX, RATE_MAX).astype(np.int64), rc, rv])
+    return fixed.firmware_row(row, sc, P, T)
 
 
 @jit
@@ -92,3 +143,72 @@ def sliding_mode(laws, mp, c, cs, b, y, p, sp, dsp):
             cost = j
             best = m
     return best
+
+
+@jit
+def fw_law(P, T, mem, k, cp, ca):
+    """The integer twin of :func:`sliding_mode` in Q4 counts (mem[0]: the mode last chosen):
+    e = sp - (16 cp + 8) + (dead (dsp - r_last)) >> 20, s(m) = e + (lambda (dsp - r_m)) >> 20
+    (products in int64, arithmetic shifts: floor in both twins), s clipped to +-S_MAX, the mode
+    minimising s^2 + rho^2 [m opens a valve the last mode kept shut]; ties go to hold, then charge."""
+    n = int(P[3])
+    full = int(P[4])
+    cq = 16 * cp + 8
+    sp = fw_at(T, k, n)
+    dsp = int(T[n + (k if k < n else n - 1)])
+    rc = int(T[2 * n + cp])
+    rv = int(T[2 * n + full + cp])
+    last = int(mem[0])
+    r_last = rc if last > 0 else (rv if last < 0 else 0)
+    e = sp - cq + ((int(P[0]) * (dsp - r_last)) >> SHIFT)
+    lam = int(P[1])
+    pen = int(P[2])
+    best = 0
+    cost = 2**31 - 1
+    for m in (0, 1, -1):
+        r = rc if m > 0 else (rv if m < 0 else 0)
+        s = e + ((lam * (dsp - r)) >> SHIFT)
+        s = min(max(s, -S_MAX), S_MAX)
+        j = s * s + (pen if (m != last and m != 0) else 0)
+        if j < cost:
+            cost = j
+            best = m
+    mem[0] = best
+    return best
+
+
+C_NAME = "fs_sliding_mode"
+
+
+def c_source() -> str:
+    """The C twin of :func:`fw_law`."""
+    return """int8_t fs_sliding_mode(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P,
+                       const int32_t *T) {
+    int32_t n = P[3], full = P[4];
+    int32_t cq = (int32_t)cp * 16 + 8;
+    uint32_t kk = k < (uint32_t)n ? k : (uint32_t)(n - 1);
+    int32_t sp = (int32_t)FS_READ32(&T[kk]);
+    int32_t dsp = (int32_t)FS_READ32(&T[n + kk]);
+    int32_t rc = (int32_t)FS_READ32(&T[2 * n + cp]);
+    int32_t rv = (int32_t)FS_READ32(&T[2 * n + full + cp]);
+    int32_t last = mem[0];
+    int32_t r_last = last > 0 ? rc : (last < 0 ? rv : 0);
+    int32_t e = sp - cq + (int32_t)(((int64_t)P[0] * (int64_t)(dsp - r_last)) >> 20);
+    int32_t cost = INT32_MAX, pen = P[2];
+    int8_t best = 0, i;
+    static const int8_t order[3] = {0, 1, -1};
+    (void)ca;
+    for (i = 0; i < 3; i++) {
+        int8_t m = order[i];
+        int32_t r = m > 0 ? rc : (m < 0 ? rv : 0);
+        int32_t s = e + (int32_t)(((int64_t)P[1] * (int64_t)(dsp - r)) >> 20);
+        int32_t j;
+        if (s > 16383) s = 16383;
+        if (s < -16383) s = -16383;
+        j = s * s + ((m != last && m != 0) ? pen : 0);
+        if (j < cost) { cost = j; best = m; }
+    }
+    mem[0] = best;
+    return best;
+}
+"""

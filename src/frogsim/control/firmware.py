@@ -1,0 +1,286 @@
+"""The firmware's laws: a scenario's valve controllers as the board runs them (its plan and its C).
+
+A scenario with a ``[firmware]`` section (:mod:`frogsim.scenario.firmware`) runs its sensed
+controllers in integer arithmetic on ADC counts (:mod:`frogsim.control.fixed`): each kind's
+module holds two twins of its law, ``fw_law`` (Numba, what the model's compiled sample runs) and
+``c_source()`` (C99, what the board runs), on the same parameters and tables. This module puts
+them together for one scenario:
+
+* :func:`firmware_plan` -> :class:`FirmwarePlan`: the sketch's name, rate, muscles and valve
+  pins, analog channels with their scales, the ADC's clock, the serial log's rate and the C
+  translation unit ``c_source`` that defines ``frogsim_sample(k, adc, modes)``;
+* :func:`adc_counts`: the counts the channels read at a plant state (the same function the
+  model's sampling uses, :func:`frogsim.control.signals.adc_count`);
+* :func:`firmware_modes`: the model's integer twin of ``frogsim_sample`` (every muscle's mode at
+  sample k from the counts and the memory), for checks;
+* :func:`host_library`: the C compiled for this machine (gcc, ctypes), for tests.
+
+Muscles without a closed-loop controller run their program (the robot: its gait) from a table
+of mode changes (:mod:`frogsim.control.kinds.program`); in the model they keep their schedule of
+valve switchings, which changes at the same samples.
+"""
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import subprocess
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from frogsim._files import user_cache_folder
+from frogsim.circuit.layout import pressure_index
+from frogsim.components import atmega2560 as chip
+from frogsim.control import fixed
+from frogsim.control.kinds import bang_bang, joint_angle, program, pwm, sliding_mode
+from frogsim.control.signals import FW_MEM, adc_count
+from frogsim.control.table import L_FW, L_JOINT1, L_KIND, L_MUSCLE, L_PATM
+from frogsim.errors import FrogsimError, ScenarioError
+from frogsim.scenario.firmware import firmware_layout
+
+#: kind code of the table -> the kind's module (its fw_law, C_NAME, c_source)
+KIND_MODULES = {bang_bang.CODE: bang_bang, pwm.CODE: pwm, sliding_mode.CODE: sliding_mode,
+                joint_angle.CODE: joint_angle}
+#: every module with a firmware twin, in the order the C defines them
+TWINS = (program, bang_bang, pwm, sliding_mode, joint_angle)
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One analog input the firmware converts. SI value of a count c: ``offset + c *
+    unit_per_count`` (Pa gauge or rad; the offset includes half a count: the value is the middle
+    of the readings that give c)."""
+    signal: str             # "hip pressure", "hip_left angle"
+    quantity: str           # "pressure" | "angle"
+    name: str               # the muscle or the joint
+    analog_input: int       # 0..15 (A0..A15)
+    unit_per_count: float
+    offset: float
+
+
+@dataclass(frozen=True)
+class AdcSettings:
+    """The ADC's clock and timing for the plan (:func:`frogsim.components.atmega2560.plan_adc`):
+    prescaler (ADPS), result bits (8: the left-adjusted ADCH only), ADC clock cycles of the
+    first conversion after enabling and of each following one, and the plan's description."""
+    prescaler: int
+    bits: int
+    first_cycles: int
+    cycles: int
+    text: str
+
+    def cpu_cycles(self, first: bool = False) -> int:
+        """CPU cycles of one conversion."""
+        return (self.first_cycles if first else self.cycles) * self.prescaler
+
+
+@dataclass(frozen=True)
+class Law:
+    """One muscle's law on the board: the twin's module, its parameters P and table T, the
+    indices into the channels of its pressure and angle (-1: none)."""
+    module: object
+    P: tuple
+    T: np.ndarray = field(repr=False)
+    pressure: int
+    angle: int
+
+
+@dataclass(frozen=True)
+class FirmwarePlan:
+    """What the firmware runs (see the module docstring and docs/control.md)."""
+    name: str
+    rate: float
+    period_cycles: int
+    muscles: list
+    valve_pins: list
+    channels: list
+    adc: AdcSettings
+    busy_pin: int
+    baud: int
+    log_every: int
+    c_source: str = field(repr=False)
+    laws: list = field(repr=False)
+    table_bytes: int = 0
+
+    @property
+    def signals(self) -> list:
+        return [ch.signal for ch in self.channels]
+
+
+def _model_of(model):
+    """The PneumaticModel behind what was given (a model, a Scenario, a robot scenario)."""
+    if hasattr(model, "laws") and hasattr(model, "scenario"):
+        return model
+    sc = getattr(model, "pneumatic", model)
+    from frogsim.circuit.model import build_model
+    return build_model(sc)
+
+
+def firmware_plan(model) -> FirmwarePlan:
+    """The firmware plan of a model built from a scenario with a ``[firmware]`` section (a
+    :class:`frogsim.circuit.model.PneumaticModel`; a Scenario or a robot scenario is built first).
+    ScenarioError when the scenario has no ``[firmware]`` or its tables do not fit the flash."""
+    pm = _model_of(model)
+    sc = pm.scenario
+    fw = sc.firmware
+    if fw is None:
+        raise ScenarioError("firmware", "(missing)", "the scenario needs a [firmware] section to be exported "
+                                                     "(`[firmware]` alone takes the defaults)")
+    layout = firmware_layout(sc)
+    rate = sc.controller.rate
+    plan_adc = chip.plan_adc(len(layout.signals), 1.0 / rate)
+    full = 2 ** plan_adc.bits
+    pline, aline = fixed.pressure_volts(fw), fixed.angle_volts(fw)
+    channels = []
+    for s in layout.signals:
+        line = pline if s.quantity == "pressure" else aline
+        v0, k, q0 = line
+        upc = fw.vref / full / k
+        channels.append(Channel(s.label, s.quantity, s.name, s.analog_input, upc, q0 + (0.5 * fw.vref / full - v0) / k))
+    index = {(ch.quantity, ch.name): j for j, ch in enumerate(channels)}
+    rows = {}
+    laws = pm.laws
+    if laws.ndim == 2:
+        for c in range(laws.shape[0]):
+            if laws[c, L_KIND] in KIND_MODULES:
+                rows[pm.names[int(laws[c, L_MUSCLE])]] = c
+    joints = list(sc.joints)
+    plan_laws = []
+    for i, m in enumerate(pm.names):
+        if m in rows:
+            c = rows[m]
+            row = laws[c]
+            if row[L_FW] <= 0.0:
+                raise FrogsimError(f"the law of muscle {m!r} has no firmware block (model built without [firmware])")
+            P, T = fixed.block(row)
+            j = int(row[L_JOINT1]) - 1
+            plan_laws.append(Law(KIND_MODULES[row[L_KIND]], tuple(int(v) for v in P), T,
+                                 index.get(("pressure", m), -1),
+                                 index[("angle", joints[j])] if j >= 0 else -1))
+        else:
+            T = program.firmware_table(sc.muscles[m].program, rate)
+            plan_laws.append(Law(program, (int(T.size),), T if T.size else np.zeros(1, np.int64), -1, -1))
+    table_bytes = 4 * sum(max(1, law.T.size) for law in plan_laws)
+    if table_bytes > fixed.TABLE_BYTES_MAX:
+        raise ScenarioError("duration", f"{sc.duration:g} s",
+                            f"the firmware's tables (setpoints and programs sample by sample) take {table_bytes} "
+                            f"bytes, more than the {fixed.TABLE_BYTES_MAX} bytes of flash the AVR reads them from "
+                            "(LPM reaches 64 KB): shorten the run or use constant setpoints")
+    name = layout.name
+    adc = AdcSettings(plan_adc.prescaler, plan_adc.bits, chip.ADC_CYCLES_FIRST, chip.ADC_CYCLES, plan_adc.describe())
+    log_every = int(round(rate / fw.log_rate))
+    return FirmwarePlan(name=name, rate=rate, period_cycles=int(round(chip.F_CPU / rate)), muscles=list(pm.names),
+                        valve_pins=[layout.valve_pins[m] for m in pm.names], channels=channels, adc=adc,
+                        busy_pin=fw.busy_pin, baud=fw.baud, log_every=log_every,
+                        c_source=c_source(name, plan_laws), laws=plan_laws, table_bytes=table_bytes)
+
+
+def c_source(name: str, laws: list) -> str:
+    """The firmware's laws as one C99 translation unit: the kinds' C twins, each muscle's
+    parameters (RAM), table (flash: FS_TABLE) and memory, ``frogsim_sample`` and
+    ``frogsim_reset`` (memory to zero, as at power-up)."""
+    used = TWINS        # every kind's twin (a few hundred bytes each; the tests call them one by one)
+    out = [f"/* {name}: the valve controllers' laws, generated by frogsim (frogsim.control.firmware).\n"
+           " * Integer arithmetic only (see frogsim.control.fixed); tables in flash through FS_TABLE and\n"
+           " * FS_READ32, which the sketch defines (PROGMEM, pgm_read_dword) before including this file. */\n",
+           "#include <stdint.h>\n\n",
+           "#ifndef FS_TABLE\n#define FS_TABLE\n#endif\n",
+           "#ifndef FS_READ16\n#define FS_READ16(p) (*(p))\n#endif\n",
+           "#ifndef FS_READ32\n#define FS_READ32(p) (*(p))\n#endif\n\n",
+           "void frogsim_sample(uint32_t k, const uint16_t *adc, int8_t *modes);\nvoid frogsim_reset(void);\n",
+           "".join(f"int8_t {mod.C_NAME}(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P, "
+                   "const int32_t *T);\n" for mod in TWINS), "\n", fixed.C_COMMON, "\n"]
+    out += [mod.c_source() + "\n" for mod in used]
+    for j, law in enumerate(laws):
+        out.append(fixed.c_array(f"fs_P{j}", law.P, False))
+        out.append(fixed.c_array(f"fs_T{j}", law.T, True))
+        out.append(f"static int32_t fs_M{j}[{FW_MEM}];\n")
+    out.append("\nvoid frogsim_reset(void) {\n    uint8_t i;\n")
+    for j in range(len(laws)):
+        out.append(f"    for (i = 0; i < {FW_MEM}; i++) fs_M{j}[i] = 0;\n")
+    out.append("}\n\nvoid frogsim_sample(uint32_t k, const uint16_t *adc, int8_t *modes) {\n")
+    if not any(law.pressure >= 0 or law.angle >= 0 for law in laws):
+        out.append("    (void)adc;\n")
+    for j, law in enumerate(laws):
+        cp = f"adc[{law.pressure}]" if law.pressure >= 0 else "0"
+        ca = f"adc[{law.angle}]" if law.angle >= 0 else "0"
+        out.append(f"    modes[{j}] = {law.module.C_NAME}(k, {cp}, {ca}, fs_M{j}, fs_P{j}, fs_T{j});\n")
+    out.append("}\n")
+    return "".join(out)
+
+
+def adc_counts(plan: FirmwarePlan, model, y, qpos=None) -> np.ndarray:
+    """The counts (uint16, one per channel of the plan) the board's ADC reads at the plant state y
+    (gauge pressures of the muscles from y) and the joint angles ``qpos`` [rad] (a dict joint ->
+    angle, or the angles in the scenario's joint order; None without a robot): the same
+    conversion (:func:`frogsim.control.signals.adc_count`) with the same numbers as the model's
+    compiled sample."""
+    pm = _model_of(model)
+    sc = pm.scenario
+    fw = sc.firmware
+    full = float(2 ** plan.adc.bits)
+    patm = float(pm.laws[0, L_PATM]) if pm.laws.ndim == 2 and pm.laws.shape[0] else None
+    if patm is None or patm == 0.0:
+        from frogsim.circuit.layout import G_PATM
+        patm = float(pm.g[G_PATM])
+    pv0, pk, pq0 = fixed.pressure_volts(fw)
+    av0, ak, aq0 = fixed.angle_volts(fw)
+    joints = list(sc.joints)
+    out = np.zeros(len(plan.channels), np.uint16)
+    for j, ch in enumerate(plan.channels):
+        if ch.quantity == "pressure":
+            i = pm.names.index(ch.name)
+            out[j] = adc_count(pv0, pk, pq0, full, fw.vref, float(y[pressure_index(i)]) - patm)
+        else:
+            if qpos is None:
+                raise FrogsimError(f"channel {ch.signal!r}: the joint angles (qpos) are needed")
+            th = qpos[ch.name] if isinstance(qpos, dict) else qpos[joints.index(ch.name)]
+            out[j] = adc_count(av0, ak, aq0, full, fw.vref, float(th))
+    return out
+
+
+def firmware_modes(plan: FirmwarePlan, k: int, adc, mem: np.ndarray) -> np.ndarray:
+    """The model's integer twin of ``frogsim_sample``: every muscle's mode (int8, -1 vent, 0 hold,
+    1 charge) at sample k from the channels' counts ``adc``, each law's ``fw_law`` on its memory
+    ``mem[j]`` (float array (muscles, FW_MEM), updated in place as the board's)."""
+    modes = np.zeros(len(plan.laws), np.int8)
+    for j, law in enumerate(plan.laws):
+        cp = int(adc[law.pressure]) if law.pressure >= 0 else 0
+        ca = int(adc[law.angle]) if law.angle >= 0 else 0
+        modes[j] = law.module.fw_law(np.asarray(law.P, float), law.T.astype(float), mem[j], int(k), cp, ca)
+    return modes
+
+
+def host_library(plan_or_source) -> ctypes.CDLL:
+    """The plan's C (or C source text) compiled for this machine (``gcc -O2 -std=c99 -shared``),
+    cached by the source's hash in frogsim's cache folder, loaded with ctypes; argument types
+    set for frogsim_sample, frogsim_reset and the kinds' functions."""
+    src = plan_or_source.c_source if isinstance(plan_or_source, FirmwarePlan) else str(plan_or_source)
+    digest = hashlib.sha256(src.encode()).hexdigest()[:20]
+    folder = user_cache_folder("firmware-host")
+    folder = Path(folder) if folder else Path(tempfile.gettempdir()) / "frogsim-firmware-host"
+    folder.mkdir(parents=True, exist_ok=True)
+    lib = folder / f"laws_{digest}.so"
+    if not lib.exists():
+        c = folder / f"laws_{digest}.c"
+        c.write_text(src)
+        tmp = folder / f"laws_{digest}.{np.random.randint(1 << 30)}.tmp.so"
+        run = subprocess.run(["gcc", "-O2", "-std=c99", "-Wall", "-Werror", "-shared", "-fPIC", "-o", str(tmp), str(c)],
+                             capture_output=True, text=True)
+        if run.returncode != 0:
+            raise FrogsimError(f"gcc failed on the firmware's laws: {run.stderr.strip()[:2000]}")
+        tmp.replace(lib)
+    h = ctypes.CDLL(str(lib))
+    i32p = ctypes.POINTER(ctypes.c_int32)
+    h.frogsim_sample.argtypes = [ctypes.c_uint32, ctypes.POINTER(ctypes.c_uint16), ctypes.POINTER(ctypes.c_int8)]
+    h.frogsim_sample.restype = None
+    h.frogsim_reset.argtypes = []
+    h.frogsim_reset.restype = None
+    for mod in TWINS:
+        fn = getattr(h, mod.C_NAME, None)
+        if fn is not None:
+            fn.argtypes = [ctypes.c_uint32, ctypes.c_uint16, ctypes.c_uint16, i32p, i32p, i32p]
+            fn.restype = ctypes.c_int8
+    return h

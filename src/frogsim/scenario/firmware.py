@@ -1,0 +1,343 @@
+"""The ``[firmware]`` section: how the scenario's valve controllers sit on the robot's board (an
+Arduino Mega 2560, :mod:`frogsim.components.atmega2560`): valve pins, analog inputs, the sensors'
+transfer functions, the serial log.
+
+With a ``[firmware]`` section the model's sensed controllers read their muscles' pressures (and a
+joint-angle controller its joint's angle) as the board does: through the transducer's voltage and
+the ATmega2560's ADC count (datasheet: ADC = V_IN 1024 / V_REF, truncated, 0..1023), and their
+laws run in integer arithmetic (:mod:`frogsim.control.firmware`). Without the section nothing
+changes. Every setting has a default, so ``[firmware]`` alone works::
+
+    [firmware]
+    name = "hold_3bar"                  # the sketch's name, a C identifier (default: the scenario's)
+    vref = "5 V"                        # the ADC's reference (AVcc)
+    transducer = { low_voltage = "0.5 V", high_voltage = "4.5 V",
+                   low_pressure_gauge = "0 bar", high_pressure_gauge = "10 bar" }
+    angle_sensor = { low_voltage = "0.5 V", high_voltage = "4.5 V",
+                     low_angle = "-90 deg", high_angle = "90 deg" }
+    valve_pins = { hip = [22, 23] }     # muscle -> [charge, discharge]; others from D22 up
+    pressure_inputs = { hip = 0 }       # muscle -> analog input (0 = A0); others from A0 up
+    angle_inputs = { hip_left = 4 }     # joint -> analog input; others after the pressures
+    busy_pin = 13                       # high while the controller's interrupt runs
+    baud = 115200
+    log_rate = "100 Hz"                 # serial log lines per second
+
+:func:`firmware_layout` resolves the defaults (pins, channels) and :func:`check_firmware` (one of
+the scenario's rules) refuses what the board cannot do, each with a one-line ScenarioError.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+from frogsim.components import atmega2560 as chip
+from frogsim.errors import ScenarioError
+from frogsim.scenario.fields import build, integer, quantity, unwrap
+from frogsim.scenario.schema import GAUGE_MAX, GAUGE_MIN
+
+FIRST_VALVE_PIN = 22          # the Mega's double header D22..D53: valve pins by default
+LAST_VALVE_PIN = 53
+OVERRUN_DIGITS = 5            # the log's overrun counter is a uint16 (at most 65535)
+_C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,31}")
+
+
+@dataclass(frozen=True)
+class Transducer:
+    """A pressure transducer with a voltage output linear in gauge pressure: low_voltage at
+    low_pressure_gauge, high_voltage at high_pressure_gauge (outside the range the voltage goes on
+    along the line, and the ADC clips it to 0..V_REF)."""
+    low_voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=0.5)
+    high_voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=4.5)
+    low_pressure_gauge: float = quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar", default=0.0)
+    high_pressure_gauge: float = quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar", default=10e5)
+
+    def volts(self, p_gauge: float) -> float:
+        """The output [V] at gauge pressure p_gauge [Pa]."""
+        return self.low_voltage + (self.high_voltage - self.low_voltage) * (
+            (p_gauge - self.low_pressure_gauge) / (self.high_pressure_gauge - self.low_pressure_gauge))
+
+
+@dataclass(frozen=True)
+class AnglePotentiometer:
+    """An analog angle sensor (a potentiometer on the joint, with its amplifier): low_voltage at
+    low_angle, high_voltage at high_angle, linear between."""
+    low_voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=0.5)
+    high_voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=4.5)
+    low_angle: float = quantity("angle", ge=-math.pi, le=math.pi, display="deg", default=-math.pi / 2)
+    high_angle: float = quantity("angle", ge=-math.pi, le=math.pi, display="deg", default=math.pi / 2)
+
+    def volts(self, angle: float) -> float:
+        """The output [V] at the joint angle [rad]."""
+        return self.low_voltage + (self.high_voltage - self.low_voltage) * (
+            (angle - self.low_angle) / (self.high_angle - self.low_angle))
+
+
+@dataclass(frozen=True)
+class Firmware:
+    """The ``[firmware]`` section (module docstring). ``valve_pins``, ``pressure_inputs`` and
+    ``angle_inputs`` hold what the file wrote; :func:`firmware_layout` adds the defaults."""
+    name: str = ""
+    vref: float = quantity("voltage", gt=0.0, le=chip.VREF_MAX, display="V", default=5.0,
+                           doc="the ADC's reference voltage (AVcc on the Mega 2560)")
+    transducer: Transducer = field(default_factory=Transducer)
+    angle_sensor: AnglePotentiometer = field(default_factory=AnglePotentiometer)
+    busy_pin: int = integer(ge=0, le=chip.DIGITAL_PINS - 1, default=13,
+                            doc="digital pin high while the controller's interrupt runs")
+    baud: int = integer(ge=300, le=2_000_000, default=115200, doc="serial log's baud rate")
+    log_rate: float = quantity("frequency", gt=0.0, le=1e6, display="Hz", default=100.0,
+                               doc="serial log lines per second (a divisor of controller.rate)")
+    # (name, value) pairs as written (tuples: the section hashes by value, as the model's cached
+    # parts need); read them as dicts through pins() and inputs()
+    valve_pins: tuple = field(default=(), metadata={"fixed": True})
+    pressure_inputs: tuple = field(default=(), metadata={"fixed": True})
+    angle_inputs: tuple = field(default=(), metadata={"fixed": True})
+
+    def pins(self) -> dict:
+        """{muscle: (charge pin, discharge pin)} as written."""
+        return dict(self.valve_pins)
+
+    def inputs(self, quantity: str) -> dict:
+        """{muscle (pressure) or joint (angle): analog input} as written."""
+        return dict(self.pressure_inputs if quantity == "pressure" else self.angle_inputs)
+
+    @classmethod
+    def from_raw(cls, raw, path: str = "firmware") -> "Firmware":
+        """The section from a file's table, every value checked."""
+        if not isinstance(raw, dict):
+            raise ScenarioError(path, raw, "expected a table of firmware settings")
+        raw = dict(raw)
+        tables = {}
+        for key, what in (("valve_pins", "pin"), ("pressure_inputs", "input"), ("angle_inputs", "input")):
+            tables[key] = tuple(_read_table(raw.pop(key, {}), f"{path}.{key}", what).items())
+        name = unwrap(raw.pop("name", ""))
+        if not isinstance(name, str):
+            raise ScenarioError(f"{path}.name", name, "expected text: the sketch's name, a C identifier")
+        fw = build(cls, raw, path)
+        return cls(name=name, vref=fw.vref, transducer=fw.transducer, angle_sensor=fw.angle_sensor,
+                   busy_pin=fw.busy_pin, baud=fw.baud, log_rate=fw.log_rate, **tables)
+
+
+def _read_table(raw, path: str, what: str) -> dict:
+    """{name: pin pair (valve_pins) or analog input number} as written, checked to be whole numbers."""
+    raw = unwrap(raw)
+    if not isinstance(raw, dict):
+        raise ScenarioError(path, raw, "expected a table of names, e.g. { hip = "
+                                       + ("[22, 23] }" if path.endswith("valve_pins") else "0 }"))
+    out = {}
+    for name, val in raw.items():
+        here = f"{path}.{name}"
+        val = unwrap(val)
+        if path.endswith("valve_pins"):
+            if (not isinstance(val, (list, tuple)) or len(val) != 2
+                    or not all(isinstance(v, int) and not isinstance(v, bool) for v in val)):
+                raise ScenarioError(here, val, "expected [charge pin, discharge pin], two whole numbers")
+            out[str(name)] = (int(val[0]), int(val[1]))
+        else:
+            if not isinstance(val, int) or isinstance(val, bool):
+                raise ScenarioError(here, val, "expected an analog input number 0..15 (A0..A15)")
+            out[str(name)] = int(val)
+    return out
+
+
+class Signal(NamedTuple):
+    """One analog signal the firmware converts: quantity ("pressure" | "angle"), the muscle or
+    joint it belongs to, its analog input (0..15 = A0..A15)."""
+    quantity: str
+    name: str
+    analog_input: int
+
+    @property
+    def label(self) -> str:
+        """"hip pressure", "hip_left angle"."""
+        return f"{self.name} {self.quantity}"
+
+
+class Layout(NamedTuple):
+    """The board's wiring with the defaults filled in: the sketch's name, every muscle's (charge,
+    discharge) pins in the scenario's muscle order, the analog signals (pressures in controller
+    order, then angles)."""
+    name: str
+    valve_pins: dict
+    signals: list
+
+
+def sensed_signals(sc) -> list:
+    """[(quantity, name)] the scenario's controllers read, in controller order: each sensed
+    controller's muscles' pressures, then (after all pressures) the joint angles."""
+    pressures, angles = [], []
+    for c in sc.controllers.values():
+        for q, n in c.sensed():
+            (pressures if q == "pressure" else angles).append((q, n))
+    seen = set()
+    out = []
+    for s in pressures + angles:
+        if s not in seen:
+            seen.add(s)
+            out.append(s)
+    return out
+
+
+def sketch_name(sc) -> str:
+    """The firmware's name: ``[firmware] name``, else the scenario's name made a C identifier."""
+    if sc.firmware.name:
+        return sc.firmware.name
+    name = re.sub(r"[^A-Za-z0-9_]", "_", sc.name) or "frogsim"
+    if name[0].isdigit():
+        name = "fs_" + name
+    return name[:32]
+
+
+def firmware_layout(sc) -> Layout:
+    """The pins and analog inputs of scenario ``sc`` (which has a ``[firmware]`` section), with
+    the defaults: valve pins from D22 up for every muscle without its own (skipping pins in use),
+    analog inputs from A0 up for every signal without its own."""
+    fw = sc.firmware
+    given_pins = fw.pins()
+    used = set(chip.SERIAL_PINS) | {fw.busy_pin} | {p for pair in given_pins.values() for p in pair}
+    pins = {}
+    free = (p for p in range(FIRST_VALVE_PIN, LAST_VALVE_PIN + 1) if p not in used)
+    for m in sc.muscles:
+        if m in given_pins:
+            pins[m] = given_pins[m]
+        else:
+            pair = (next(free, None), next(free, None))
+            if None in pair:
+                raise ScenarioError("firmware.valve_pins", f"{len(sc.muscles)} muscles",
+                                    f"the default valve pins D{FIRST_VALVE_PIN}..D{LAST_VALVE_PIN} are used up: "
+                                    "give the other muscles' pins in firmware.valve_pins")
+            pins[m] = pair
+    wanted = sensed_signals(sc)
+    given = {(q, n): ch for q in ("pressure", "angle") for n, ch in fw.inputs(q).items()}
+    taken = set(given.values())
+    nxt = (ch for ch in range(10**6) if ch not in taken)
+    signals = [Signal(q, n, given[(q, n)] if (q, n) in given else next(nxt)) for q, n in wanted]
+    return Layout(sketch_name(sc), pins, signals)
+
+
+def log_line_bytes(n_signals: int, n_muscles: int, samples: int, bits: int = 10) -> int:
+    """The longest serial log line [bytes]: "k,count_0,...,count_n-1,valvebits,overruns\\n" with k
+    at most ``samples``, each count at most 2^bits - 1, valvebits at most 4^n_muscles - 1 and the
+    overrun counter at most 65535."""
+    digits = len(str(max(samples, 0)))
+    counts = n_signals * len(str(2 ** bits - 1))
+    valves = len(str(4 ** n_muscles - 1))
+    return digits + counts + valves + OVERRUN_DIGITS + (n_signals + 2) + 1
+
+
+def check_firmware(sc) -> None:
+    """The ``[firmware]`` section's refusals (a no-op without one): pins the board lacks or uses
+    twice (the serial port's D0/D1, the busy pin, the valve pins, the analog inputs' pins), an
+    analog input beyond A15 or used twice, more analog signals than 16, names that are no muscle
+    or joint sensed here, sensors the firmware does not model, transfer functions that are not
+    increasing or leave 0..V_REF, a log the baud rate cannot carry, conversions that do not fit
+    the controller period (:func:`frogsim.components.atmega2560.plan_adc`)."""
+    fw = sc.firmware
+    if fw is None:
+        return
+    path = "firmware"
+    if fw.name and not _C_NAME.fullmatch(fw.name):
+        raise ScenarioError(f"{path}.name", fw.name, "must be a C identifier of at most 32 characters "
+                                                     "(letters, digits, _; not starting with a digit)")
+    _check_transfer(fw, path)
+    for cname, c in sc.controllers.items():
+        s = getattr(c, "sensor", None)
+        if s is not None and (s.noise > 0.0 or s.lag > 0.0 or s.bits is not None):
+            raise ScenarioError(f"controllers.{cname}.sensor", "(noise, lag or bits given)",
+                                "with [firmware] the transducer and the ADC are the sensor: leave the sensor "
+                                "settings out (the firmware's counts are exact, no noise or lag modelled)")
+        a = getattr(c, "angle_sensor", None)
+        if a is not None and (a.noise > 0.0 or a.lag > 0.0 or a.bits is not None):
+            raise ScenarioError(f"controllers.{cname}.angle_sensor", "(noise, lag or bits given)",
+                                "with [firmware] firmware.angle_sensor and the ADC are the angle sensor: "
+                                "leave these settings out")
+    wanted = sensed_signals(sc)
+    for key, q, what in (("pressure_inputs", "pressure", "muscle"), ("angle_inputs", "angle", "joint")):
+        names = [n for qq, n in wanted if qq == q]
+        for n, ch in fw.inputs(q).items():
+            if n not in names:
+                raise ScenarioError(f"{path}.{key}.{n}", ch,
+                                    f"must name a {what} whose {q} a controller reads "
+                                    f"({', '.join(names) or 'none here'})")
+    for m, pair in fw.pins().items():
+        if m not in sc.muscles:
+            raise ScenarioError(f"{path}.valve_pins.{m}", list(pair),
+                                f"must name a muscle of this scenario ({', '.join(sc.muscles)})")
+    n_analog = len(wanted)
+    if n_analog > chip.ANALOG_INPUTS:
+        n_p = sum(1 for q, _ in wanted if q == "pressure")
+        raise ScenarioError(path, f"{n_analog} analog signals ({n_p} pressures, {n_analog - n_p} angles)",
+                            f"the Mega 2560 has {chip.ANALOG_INPUTS} analog inputs (A0-A15): the other way "
+                            "in is quadrature encoders for the angles on the interrupt pins "
+                            f"{', '.join(map(str, chip.INTERRUPT_PINS))} (not generated by frogsim yet); "
+                            "control fewer joints or muscles")
+    for key, q in (("pressure_inputs", "pressure"), ("angle_inputs", "angle")):
+        for n, ch in fw.inputs(q).items():
+            if not 0 <= ch < chip.ANALOG_INPUTS:
+                raise ScenarioError(f"{path}.{key}.{n}", ch, "must be an analog input of the Mega 2560: "
+                                                            "0..15 (A0..A15)")
+    layout = firmware_layout(sc)
+    owner = {}
+    for s in layout.signals:
+        where = f"{path}.{s.quantity}_inputs.{s.name}"
+        if s.analog_input in owner:
+            raise ScenarioError(where, s.analog_input, f"analog input A{s.analog_input} is already "
+                                                       f"{owner[s.analog_input]}'s")
+        owner[s.analog_input] = s.label
+    _check_pins(sc, layout, path)
+    rate = sc.controller.rate
+    ratio = rate / fw.log_rate
+    if fw.log_rate > rate or abs(ratio - round(ratio)) > 1e-9 * ratio:
+        raise ScenarioError(f"{path}.log_rate", f"{fw.log_rate:g} Hz",
+                            f"must divide the controller rate ({rate:g} Hz): a line every whole number of "
+                            "samples")
+    samples = int(math.ceil(sc.duration * rate - 1e-9))
+    line = log_line_bytes(n_analog, len(sc.muscles), samples)
+    if line * fw.log_rate > fw.baud / 10.0:
+        raise ScenarioError(f"{path}.log_rate", f"{fw.log_rate:g} Hz",
+                            f"lines of up to {line} bytes at {fw.log_rate:g} Hz need {line * fw.log_rate:.0f} "
+                            f"bytes/s, more than {fw.baud} baud carries ({fw.baud / 10:.0f} bytes/s, 10 bits a "
+                            f"byte): at most {fw.baud / 10 / line:.4g} Hz, or raise firmware.baud")
+    try:
+        chip.plan_adc(n_analog, 1.0 / rate)
+    except ValueError as exc:
+        raise ScenarioError("controller.rate", f"{rate:g} Hz", f"the firmware's sampling does not fit: {exc}") \
+            from None
+
+
+def _check_transfer(fw, path: str) -> None:
+    for key, obj, lo, hi, unit in (("transducer", fw.transducer, "low_pressure_gauge", "high_pressure_gauge", 1e5),
+                                   ("angle_sensor", fw.angle_sensor, "low_angle", "high_angle",
+                                    math.pi / 180)):
+        if obj.high_voltage <= obj.low_voltage:
+            raise ScenarioError(f"{path}.{key}.high_voltage", f"{obj.high_voltage:g} V",
+                                f"must exceed low_voltage ({obj.low_voltage:g} V)")
+        if obj.high_voltage > fw.vref:
+            raise ScenarioError(f"{path}.{key}.high_voltage", f"{obj.high_voltage:g} V",
+                                f"must not exceed the ADC's reference firmware.vref ({fw.vref:g} V)")
+        if getattr(obj, hi) <= getattr(obj, lo):
+            u = "bar" if unit == 1e5 else "deg"
+            raise ScenarioError(f"{path}.{key}.{hi}", f"{getattr(obj, hi) / unit:g} {u}",
+                                f"must exceed {lo} ({getattr(obj, lo) / unit:g} {u})")
+
+
+def _check_pins(sc, layout: Layout, path: str) -> None:
+    fw = sc.firmware
+    owner = {p: "the serial port's (USART0, the USB link the log uses)" for p in chip.SERIAL_PINS}
+    for s in layout.signals:
+        owner[chip.analog_pin(s.analog_input)] = f"analog input A{s.analog_input} ({s.label})"
+
+    def take(pin, where, what):
+        if not 0 <= pin < chip.DIGITAL_PINS:
+            raise ScenarioError(where, pin, f"must be a digital pin of the Mega 2560: 2..{chip.DIGITAL_PINS - 1} "
+                                            "(0 and 1 are the serial port; 54..69 are A0..A15)")
+        if pin in owner:
+            raise ScenarioError(where, pin, f"pin {pin} is already {owner[pin]}")
+        owner[pin] = what
+
+    take(fw.busy_pin, f"{path}.busy_pin", "the busy pin")
+    for m, (pc, pd) in layout.valve_pins.items():
+        where = f"{path}.valve_pins.{m}"
+        take(pc, where, f"{m}'s charge valve pin")
+        take(pd, where, f"{m}'s discharge valve pin")
