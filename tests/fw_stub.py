@@ -35,8 +35,8 @@ class Channel:
 class Adc:
     prescaler: int = 128
     bits: int = 10
-    first_cycles: int = 25 * 128
-    cycles: int = 13 * 128
+    first_cycles: int = 25         # ADC clocks
+    cycles: int = 13
 
 
 @dataclass(frozen=True)
@@ -58,9 +58,10 @@ class Plan:
 
 
 #: the 0.5-4.5 V over 0-10 bar gauge transducer on a 10-bit ADC at 5 V: V = 0.5 + 0.4 p[bar],
-#: count = floor(V / 5 x 1024); a count's pressure (its lower edge) p = (count x 5/1024 - 0.5) / 0.4
+#: count = floor(V / 5 x 1024); a count's pressure (the middle of its step)
+#: p = ((count + 1/2) x 5/1024 - 0.5) / 0.4
 PA_PER_COUNT = 5.0 / 1024 / 0.4 * 1e5
-OFFSET_PA = -0.5 / 0.4 * 1e5
+OFFSET_PA = (0.5 * 5.0 / 1024 - 0.5) / 0.4 * 1e5
 
 
 def count_of(p_gauge_pa: float) -> int:
@@ -73,5 +74,5 @@ def bang_bang_plan(low_bar=2.9, high_bar=3.1, channels=1, prescaler=128, rate=10
                      PA_PER_COUNT, OFFSET_PA) for i in range(channels)]
     bits = board.adc_bits(prescaler) if board.F_CPU / prescaler <= board.ADC_MAX_CLOCK_HZ else 8
     src = BANG_BANG_C % {"low": count_of(low_bar * 1e5), "high": count_of(high_bar * 1e5)}
-    return Plan(rate=rate, channels=chans, adc=Adc(prescaler, bits, 25 * prescaler, 13 * prescaler),
+    return Plan(rate=rate, channels=chans, adc=Adc(prescaler, bits),
                 c_source=src, **kw)

@@ -293,9 +293,9 @@ def _swim_into(args, folder, out: Path, rs) -> int:
     return 0
 
 
-def _firmware_target(source):
+def _firmware_target(source, cycles=None):
     """(kind "pneumatic" | "robot", the scenario or robot scenario, the plant's model, the firmware
-    plan): every input checked, nothing run or written."""
+    plan): every input checked, nothing run or written. ``cycles``: a robot's gait cycles."""
     from frogsim.control import firmware as fw
     from frogsim.errors import ScenarioError
     from frogsim.scenario.load import load_scenario
@@ -305,9 +305,11 @@ def _firmware_target(source):
         if exc.field != "gait":
             raise
         from frogsim.robot.scenario import load_robot_scenario
-        rs = load_robot_scenario(source)
-        model = fw.robot_model(rs)
-        return "robot", rs, model, fw.firmware_plan(model)
+        rs = load_robot_scenario(source, cycles=cycles)
+        from frogsim.circuit.model import build_model
+        return "robot", rs, None, fw.firmware_plan(build_model(rs.pneumatic))
+    if cycles is not None:
+        raise ScenarioError("--cycles", cycles, "only a robot scenario (with a [gait]) has gait cycles")
     from frogsim.circuit.model import build_model
     model = build_model(scenario)
     return "pneumatic", scenario, model, fw.firmware_plan(model)
@@ -318,7 +320,7 @@ def cmd_firmware(args) -> int:
     from frogsim.export import sketch
     from frogsim.io.outputs import scenario_inputs, scenario_record
     out = out_folder(args.out)
-    kind, sc, model, plan = _firmware_target(args.scenario)      # all validation before any write
+    kind, sc, model, plan = _firmware_target(args.scenario, args.cycles)   # all validation before any write
     pneumatic = sc if kind == "pneumatic" else sc.pneumatic
     if args.build:
         from frogsim.export.emulator import require
@@ -357,7 +359,7 @@ def cmd_sil(args) -> int:
     out = out_folder(args.out)
     rec = read_plan_record(args.firmware)
     elf = find_elf(args.firmware)
-    kind, sc, model, plan = _firmware_target(args.scenario)
+    kind, sc, model, plan = _firmware_target(args.scenario, args.cycles)
     sil.check_plan(rec, plan)
     pneumatic = sc if kind == "pneumatic" else sc.pneumatic
     if kind == "pneumatic":
@@ -389,6 +391,13 @@ def cmd_sil(args) -> int:
         _progress(f"mismatched samples {s['mismatched_samples']} of {s['samples']}, CPU load mean "
                   f"{load['mean']:.1f} % max {load['max']:.1f} %, overruns {s['overruns']}; wrote "
                   f"{out / 'summary.json'}, {out / 'serial.csv'}, {out / 'timeseries.csv'}")
+        if s["overruns"]:
+            _warn(f"the firmware overran its {1e3 / plan.rate:g} ms period at {s['overruns']} of {s['samples']} "
+                  f"samples (CPU load up to {load['max']:.0f} %): on the board those samples come late; "
+                  "lower controller.rate or control fewer muscles")
+        if s.get("adc_read_differs_samples"):
+            _warn(f"at {s['adc_read_differs_samples']} samples the firmware read other counts than the plant "
+                  f"gave it (the emulation's fault, not the firmware's); the first: {s['first_adc_difference']}")
         if s["mismatched_samples"]:
             _warn(f"the firmware's valve commands differ from the model's at {s['mismatched_samples']} "
                   f"samples; the first: {s['first_mismatch']}")
@@ -711,6 +720,7 @@ def build_parser() -> argparse.ArgumentParser:
                                         "DIR/NAME/NAME.ino, generated headers, DIR/firmware.json (docs/firmware.md)")
     s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file or shipped name, pneumatic or robot")
     _flag(s, "--build", action="store_true")
+    _flag(s, "--cycles", "the scenario's; the program tables cover them", type=int, default=None, metavar="N")
     _writes(s)
     s.set_defaults(func=cmd_firmware)
     s = sub.add_parser("sil", help="software in the loop: the built firmware on an emulated ATmega2560 "
@@ -718,6 +728,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "summary.json 'sil', serial.csv")
     s.add_argument("scenario", metavar="SCENARIO", help="the scenario the firmware was exported from")
     _flag(s, "--firmware", required=True, metavar="DIR")
+    _flag(s, "--cycles", "the scenario's; as exported", type=int, default=None, metavar="N")
     _flag(s, "--no-animation", action="store_true")
     _writes(s)
     s.set_defaults(func=cmd_sil)

@@ -211,6 +211,11 @@ class EmulatedBoard:
         n = self._lib.board_events(self._h, c, i, v, limit)
         return c[:n], i[:n], v[:n]
 
+    def events_into(self, c: np.ndarray, i: np.ndarray, v: np.ndarray) -> int:
+        """Move up to len(c) queued pin changes into the given arrays (uint64, int32, int32: no
+        allocation, for a loop that drains them every sample); returns how many."""
+        return int(self._lib.board_events(self._h, c, i, v, c.size))
+
     def serial(self, limit: int = 1 << 20) -> tuple[bytes, np.ndarray]:
         """The bytes the firmware sent on USART0 since the last call, and the cycle of each."""
         b = np.empty(limit, np.uint8)

@@ -4,9 +4,9 @@
 for the emulated one (software in the loop).
 
 Columns: ``time [s]`` (k / rate: the sample's time since the firmware started), one per channel
-(``hip pressure [bar gauge]``, ``hip_left angle [deg]``: the middle of the count's step through the
-channel's scale, (count + 1/2) x unit_per_count + offset, the estimate that is not biased by the
-converter's rounding down), then
+(``hip pressure [bar gauge]``, ``hip_left angle [deg]``: count x unit_per_count + offset, the
+channel's scale in firmware.json, whose offset puts the value in the middle of the count's step:
+the estimate the converter's rounding down does not bias), then
 ``<muscle> charge valve [1 = open]`` and ``<muscle> discharge valve [1 = open]`` per muscle (the
 overrun counter goes to the run's summary, not into the table). The valve and pressure columns are the ones ``frogsim simulate`` writes, so the
 CSV is a trace ``frogsim fit`` reads as it is (it leaves the valve columns out by their names).
@@ -123,7 +123,7 @@ def log_table(log: Log, rec: dict, last_sample: int | None = None):
         if ch["quantity"] == "count":
             data[name] = a[:, 1 + i]
             continue
-        si = (a[:, 1 + i] + 0.5) * ch["unit_per_count"] + ch["offset"]
+        si = a[:, 1 + i] * ch["unit_per_count"] + ch["offset"]
         data[name] = si / BAR if ch["quantity"] == "pressure" else np.degrees(si)
     bits = a[:, 1 + n_ch]
     for j, m in enumerate(rec["muscles"]):

@@ -72,8 +72,15 @@ class BoardRun:
         self.shift = 10 - int(self.rec["adc"]["bits"])
         self.inputs = [int(ch["analog_input"]) for ch in self.rec["channels"]]
         self.period = int(self.rec["period_cycles"])
+        self.mv = [-1] * len(self.inputs)          # the voltages set, changed only when they change
         from frogsim.export.emulator import symbol_address
         self.overrun_address = symbol_address(self.elf, "fs_overruns")
+        self.adc_address = symbol_address(self.elf, "fs_adc")
+        self.adc_differs = 0             # samples whose counts the firmware read are not those fed
+        self.first_adc_difference = None
+        self.ev_c = np.empty(256, np.uint64)
+        self.ev_i = np.empty(256, np.int32)
+        self.ev_v = np.empty(256, np.int32)
         self.k = 0
         self.rise = None
         self.avr_s = 0.0
@@ -82,22 +89,34 @@ class BoardRun:
         """Sample k: the channels read ``counts``; returns the modes of the muscles (plan order)."""
         t0 = time.perf_counter()
         b = self.board
-        for a, c in zip(self.inputs, counts):
-            b.set_analog(a, millivolts_for_count(int(c) << self.shift))
+        for j, (a, c) in enumerate(zip(self.inputs, counts.tolist())):
+            mv = millivolts_for_count(c << self.shift)
+            if mv != self.mv[j]:
+                b.set_analog(a, mv)
+                self.mv[j] = mv
         limit = b.cycle + (START_CYCLES if self.k == 0 else 50 * self.period)
         if not b.run_until_pin(self.busy, 0, limit):
             raise SimulationError(f"firmware {self.rec['name']!r}: sample {self.k} did not end within "
                                   f"{limit - b.cycle if b.cycle < limit else 50 * self.period} AVR cycles "
                                   "(its interrupt never ran or never ended)")
-        c, i, v = b.events()
-        for cc, ii, vv in zip(c, i, v):
-            self.level[ii] = vv
-            if ii == self.busy:
-                if vv:
-                    self.rise = int(cc)
-                elif self.rise is not None:
-                    self.high.append(int(cc) - self.rise)
-                    self.rise = None
+        while True:
+            n = b.events_into(self.ev_c, self.ev_i, self.ev_v)
+            for cc, ii, vv in zip(self.ev_c[:n].tolist(), self.ev_i[:n].tolist(), self.ev_v[:n].tolist()):
+                self.level[ii] = vv
+                if ii == self.busy:
+                    if vv:
+                        self.rise = cc
+                    elif self.rise is not None:
+                        self.high.append(cc - self.rise)
+                        self.rise = None
+            if n < self.ev_c.size:
+                break
+        if self.inputs:
+            read = np.frombuffer(b.read_ram(self.adc_address, 2 * len(self.inputs)), "<u2")
+            if not np.array_equal(read, counts):
+                self.adc_differs += 1
+                if self.first_adc_difference is None:
+                    self.first_adc_difference = {"sample": self.k, "fed": counts.tolist(), "read": read.tolist()}
         modes = np.zeros(len(self.valve_index), np.int8)
         for j, (ic, idis) in enumerate(self.valve_index):
             ch, dis = self.level[ic], self.level[idis]
@@ -146,6 +165,17 @@ class Shadow:
         self.joints = joints          # (leg_qpos, leg_dof) on the robot
         self.cs = None
 
+    def copy_counters(self, cs) -> None:
+        """Write the shadow's per-law counters that only a compiled law keeps (a joint-angle law's
+        clipped pressure targets, B_CLIPS) into the run's controller memory ``cs`` (whose rows of
+        these laws are the same rows, run from outside), so that the run's metrics report them
+        as the compiled run does."""
+        from frogsim.control.sampled import B_CLIPS, CS_BLOCK, CS_SIZE
+        if self.cs is None:
+            return
+        for c in self.rows.values():
+            cs[int(CS_SIZE + c * cs[CS_BLOCK]) + B_CLIPS] = self.cs[int(CS_SIZE + c * self.cs[CS_BLOCK]) + B_CLIPS]
+
     def modes(self, k: int, y, qpos=None, qvel=None) -> np.ndarray:
         from frogsim.control.sampled import (B_MODE, CS_BLOCK, CS_SIZE, observe_joints, sample_controllers,
                                              start_controllers)
@@ -185,6 +215,7 @@ class _Loop:
         self.board = BoardRun(rec, elf)
         self.muscles = list(rec["muscles"])
         self.robot = robot
+        self.joint_names, self.joint_qpos = robot if robot else ((), ())
         self.mismatched = 0
         self.first_mismatch = None
         self.progress = progress
@@ -196,8 +227,11 @@ class _Loop:
     def __call__(self, t, obs):
         y = obs["state"]
         qpos, qvel = obs.get("qpos"), obs.get("qvel")
-        counts = self.counts(self.plan, self.model, y, qpos)
-        modes = self.board.sample(np.asarray(counts))
+        angles = None
+        if qpos is not None:
+            angles = {n: float(qpos[self.joint_qpos[j]]) for j, n in enumerate(self.joint_names)}
+        counts = self.counts(self.plan, self.model, y, angles)
+        modes = self.board.sample(np.asarray(counts, np.int64))
         want = self.shadow.modes(self.k, y, qpos, qvel)
         if not np.array_equal(modes, want):
             self.mismatched += 1
@@ -226,6 +260,8 @@ class _Loop:
                                  "max": float(load.max()) if load.size else None},
             "overruns": self.board.overruns,
             "both_valves_open_samples": self.board.both_open,
+            "adc_read_differs_samples": self.board.adc_differs,
+            **({"first_adc_difference": self.board.first_adc_difference} if self.board.adc_differs else {}),
             "log_lines": len(last),
             "log_lines_dropped": lines.dropped,
             "flash_bytes": rec.get("flash_bytes"),
@@ -250,7 +286,7 @@ def run_pneumatic(model, rec: dict, elf, plan, counts, progress=None) -> SilRun:
     sc = model.scenario
     dt = 1.0 / sc.controller.rate
     shadow = Shadow(model.laws, model.mp, sc, rec["muscles"], dt, model.names)
-    loop = _Loop(rec, elf, plan, counts, shadow, model, progress, sc.duration, False)
+    loop = _Loop(rec, elf, plan, counts, shadow, model, progress, sc.duration, None)
     t0 = time.perf_counter()
     result = run_python_controller(model, loop, every_muscle=True)
     wall = time.perf_counter() - t0
@@ -272,8 +308,10 @@ def run_robot(rs, rec: dict, elf, plan, counts, progress=None) -> SilRun:
     dt = 1.0 / rs.pneumatic.controller.rate
     shadow = Shadow(a["laws"].copy(), a["mp"], cm.pneumatic.scenario, rec["muscles"], dt, list(cm.muscle_names),
                     joints=(a["leg_qpos"], a["leg_dof"]))
-    loop = _Loop(rec, elf, plan, counts, shadow, cm, progress, rs.duration, True)
+    loop = _Loop(rec, elf, plan, counts, shadow, cm.pneumatic, progress, rs.duration,
+                 (list(cm.joint_names), a["leg_qpos"]))
     out = run_coupled_python(cm, loop, every_muscle=True)
+    shadow.copy_counters(a["cs"])
     result = SwimResult(rec=out["rec"], model=cm, stats=out["stats"], wall_s=out["wall_s"],
                         compile_s=out.get("compile_s", 0.0), python_law=None)
     sil = loop.summary(rec)
