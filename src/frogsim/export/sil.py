@@ -75,7 +75,7 @@ class BoardRun:
         self.mv = [-1] * len(self.inputs)          # the voltages set, changed only when they change
         from frogsim.export.emulator import symbol_address
         self.overrun_address = symbol_address(self.elf, "fs_overruns")
-        self.adc_address = symbol_address(self.elf, "fs_adc")
+        self.adc_address = symbol_address(self.elf, "fs_adc") if self.inputs else None
         self.adc_differs = 0             # samples whose counts the firmware read are not those fed
         self.first_adc_difference = None
         self.ev_c = np.empty(256, np.uint64)
