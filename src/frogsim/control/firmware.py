@@ -86,6 +86,11 @@ class Law:
     pressure: int
     angle: int
 
+    def __post_init__(self):
+        # the Numba twin's arguments, made once (float arrays holding the whole numbers)
+        object.__setattr__(self, "_Pf", np.asarray(self.P, float))
+        object.__setattr__(self, "_Tf", np.asarray(self.T, float))
+
 
 @dataclass(frozen=True)
 class FirmwarePlan:
@@ -162,10 +167,10 @@ def firmware_plan(model) -> FirmwarePlan:
         else:
             T = program.firmware_table(sc.muscles[m].program, rate)
             plan_laws.append(Law(program, (int(T.size),), T if T.size else np.zeros(1, np.int64), -1, -1))
-    table_bytes = 4 * sum(max(1, law.T.size) for law in plan_laws)
-    if table_bytes > fixed.TABLE_BYTES_MAX:
+    n_bytes = table_bytes(plan_laws)
+    if n_bytes > fixed.TABLE_BYTES_MAX:
         raise ScenarioError("duration", f"{sc.duration:g} s",
-                            f"the firmware's tables (setpoints and programs sample by sample) take {table_bytes} "
+                            f"the firmware's tables (setpoints and programs sample by sample) take {n_bytes} "
                             f"bytes, more than the {fixed.TABLE_BYTES_MAX} bytes of flash the AVR reads them from "
                             "(LPM reaches 64 KB): shorten the run or use constant setpoints")
     name = layout.name
@@ -174,7 +179,7 @@ def firmware_plan(model) -> FirmwarePlan:
     return FirmwarePlan(name=name, rate=rate, period_cycles=int(round(chip.F_CPU / rate)), muscles=list(pm.names),
                         valve_pins=[layout.valve_pins[m] for m in pm.names], channels=channels, adc=adc,
                         busy_pin=fw.busy_pin, baud=fw.baud, log_every=log_every,
-                        c_source=c_source(name, plan_laws), laws=plan_laws, table_bytes=table_bytes)
+                        c_source=c_source(name, plan_laws), laws=plan_laws, table_bytes=n_bytes)
 
 
 def c_source(name: str, laws: list) -> str:
@@ -193,9 +198,11 @@ def c_source(name: str, laws: list) -> str:
            "".join(f"int8_t {mod.C_NAME}(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P, "
                    "const int32_t *T);\n" for mod in TWINS), "\n", fixed.C_COMMON, "\n"]
     out += [mod.c_source() + "\n" for mod in used]
+    tables = _table_names(laws)
     for j, law in enumerate(laws):
         out.append(fixed.c_array(f"fs_P{j}", law.P, False))
-        out.append(fixed.c_array(f"fs_T{j}", law.T, True))
+        if tables[j] == f"fs_T{j}":
+            out.append(fixed.c_array(f"fs_T{j}", law.T, True))
         out.append(f"static int32_t fs_M{j}[{FW_MEM}];\n")
     out.append("\nvoid frogsim_reset(void) {\n    uint8_t i;\n")
     for j in range(len(laws)):
@@ -206,9 +213,26 @@ def c_source(name: str, laws: list) -> str:
     for j, law in enumerate(laws):
         cp = f"adc[{law.pressure}]" if law.pressure >= 0 else "0"
         ca = f"adc[{law.angle}]" if law.angle >= 0 else "0"
-        out.append(f"    modes[{j}] = {law.module.C_NAME}(k, {cp}, {ca}, fs_M{j}, fs_P{j}, fs_T{j});\n")
+        out.append(f"    modes[{j}] = {law.module.C_NAME}(k, {cp}, {ca}, fs_M{j}, fs_P{j}, {tables[j]});\n")
     out.append("}\n")
     return "".join(out)
+
+
+def _table_names(laws: list) -> list:
+    """The C name of each law's table: fs_T<j>, or the first earlier law's with the same entries
+    (a joint's pair reads one setpoint table)."""
+    seen = {}
+    names = []
+    for j, law in enumerate(laws):
+        key = np.asarray(law.T, np.int64).tobytes()
+        names.append(seen.setdefault(key, f"fs_T{j}"))
+    return names
+
+
+def table_bytes(laws: list) -> int:
+    """[B] flash the laws' tables take (int32 entries; shared tables once)."""
+    names = _table_names(laws)
+    return sum(4 * max(1, law.T.size) for j, law in enumerate(laws) if names[j] == f"fs_T{j}")
 
 
 def adc_counts(plan: FirmwarePlan, model, y, qpos=None) -> np.ndarray:
@@ -249,7 +273,7 @@ def firmware_modes(plan: FirmwarePlan, k: int, adc, mem: np.ndarray) -> np.ndarr
     for j, law in enumerate(plan.laws):
         cp = int(adc[law.pressure]) if law.pressure >= 0 else 0
         ca = int(adc[law.angle]) if law.angle >= 0 else 0
-        modes[j] = law.module.fw_law(np.asarray(law.P, float), law.T.astype(float), mem[j], int(k), cp, ca)
+        modes[j] = law.module.fw_law(law._Pf, law._Tf, mem[j], int(k), cp, ca)
     return modes
 
 

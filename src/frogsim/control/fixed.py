@@ -23,7 +23,8 @@ The numbers:
 * **Tables.** What varies in time (a setpoint, a duty schedule, a program's valve states) is a
   table computed here, in Python, once, from the scenario's own functions, and read by both
   twins: the value at sample k is ``T[min(k, n - 1)]`` (after the table ends its last entry
-  holds). Tables are int32, in flash on the board (FS_TABLE); the run's tables must fit the
+  holds; a table ends at its last change, :func:`trimmed`, and at the latest at the run's last
+  sample). Tables are int32, in flash on the board (FS_TABLE); the run's tables must fit the
   64 KB of flash the AVR's LPM instruction reaches (:data:`TABLE_BYTES_MAX`).
 
 A row's firmware block (after its knots, from column ``laws[c, L_FW]``) is
@@ -138,6 +139,19 @@ def setpoint_series(row: np.ndarray, sc, offset: float) -> tuple:
     for k, t in enumerate(sample_times(sc, n)):
         vals[k], rates[k] = setpoint(laws, 0, t)
     return vals - offset, rates
+
+
+def trimmed(*tables) -> list:
+    """Per-sample tables of one length cut after their last change (all to the same length n >= 1):
+    read as T[min(k, n - 1)] they give the same values at every sample, and a setpoint with steps
+    takes as many entries as samples up to its last step."""
+    n = 1
+    for t in tables:
+        t = np.asarray(t)
+        change = np.nonzero(t[1:] != t[:-1])[0]
+        if change.size:
+            n = max(n, int(change[-1]) + 2)
+    return [np.asarray(t)[:n] for t in tables]
 
 
 def top_pressure(sc) -> float:

@@ -56,8 +56,8 @@ B_INT = 22       # integral of the angle error [rad s]
 B_TARGET = 23    # this muscle's pressure target at the last sample [Pa abs]
 B_CLIPS = 24     # samples at which the pair's targets p0 +- dp/2 were clipped to [atmosphere, source]
 B_FW0 = 25       # [firmware]: the integer twin's memory (FW_MEM slots, whole numbers; the C
-FW_MEM = 4       # twin's int32_t mem[FW_MEM]), see frogsim.control.fixed
-B_Q0 = 29        # queues: charge (due, state) x Q, then discharge (due, state) x Q
+FW_MEM = 5       # twin's int32_t mem[FW_MEM]), see frogsim.control.fixed
+B_Q0 = 30        # queues: charge (due, state) x Q, then discharge (due, state) x Q
 TOL = 1e-9       # [s] a due time this close to a sample is that sample
 
 

@@ -240,7 +240,7 @@ def check_firmware(sc) -> None:
     if fw.name and not _C_NAME.fullmatch(fw.name):
         raise ScenarioError(f"{path}.name", fw.name, "must be a C identifier of at most 32 characters "
                                                      "(letters, digits, _; not starting with a digit)")
-    _check_transfer(fw, path)
+    _check_transfer(fw, path, {q for q, _ in sensed_signals(sc)})
     for cname, c in sc.controllers.items():
         s = getattr(c, "sensor", None)
         if s is not None and (s.noise > 0.0 or s.lag > 0.0 or s.bits is not None):
@@ -306,10 +306,13 @@ def check_firmware(sc) -> None:
             from None
 
 
-def _check_transfer(fw, path: str) -> None:
+def _check_transfer(fw, path: str, quantities: set) -> None:
+    """The sensors' lines rise and stay within 0..V_REF (a sensor no signal uses is not checked)."""
     for key, obj, lo, hi, unit in (("transducer", fw.transducer, "low_pressure_gauge", "high_pressure_gauge", 1e5),
                                    ("angle_sensor", fw.angle_sensor, "low_angle", "high_angle",
                                     math.pi / 180)):
+        if ("pressure" if key == "transducer" else "angle") not in quantities:
+            continue
         if obj.high_voltage <= obj.low_voltage:
             raise ScenarioError(f"{path}.{key}.high_voltage", f"{obj.high_voltage:g} V",
                                 f"must exceed low_voltage ({obj.low_voltage:g} V)")

@@ -218,6 +218,17 @@ def merged_raw(source) -> tuple[dict, str]:
     return merged, base_dir
 
 
+def with_firmware(source) -> dict:
+    """The scenario's merged raw dict (:func:`merged_raw`, its ``base_dir`` kept) with a
+    ``[firmware]`` section: the file's own, or every default (as if ``[firmware]`` were written).
+    :func:`load_scenario` and :func:`frogsim.load_robot_scenario` take it; this is how a shipped
+    scenario without the section (``hip-angle-in-air``) runs and exports as the board runs it."""
+    raw, base_dir = merged_raw(source)
+    raw.setdefault("firmware", {})
+    raw["base_dir"] = base_dir
+    return raw
+
+
 def load_scenario(source) -> Scenario:
     """Load and validate a scenario from a TOML path, a shipped scenario name, or a dict.
 

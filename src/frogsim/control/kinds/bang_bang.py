@@ -40,7 +40,7 @@ def firmware_row(row, band: float, ctx):
     full = fixed.adc_full(sc)
     line = fixed.pressure_volts(fw)
     sp, _ = fixed.setpoint_series(row, sc, ctx.patm)
-    T = fixed.q4(line, fw, sp, full)
+    T, = fixed.trimmed(fixed.q4(line, fw, sp, full))
     half = int(round(0.5 * band * fixed.q4_per_unit(line, fw, full)))
     return fixed.firmware_row(row, sc, [half, T.size], T)
 

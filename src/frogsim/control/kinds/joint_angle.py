@@ -101,8 +101,9 @@ class JointAngleSettings(SensedLoop):
         P = [sign (+1 extensor, -1 flexor), p0, atmosphere, source pressure (the targets' clip
         limits; the firmware does not measure the source: its pressure at the start), Kp
         (pressure Q4 per angle Q4, Q16), Kd / dt (per Q12 angle counts per sample, Q16),
-        Ki dt (Q16), half band, setpoint table length n]; T = the angle setpoint at each sample
-        (Q4), then its rate at each sample (Q12 counts per sample)."""
+        Ki dt (Q16), half band, setpoint table length n, the velocity filter's shift
+        (VELOCITY_SHIFT)]; T = the angle setpoint at each sample (Q4), then its rate at each
+        sample (Q12 counts per sample)."""
         sc = ctx.sc
         fw = sc.firmware
         full = fixed.adc_full(sc)
@@ -111,6 +112,9 @@ class JointAngleSettings(SensedLoop):
         per_rad = fixed.q4_per_unit(aline, fw, full)
         dt = 1.0 / sc.controller.rate
         sp, dsp = fixed.setpoint_series(row, sc, 0.0)
+        sp_q, dsp_q = fixed.trimmed(fixed.q4(aline, fw, sp, full),
+                                    np.clip(np.floor(dsp * dt * per_rad * 256.0 + 0.5), -2**24, 2**24)
+                                    .astype(np.int64))
         ratio = per_pa / per_rad * fixed.Q16            # Pa/rad gain -> pressure Q4 per angle Q4, Q16
         gains = [self.proportional_gain * ratio, self.derivative_gain / dt / 256.0 * ratio,
                  self.integral_gain * dt * ratio]
@@ -121,9 +125,8 @@ class JointAngleSettings(SensedLoop):
                                 "the gains or widen the transducer's pressure range")
         P = [int(row[L_SIGN]), fixed.q4(pline, fw, self.co_contraction, full), fixed.q4(pline, fw, 0.0, full),
              fixed.q4(pline, fw, fixed.top_pressure(sc), full)] + gains + [
-            int(round(0.5 * self.band * per_pa)), sp.size]
-        T = np.concatenate([fixed.q4(aline, fw, sp, full),
-                            np.clip(np.floor(dsp * dt * per_rad * 256.0 + 0.5), -2**24, 2**24).astype(np.int64)])
+            int(round(0.5 * self.band * per_pa)), sp_q.size, VELOCITY_SHIFT]
+        T = np.concatenate([sp_q, dsp_q])
         return fixed.firmware_row(row, sc, P, T)
 
 
@@ -168,16 +171,19 @@ def joint_angle_mode(laws, c, cs, b, y, p, ts, th, w):
 
 
 LIMIT = 2**30           # the integral and the pressure difference are clipped to +-LIMIT
+VELOCITY_SHIFT = 3      # the firmware's velocity filter: 2^3 = 8 samples (8 ms at 1 kHz)
 
 
 @jit
 def fw_law(P, T, mem, k, cp, ca):
     """The integer twin of :func:`joint_angle_mode` (memory: mem[0] the integral of the error, sum
     of Q4 errors; mem[1] the last angle (Q4); mem[2] 1 once it holds one; mem[3] the samples
-    with clipped targets). The angle is the count ca's middle 16 ca + 8, e = sp - angle; the
-    rate term is Kd (dsp - dtheta/dt) with the firmware's velocity the backward difference of
-    the angle (no velocity sensor; zero at the first sample): dsp - 256 dtheta in Q12 counts per
-    sample. dp = (Kp e + Kd' (dsp - 256 dtheta) + Ki' integral) >> 16 (int64 products); targets
+    with clipped targets; mem[4] the filtered velocity). The angle is the count ca's middle
+    16 ca + 8, e = sp - angle; the rate term is Kd (dsp - w): the board has no velocity sensor,
+    its w is the backward difference of the angle (zero at the first sample) through a
+    first-order filter of 2^P[9] samples, vf += (256 dtheta - vf) >> P[9] (Q12 counts per
+    sample; one count a sample is 3.8 rad/s at 1 kHz, too coarse to use raw).
+    dp = (Kp e + Kd' (dsp - vf) + Ki' integral) >> 16 (int64 products); targets
     p0 +- dp >> 1, clipped to [atmosphere, source]; a clip counts and keeps the integral
     (anti-windup); the muscle's relay on its count cp against its target."""
     n = int(P[8])
@@ -187,8 +193,11 @@ def fw_law(P, T, mem, k, cp, ca):
     dth = aq - int(mem[1]) if mem[2] > 0 else 0
     mem[1] = aq
     mem[2] = 1
+    vf = int(mem[4])
+    vf = vf + ((256 * dth - vf) >> int(P[9]))
+    mem[4] = vf
     integ = min(max(int(mem[0]) + e, -LIMIT), LIMIT)
-    acc = int(P[4]) * e + int(P[5]) * (int(T[n + kk]) - 256 * dth) + int(P[6]) * integ
+    acc = int(P[4]) * e + int(P[5]) * (int(T[n + kk]) - vf) + int(P[6]) * integ
     dp = min(max(acc >> 16, -LIMIT), LIMIT)
     half = dp >> 1
     p0 = int(P[1])
@@ -219,12 +228,14 @@ def c_source() -> str:
     int32_t e = (int32_t)FS_READ32(&T[kk]) - aq;
     int32_t dth = mem[2] > 0 ? aq - mem[1] : 0;
     int32_t integ = mem[0] + e, dp, half, up, down, target;
+    int32_t vf = mem[4] + ((256 * dth - mem[4]) >> P[9]);
     int64_t acc;
     mem[1] = aq;
     mem[2] = 1;
+    mem[4] = vf;
     if (integ > 1073741824L) integ = 1073741824L;
     if (integ < -1073741824L) integ = -1073741824L;
-    acc = (int64_t)P[4] * e + (int64_t)P[5] * (int64_t)((int32_t)FS_READ32(&T[n + kk]) - 256 * dth)
+    acc = (int64_t)P[4] * e + (int64_t)P[5] * (int64_t)((int32_t)FS_READ32(&T[n + kk]) - vf)
         + (int64_t)P[6] * integ;
     acc >>= 16;
     if (acc > 1073741824L) acc = 1073741824L;

@@ -111,10 +111,10 @@ class PwmSettings(SensedLoop):
         elif self.duty_schedule is not None:
             how = 2
             duty, _ = fixed.setpoint_series(row, sc, 0.0)
-            T = np.floor(duty * N + 0.5).astype(np.int64)
+            T, = fixed.trimmed(np.floor(duty * N + 0.5).astype(np.int64))
         else:
             sp, _ = fixed.setpoint_series(row, sc, ctx.patm)
-            T = fixed.q4(line, fw, sp, full)
+            T, = fixed.trimmed(fixed.q4(line, fw, sp, full))
             if (2 * N + 1) * pband > fixed.INT32_MAX:
                 raise ScenarioError(f"controllers.{name}.frequency", f"{self.frequency:g} Hz",
                                     f"with [firmware] a closed-loop pwm's period of {N} samples times its "

@@ -81,9 +81,10 @@ def firmware_row(row, ctx):
         rv[c] = int(np.clip(np.floor(r_v * per_pa + 0.5), -RATE_MAX, RATE_MAX))
     dead = max(row[L_DEAD_C], row[L_DEAD_D])
     rho = min(int(round(row[L_PENALTY] * per_pa)), S_MAX)
-    P = [int(round(dead * 2**SHIFT)), int(round(row[L_HORIZON] * 2**SHIFT)), rho * rho, sp.size, full]
-    T = np.concatenate([fixed.q4(line, fw, sp, full),
-                        np.clip(np.floor(dsp * per_pa + 0.5), -RATE_MAX, RATE_MAX).astype(np.int64), rc, rv])
+    sp_q, dsp_q = fixed.trimmed(fixed.q4(line, fw, sp, full),
+                                np.clip(np.floor(dsp * per_pa + 0.5), -RATE_MAX, RATE_MAX).astype(np.int64))
+    P = [int(round(dead * 2**SHIFT)), int(round(row[L_HORIZON] * 2**SHIFT)), rho * rho, sp_q.size, full]
+    T = np.concatenate([sp_q, dsp_q, rc, rv])
     return fixed.firmware_row(row, sc, P, T)
 
 

@@ -1,0 +1,437 @@
+"""The firmware's laws: the ADC's counts against the datasheet, each kind's C twin against its Numba
+twin (gcc on this machine, ctypes), the model's compiled sample against the twins, the
+[firmware] section's refusals, and a pressure held through the ADC."""
+from __future__ import annotations
+
+import ctypes
+import math
+import shutil
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+import frogsim
+from frogsim.circuit.layout import pressure_index
+from frogsim.components import atmega2560 as chip
+from frogsim.control import firmware as fwm
+from frogsim.control.kinds import bang_bang, joint_angle, program, pwm, sliding_mode
+from frogsim.control.sampled import B_MODE, B_SENSED, CS_BLOCK, CS_SIZE, sample_controllers, start_controllers
+from frogsim.control.signals import FW_MEM
+from frogsim.control.table import L_FW, L_MUSCLE
+from frogsim.errors import ScenarioError
+from frogsim.scenario.load import merged_raw, with_firmware
+
+BAR = 1e5
+P_ATM = 101325.0
+COUNT = 10 * BAR / 819.2        # [Pa] one count of a 0.5-4.5 V / 0-10 bar transducer at 5 V, 10 bits
+
+needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc missing: apt-get install gcc")
+
+
+def pneumatic(controllers: dict, muscles=("hip",), firmware=None, duration="0.2 s", **extra) -> dict:
+    d = {"name": "fw", "duration": duration, "output_interval": "1 ms",
+         "muscles": {m: {"type": "hip", "motion": {"kind": "constant"}} for m in muscles},
+         "controllers": controllers, "firmware": {} if firmware is None else firmware}
+    d.update(extra)
+    return d
+
+
+HOLD = {"hold": {"kind": "bang-bang", "muscle": "hip", "setpoint": "3 bar", "band": "0.1 bar"}}
+
+
+# --- the ADC: the datasheet's transfer function ----------------------------------------------------------
+def test_adc_count_is_the_datasheets_formula():
+    # ATmega2560 datasheet Sec. 26.7: ADC = V_IN 1024 / V_REF (truncated); 5 V reference
+    assert chip.adc_count(0.5, 5.0) == 102          # 102.4
+    assert chip.adc_count(4.5, 5.0) == 921          # 921.6
+    assert chip.adc_count(2.5, 5.0) == 512
+    assert chip.adc_count(5.0, 5.0) == 1023         # clipped: the largest result
+    assert chip.adc_count(-0.2, 5.0) == 0
+    assert chip.adc_count(1.0, 3.3) == 310          # 310.3
+    assert chip.adc_count(4.5, 5.0, bits=8) == 230  # ADCH of the left-adjusted result: 921 >> 2
+
+
+def test_the_models_counts_are_the_transducers_volts_through_the_datasheet_formula():
+    m = frogsim.build_model(frogsim.load_scenario(pneumatic(HOLD)))
+    plan = fwm.firmware_plan(m)
+    y = m.y0.copy()
+    # 0.5 V at 0 bar, 4.5 V at 10 bar: 3 bar is 1.7 V, 348.16 -> 348; 10 bar 921; 12 bar 5.3 V -> 1023
+    for gauge, count in ((0.0, 102), (3 * BAR, 348), (10 * BAR, 921), (12 * BAR, 1023), (-0.9 * BAR, 28)):
+        y[pressure_index(0)] = P_ATM + gauge
+        assert fwm.adc_counts(plan, m, y, None)[0] == count
+    ch = plan.channels[0]
+    assert ch.unit_per_count == pytest.approx(COUNT)
+    assert ch.offset + 348 * ch.unit_per_count == pytest.approx((348.5 * 5 / 1024 - 0.5) / 0.4 * BAR)
+
+
+# --- C twin == Numba twin, kind by kind (random parameters, tables, memory, counts, samples) ------------
+@pytest.fixture(scope="module")
+def lib():
+    if shutil.which("gcc") is None:
+        pytest.skip("gcc missing: apt-get install gcc")
+    plan = fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(pneumatic(HOLD))))
+    return fwm.host_library(plan)
+
+
+def _both(lib, module, P, T, mem, k, cp, ca):
+    """(mode, memory after) of the C twin and of the Numba twin."""
+    P32 = (ctypes.c_int32 * len(P))(*[int(v) for v in P])
+    T32 = (ctypes.c_int32 * len(T))(*[int(v) for v in T])
+    M32 = (ctypes.c_int32 * FW_MEM)(*[int(v) for v in mem])
+    c_mode = getattr(lib, module.C_NAME)(k, cp, ca, M32, P32, T32)
+    mem_f = np.array(mem, float)
+    n_mode = module.fw_law(np.array(P, float), np.array(T, float), mem_f, k, cp, ca)
+    return (int(c_mode), list(M32)), (int(n_mode), [int(v) for v in mem_f])
+
+
+KS = st.integers(0, 2**31)
+COUNTS = st.integers(0, 1023)
+Q4S = st.integers(0, 16 * 1023 + 8)
+SETTINGS = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+
+
+@needs_gcc
+@SETTINGS
+@given(P_half=st.integers(0, 4000), T=st.lists(Q4S, min_size=1, max_size=30), k=KS, cp=COUNTS)
+def test_bang_bang_twins_agree(lib, P_half, T, k, cp):
+    c, n = _both(lib, bang_bang, [P_half, len(T)], T, [0] * FW_MEM, k % 64, cp, 0)
+    assert c == n
+
+
+@needs_gcc
+@SETTINGS
+@given(starts=st.lists(st.integers(0, 2**29 - 1), max_size=40, unique=True), data=st.data(), k=st.integers(0, 2**29))
+def test_program_twins_agree(lib, starts, data, k):
+    starts = sorted(starts)
+    modes = data.draw(st.lists(st.sampled_from((-1, 0, 1)), min_size=len(starts), max_size=len(starts)))
+    T = [(s << 2) | (m + 1) for s, m in zip(starts, modes)] or [0]
+    c, n = _both(lib, program, [len(starts)], T, [0] * FW_MEM, k, 0, 0)
+    assert c == n
+    expect = 0
+    for s, m in zip(starts, modes):
+        if s <= k:
+            expect = m
+    assert n[0] == expect                     # the table's meaning: the last change at or before k
+
+
+@needs_gcc
+@SETTINGS
+@given(data=st.data(), k=st.integers(0, 5000), cp=COUNTS, how=st.sampled_from((0, 1, 2)))
+def test_pwm_twins_agree(lib, data, k, cp, how):
+    N = data.draw(st.integers(1, 2000))
+    pb = data.draw(st.integers(1, min(40000, (2**31 - 1) // (2 * N + 1))))
+    nmin = data.draw(st.integers(0, N))
+    T = data.draw(st.lists(st.integers(0, N) if how == 2 else Q4S, min_size=1, max_size=20))
+    P = [N, how, data.draw(st.integers(0, N)), pb, nmin, data.draw(st.integers(0, 1)), len(T)]
+    mem = [data.draw(st.integers(0, N - 1)), data.draw(st.integers(-N, N)), 0, 0, 0][:FW_MEM]
+    c, n = _both(lib, pwm, P, T, mem, k, cp, 0)
+    assert c == n
+
+
+@needs_gcc
+@SETTINGS
+@given(data=st.data(), k=st.integers(0, 100), cp=COUNTS, last=st.sampled_from((-1, 0, 1)), seed=st.integers(0, 2**31))
+def test_sliding_mode_twins_agree(lib, data, k, cp, last, seed):
+    n = data.draw(st.integers(1, 8))
+    rng = np.random.default_rng(seed)
+    rates = rng.integers(-2**24, 2**24, 2 * 1024)
+    sp = data.draw(st.lists(Q4S, min_size=n, max_size=n))
+    dsp = data.draw(st.lists(st.integers(-2**24, 2**24), min_size=n, max_size=n))
+    rho = data.draw(st.integers(0, sliding_mode.S_MAX))
+    P = [data.draw(st.integers(0, 2**20)), data.draw(st.integers(0, 2**20)), rho * rho, n, 1024]
+    c, nb = _both(lib, sliding_mode, P, sp + dsp + list(rates), [last, 0, 0, 0, 0][:FW_MEM], k, cp, 0)
+    assert c == nb
+
+
+@needs_gcc
+@SETTINGS
+@given(data=st.data(), k=st.integers(0, 100), cp=COUNTS, ca=COUNTS)
+def test_joint_angle_twins_agree(lib, data, k, cp, ca):
+    n = data.draw(st.integers(1, 8))
+    sp = data.draw(st.lists(Q4S, min_size=n, max_size=n))
+    dsp = data.draw(st.lists(st.integers(-2**24, 2**24), min_size=n, max_size=n))
+    gains = [data.draw(st.integers(0, 2**31 - 1)) for _ in range(3)]
+    lo = data.draw(st.integers(0, 20000))
+    P = [data.draw(st.sampled_from((-1, 1))), data.draw(st.integers(0, 30000)), lo,
+         data.draw(st.integers(lo, 30000))] + gains + [data.draw(st.integers(0, 2000)), n,
+                                                     data.draw(st.integers(0, 8))]
+    mem = [data.draw(st.integers(-2**30, 2**30)), data.draw(Q4S), data.draw(st.integers(0, 1)),
+           data.draw(st.integers(0, 2**31 - 2)), data.draw(st.integers(-2**24, 2**24))]
+    c, nb = _both(lib, joint_angle, P, sp + dsp, mem, k, cp, ca)
+    assert c == nb
+
+
+# --- whole plans: frogsim_sample (C) == firmware_modes (Numba) over random runs of counts ----------------
+def _kinds_scenario() -> dict:
+    sine = {"kind": "sine", "mean": "3 bar", "amplitude": "1 bar", "frequency": "2 Hz"}
+    return pneumatic({
+        "a": {"kind": "bang-bang", "muscle": "m0", "setpoint": sine, "band": "0.1 bar"},
+        "b": {"kind": "pwm", "muscle": "m1", "setpoint": "2 bar", "frequency": "50 Hz", "minimum_pulse": "2 ms"},
+        "c": {"kind": "sliding-mode", "muscle": "m2", "setpoint": sine},
+        "d": {"kind": "pwm", "muscle": "m3", "duty_schedule": {"kind": "sine", "mean": "50 %", "amplitude": "30 %",
+                                                                "frequency": "3 Hz"}},
+        "e": {"kind": "pwm", "muscle": "m4", "duty": "30 %", "rest": "hold"},
+        "f": {"kind": "program", "muscle": "m5"}},
+        muscles=("m0", "m1", "m2", "m3", "m4", "m5"), duration="0.5 s",
+        programs={"p": {"steps": [{"at": "0 s", "state": "charge"}, {"at": "0.1003 s", "state": "hold"},
+                                  {"at": "0.2 s", "state": "vent"}]}})
+
+
+def _with_program(d: dict) -> dict:
+    d["muscles"]["m5"]["program"] = "p"
+    return d
+
+
+def _run_both(plan, steps: int, seed: int):
+    h = fwm.host_library(plan)
+    h.frogsim_reset()
+    rng = np.random.default_rng(seed)
+    n_ch, n_m = len(plan.channels), len(plan.muscles)
+    mem = np.zeros((n_m, FW_MEM))
+    modes = (ctypes.c_int8 * n_m)()
+    adc = (ctypes.c_uint16 * max(1, n_ch))()
+    centre = rng.integers(0, 1024, n_ch)
+    for k in range(steps):
+        counts = np.clip(centre + rng.integers(-40, 41, n_ch), 0, 1023)
+        for j in range(n_ch):
+            adc[j] = int(counts[j])
+        h.frogsim_sample(k, adc, modes)
+        want = fwm.firmware_modes(plan, k, counts, mem)
+        assert list(modes) == list(want), f"sample {k}"
+
+
+@needs_gcc
+@pytest.mark.parametrize("seed", [1, 2])
+def test_every_kind_in_one_firmware_c_equals_the_numba_twin_sample_by_sample(seed):
+    sc = frogsim.load_scenario(_with_program(_kinds_scenario()))
+    plan = fwm.firmware_plan(frogsim.build_model(sc))
+    assert [law.module for law in plan.laws] == [bang_bang, pwm, sliding_mode, pwm, pwm, program]
+    _run_both(plan, 600, seed)
+
+
+@needs_gcc
+def test_the_robots_joint_angle_and_gait_firmware_agree_with_the_twin():
+    rs = frogsim.load_robot_scenario(with_firmware("hip-angle-in-air"))
+    plan = fwm.firmware_plan(rs)
+    assert [ch.signal for ch in plan.channels] == ["hip_left pressure", "hip_left_recovery pressure",
+                                                   "hip_left angle"]
+    _run_both(plan, 400, 3)
+    swim = fwm.firmware_plan(frogsim.load_robot_scenario("swim"))
+    assert swim.channels == [] and {law.module for law in swim.laws} == {program}
+    _run_both(swim, 2200, 4)         # past the gait's first switch at 1 s
+
+
+def test_the_gait_table_switches_where_the_models_schedule_does():
+    rs = frogsim.load_robot_scenario("swim")
+    m = frogsim.build_model(rs.pneumatic)
+    plan = fwm.firmware_plan(m)
+    mem = np.zeros((len(plan.muscles), FW_MEM))
+    rate = rs.pneumatic.controller.rate
+    dead = rs.pneumatic.valves.charge.dead_time
+    assert rs.pneumatic.valves.discharge.dead_time == dead     # (else the valves' times differ)
+    checked = 0
+    for t_s, u in zip(m.sched_t, m.sched_u):
+        k = round((t_s - dead) * rate)        # the sample whose command switches the valves at t_s
+        modes = fwm.firmware_modes(plan, k, [], mem)
+        for i in range(len(plan.muscles)):
+            assert modes[i] == (1 if u[2 * i] == 1.0 else -1 if u[2 * i + 1] == 1.0 else 0)
+        checked += 1
+    assert checked >= 20                      # every switching of ten gait cycles
+
+# --- the model's compiled sample == the twin on the counts of the same state ----------------------------
+def test_the_models_compiled_sample_commands_what_the_twin_commands():
+    sc = frogsim.load_scenario(_with_program(_kinds_scenario()))
+    m = frogsim.build_model(sc)
+    plan = fwm.firmware_plan(m)
+    rng = np.random.default_rng(7)
+    y = m.y0.copy()
+    u = np.zeros(2 * m.n)
+    dt = 1.0 / sc.controller.rate
+    cs = start_controllers(m.laws, m.mp, 0.0, y, u, dt)
+    mem = np.zeros((m.n, FW_MEM))
+    rows = {int(m.laws[c, L_MUSCLE]): c for c in range(m.laws.shape[0]) if m.laws[c, L_FW] > 0}
+    for k in range(300):
+        if k:
+            for i in range(m.n):
+                y[pressure_index(i)] = P_ATM + rng.uniform(0.0, 6.0) * BAR
+            sample_controllers(m.laws, m.mp, k * dt, y, u, cs)
+        want = fwm.firmware_modes(plan, k, fwm.adc_counts(plan, m, y, None), mem)
+        for i, c in rows.items():
+            b = int(CS_SIZE + c * cs[CS_BLOCK])
+            assert cs[b + B_MODE] == want[i], f"sample {k}, muscle {m.names[i]}"
+
+
+# --- a pressure held through the ADC -------------------------------------------------------------------
+def test_hold_3bar_holds_three_bar_through_the_adc():
+    sc = frogsim.load_scenario("hold-3bar")
+    assert sc.firmware is not None
+    r = frogsim.simulate(sc)
+    t = np.asarray(r.t)
+    p = (r.muscle_pressure("hip") - r.atmospheric_pressure)[t >= 0.5]
+    # the relay holds the sensed count within sp +- band/2; the count is the pressure to within one
+    # count (12.2 mbar: 10 bar / 819.2); no valve opens once it is held (a closed muscle, no leak)
+    band = 0.1 * BAR
+    assert np.all(np.abs(p - 3 * BAR) <= band / 2 + COUNT)
+    metrics = r.control_metrics()["hold"]
+    assert metrics["tracking_error_max_bar"] * BAR <= band / 2 + COUNT
+
+
+def test_the_sensed_pressure_is_a_count_only_with_firmware():
+    base = pneumatic(HOLD)
+    del base["firmware"]
+    for d, quantised in ((base, False), (pneumatic(HOLD), True)):
+        m = frogsim.build_model(frogsim.load_scenario(d))
+        y = m.y0.copy()
+        y[pressure_index(0)] = P_ATM + 2.345678 * BAR
+        u = np.zeros(2)
+        cs = start_controllers(m.laws, m.mp, 0.0, y, u, 1e-3)
+        b = int(CS_SIZE + 0 * cs[CS_BLOCK])
+        sensed = cs[b + B_SENSED] - P_ATM
+        if quantised:
+            # the middle of count floor((0.5 + 0.4 * 2.345678) 1024 / 5) = 294
+            assert sensed == pytest.approx(((294.5 * 5 / 1024) - 0.5) / 0.4 * BAR)
+        else:
+            assert m.laws[0, L_FW] == 0.0
+            assert sensed == pytest.approx(2.345678 * BAR, abs=1e-6)
+
+
+# --- refusals --------------------------------------------------------------------------------------------
+def _refused(d: dict, match: str):
+    with pytest.raises(ScenarioError, match=match):
+        frogsim.load_scenario(d)
+
+
+@pytest.mark.parametrize("firmware, match", [
+    ({"valve_pins": {"hip": [22, 70]}}, r"firmware\.valve_pins\.hip = 70: must be a digital pin of the Mega 2560"),
+    ({"busy_pin": 70}, r"firmware\.busy_pin = 70: must be <= 69"),
+    ({"valve_pins": {"hip": [13, 23]}}, r"firmware\.valve_pins\.hip = 13: pin 13 is already the busy pin"),
+    ({"valve_pins": {"hip": [1, 23]}}, r"firmware\.valve_pins\.hip = 1: pin 1 is already the serial port"),
+    ({"valve_pins": {"hip": [22, 22]}}, r"pin 22 is already hip's charge valve pin"),
+    ({"valve_pins": {"hip": [54, 23]}}, r"pin 54 is already analog input A0 \(hip pressure\)"),
+    ({"pressure_inputs": {"hip": 16}}, r"firmware\.pressure_inputs\.hip = 16: must be an analog input of the "
+                                        r"Mega 2560: 0\.\.15 \(A0\.\.A15\)"),
+    ({"pressure_inputs": {"knee": 1}}, r"firmware\.pressure_inputs\.knee = 1: must name a muscle whose pressure"),
+    ({"valve_pins": {"knee": [30, 31]}}, r"firmware\.valve_pins\.knee .*must name a muscle of this scenario"),
+    ({"log_rate": "1 kHz", "baud": 9600}, r"firmware\.log_rate = '?1000 Hz'?: lines of up to \d+ bytes at 1000 Hz "
+                                          r"need \d+ bytes/s, more than 9600 baud carries"),
+    ({"log_rate": "300 Hz"}, r"firmware\.log_rate = '?300 Hz'?: must divide the controller rate"),
+    ({"name": "3bar"}, r"firmware\.name = '3bar': must be a C identifier"),
+    ({"vref": "3.3 V"}, r"firmware\.transducer\.high_voltage = '?4\.5 V'?: must not exceed .*vref \(3\.3 V\)"),
+    ({"transducer": {"low_voltage": "4.5 V", "high_voltage": "0.5 V"}}, r"high_voltage .* must exceed low_voltage"),
+    ({"vref": "6 V"}, r"firmware\.vref = '6 V': must be <= 5\.5 V"),
+    ({"pins": 3}, r"firmware\.pins: unknown setting"),
+])
+def test_bad_firmware_settings_are_refused_in_one_line(firmware, match):
+    _refused(pneumatic(HOLD, firmware=firmware), match)
+
+
+def test_two_signals_on_one_analog_input_are_refused():
+    d = pneumatic({"a": {"kind": "bang-bang", "muscle": "m0", "setpoint": "3 bar"},
+                   "b": {"kind": "bang-bang", "muscle": "m1", "setpoint": "3 bar"}}, muscles=("m0", "m1"),
+                  firmware={"pressure_inputs": {"m0": 3, "m1": 3}})
+    _refused(d, r"firmware\.pressure_inputs\.m1 = 3: analog input A3 is already m0 pressure's")
+
+
+def test_more_analog_signals_than_inputs_are_refused_with_the_count():
+    names = [f"m{i}" for i in range(17)]
+    d = pneumatic({n: {"kind": "bang-bang", "muscle": n, "setpoint": "1 bar"} for n in names}, muscles=names,
+                  firmware={"valve_pins": {n: [2 + 2 * i, 3 + 2 * i] for i, n in enumerate(names[:8])}})
+    _refused(d, r"firmware = '17 analog signals \(17 pressures, 0 angles\)': the Mega 2560 has 16 analog inputs "
+                r"\(A0-A15\): the other way in is quadrature encoders")
+
+
+def test_sampling_that_does_not_fit_the_period_is_refused_with_the_arithmetic():
+    names = [f"m{i}" for i in range(16)]
+    d = pneumatic({n: {"kind": "bang-bang", "muscle": n, "setpoint": "1 bar"} for n in names}, muscles=names,
+                  controller={"rate": "10 kHz"}, firmware={"log_rate": "10 Hz"})
+    # 16 x 13 us (1 MHz ADC clock, the fastest recommended) = 208 us > 60 % of 100 us
+    _refused(d, r"controller\.rate = '10000 Hz': the firmware's sampling does not fit: 16 conversions do not fit "
+                r"the 100 us control period.*16 x 13\.0 us = 208 us")
+
+
+def test_a_faster_adc_clock_that_fits_costs_two_bits():
+    names = [f"m{i}" for i in range(12)]
+    sc = frogsim.load_scenario(pneumatic({n: {"kind": "bang-bang", "muscle": n, "setpoint": "1 bar"}
+                                          for n in names}, muscles=names))
+    plan = fwm.firmware_plan(frogsim.build_model(sc))
+    # 12 x 104 us = 1.25 ms does not fit 60 % of 1 ms; prescaler 32 (500 kHz, 26 us): 8 bits
+    assert plan.adc.prescaler == 32 and plan.adc.bits == 8
+    assert plan.channels[0].unit_per_count == pytest.approx(4 * COUNT)
+    m = frogsim.build_model(sc)
+    y = m.y0.copy()
+    y[pressure_index(0)] = P_ATM + 10 * BAR        # 4.5 V: 921 at 10 bits, 230 in ADCH
+    assert fwm.adc_counts(plan, m, y, None)[0] == 230
+
+
+def test_sensor_settings_the_firmware_does_not_model_are_refused():
+    ctl = dict(HOLD["hold"], sensor={"noise": "5 mbar"})
+    _refused(pneumatic({"hold": ctl}), r"controllers\.hold\.sensor .*the transducer and the ADC are the sensor")
+
+
+def test_a_scenario_without_firmware_has_no_plan():
+    d = pneumatic(HOLD)
+    del d["firmware"]
+    with pytest.raises(ScenarioError, match=r"firmware: the scenario needs a \[firmware\] section"):
+        fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(d)))
+
+
+def test_tables_beyond_the_flash_the_avr_reads_are_refused():
+    sine = {"kind": "sine", "mean": "3 bar", "amplitude": "1 bar", "frequency": "1 Hz"}
+    d = pneumatic({"a": {"kind": "bang-bang", "muscle": "hip", "setpoint": sine}}, duration="20 s")
+    with pytest.raises(ScenarioError, match=r"duration = '?20 s'?: the firmware's tables .* take 80004 bytes"):
+        fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(d)))
+
+
+def test_the_firmware_section_is_variable_like_every_setting():
+    sc = frogsim.load_scenario("hold-3bar")
+    assert "firmware.transducer.high_pressure_gauge" in sc.variable_paths()
+    v = sc.replace({"firmware.vref": 3.3, "firmware.transducer.high_voltage": 3.0})
+    assert v.firmware.vref == 3.3
+    with pytest.raises(ScenarioError, match=r"firmware\.transducer\.high_voltage"):
+        sc.replace({"firmware.vref": 3.3})
+
+
+def test_every_firmware_setting_is_documented():
+    from pathlib import Path
+    import dataclasses
+    from frogsim.scenario.firmware import AnglePotentiometer, Firmware, Transducer
+    text = (Path(__file__).resolve().parent.parent / "docs" / "control.md").read_text()
+    for cls in (Firmware, Transducer, AnglePotentiometer):
+        for f in dataclasses.fields(cls):
+            assert f"`{f.name}`" in text, f"{cls.__name__}.{f.name} is not in docs/control.md"
+
+
+# --- the robot: the coupled engine samples the firmware's laws too --------------------------------------
+def test_the_gait_on_the_board_leaves_the_open_loop_model_as_it_was():
+    raw, base = merged_raw("swim")
+    assert "firmware" in raw
+    without = dict(raw, base_dir=base)
+    del without["firmware"]
+    a = frogsim.swim(frogsim.load_robot_scenario(dict(raw, base_dir=base), cycles=1))
+    b = frogsim.swim(frogsim.load_robot_scenario(without, cycles=1))
+    # open-loop muscles keep their valve schedule: the same run, bit for bit
+    assert np.array_equal(a.pressures, b.pressures) and np.array_equal(a.joint_angles, b.joint_angles)
+
+
+def test_the_joint_angle_law_runs_on_the_angle_sensors_counts_in_the_coupled_engine():
+    rs = frogsim.load_robot_scenario(with_firmware("hip-angle-in-air"))
+    r = frogsim.swim(rs)
+    m = r.summary()["control"]["hip"]
+    assert m["tracking_error_rms_deg"] < 3.0                  # it tracks the 10 deg -> 30 deg steps
+    plan = fwm.firmware_plan(rs)
+    angle = plan.channels[2]
+    # one count of the 0.5-4.5 V angle sensor over 180 deg at 5 V is 180 deg / 819.2
+    assert math.degrees(angle.unit_per_count) == pytest.approx(180 / 819.2)
+
+
+def test_tables_end_at_their_last_change_and_a_pair_shares_its_setpoint():
+    rs = frogsim.load_robot_scenario(with_firmware("hip-angle-in-air"))
+    plan = fwm.firmware_plan(rs)
+    # steps 10 deg -> 30 deg at 1 s, 1 kHz: the setpoint's table ends at sample 1000 (1001 entries,
+    # then its rate, zero, as many), read by both muscles of the pair; the ten muscles that hold
+    # their valves shut have no mode change (one empty table, shared)
+    assert plan.table_bytes == 4 * 2 * 1001 + 4
+    assert plan.c_source.count("FS_TABLE =") == 2
+    ja = [law for law in plan.laws if law.module is joint_angle]
+    assert len(ja) == 2 and ja[0].P[8] == 1001 and ja[0].T[1000] != ja[0].T[999]
