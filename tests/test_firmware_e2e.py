@@ -189,7 +189,7 @@ def test_robot_hip_angle_in_air_commands_the_same_valves(tmp_path):
 def test_robot_swimming_gait_runs_from_the_firmware(tmp_path):
     """The gait (programs as tables) on the firmware, the robot free in water, one 2 s cycle."""
     need_avr_tools()
-    scenario = _with_firmware("swim", tmp_path)
+    scenario = SHIPPED / "swim.toml"            # the shipped gait carries its [firmware] section
     rec, s = _export_and_sil(scenario, tmp_path, "--cycles", "1")
     assert rec["channels"] == [] and len(rec["muscles"]) == 6
     assert s["sil"]["mismatched_samples"] == 0 and s["sil"]["samples"] == 2001
