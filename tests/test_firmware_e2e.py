@@ -30,13 +30,6 @@ def _cli(*argv) -> int:
     return main([*map(str, argv), "--quiet"])
 
 
-def _with_firmware(name: str, tmp: Path, extra: str = "") -> Path:
-    """A shipped robot scenario with a [firmware] section of defaults, written into tmp."""
-    path = tmp / f"{name}-fw.toml"
-    path.write_text((SHIPPED / f"{name}.toml").read_text() + "\n[firmware]\n" + extra)
-    return path
-
-
 def _export_and_sil(scenario, tmp: Path, *extra) -> tuple[dict, dict]:
     fw, out = tmp / "fw", tmp / "sil"
     assert _cli("firmware", scenario, *extra, "--out", fw, "--build") == 0
@@ -175,10 +168,10 @@ def test_firmware_refuses_bad_wiring_in_one_line_and_writes_nothing(tmp_path, ca
 def test_robot_hip_angle_in_air_commands_the_same_valves(tmp_path):
     """The joint-angle controller on the robot's firmware: 3 s of the fixed-base robot."""
     need_avr_tools()
-    scenario = _with_firmware("hip-angle-in-air", tmp_path)
-    _, s = _export_and_sil(scenario, tmp_path)
+    from frogsim.scenario.load import with_firmware
+    _, s = _export_and_sil("hip-angle-in-air", tmp_path)      # no [firmware] in it: the board's defaults
     assert s["sil"]["mismatched_samples"] == 0 and s["sil"]["overruns"] == 0
-    compiled = frogsim.swim(frogsim.load_robot_scenario(scenario)).control_metrics()["hip"]
+    compiled = frogsim.swim(frogsim.load_robot_scenario(with_firmware("hip-angle-in-air"))).control_metrics()["hip"]
     for key in ("tracking_error_rms_deg", "tracking_error_max_deg"):
         assert s["control"]["hip"][key] == pytest.approx(compiled[key], rel=1e-6)
     assert s["control"]["hip"]["switchings"] == compiled["switchings"]

@@ -295,17 +295,23 @@ def _swim_into(args, folder, out: Path, rs) -> int:
 
 def _firmware_target(source, cycles=None):
     """(kind "pneumatic" | "robot", the scenario or robot scenario, the plant's model, the firmware
-    plan): every input checked, nothing run or written. ``cycles``: a robot's gait cycles."""
+    plan): every input checked, nothing run or written. ``cycles``: a robot's gait cycles. A
+    scenario without a ``[firmware]`` section runs on the board's defaults (as if ``[firmware]``
+    were written: :func:`frogsim.scenario.load.with_firmware`), which is said on stderr."""
     from frogsim.control import firmware as fw
     from frogsim.errors import ScenarioError
-    from frogsim.scenario.load import load_scenario
+    from frogsim.scenario.load import load_scenario, merged_raw, with_firmware
+    if "firmware" not in merged_raw(source)[0]:
+        _progress("note: the scenario has no [firmware] section: the board's defaults (docs/control.md, "
+                  "\"The robot's board\")")
+    raw = with_firmware(source)
     try:
-        scenario = load_scenario(source)
+        scenario = load_scenario(raw)
     except ScenarioError as exc:
         if exc.field != "gait":
             raise
         from frogsim.robot.scenario import load_robot_scenario
-        rs = load_robot_scenario(source, cycles=cycles)
+        rs = load_robot_scenario(raw, cycles=cycles)
         from frogsim.circuit.model import build_model
         return "robot", rs, None, fw.firmware_plan(build_model(rs.pneumatic))
     if cycles is not None:
