@@ -435,3 +435,18 @@ def test_tables_end_at_their_last_change_and_a_pair_shares_its_setpoint():
     assert plan.c_source.count("FS_TABLE =") == 2
     ja = [law for law in plan.laws if law.module is joint_angle]
     assert len(ja) == 2 and ja[0].P[8] == 1001 and ja[0].T[1000] != ja[0].T[999]
+
+
+@pytest.mark.parametrize("kind, extra", [("bang-bang", {}), ("pwm", {"frequency": "50 Hz"}), ("sliding-mode", {})])
+def test_each_pressure_law_on_counts_tracks_as_its_float_law_to_within_a_count(kind, extra):
+    # the twin reads the middle of the pressure's count (at most half a count, 6.1 mbar, away) and
+    # rounds its setpoint and band to sixteenths of a count: the tracking error moves by less than
+    # one count (12.2 mbar)
+    sine = {"kind": "sine", "mean": "3 bar", "amplitude": "1 bar", "frequency": "0.5 Hz"}
+    rms = []
+    for fw in (None, {}):
+        d = pneumatic({"c": {"kind": kind, "muscle": "hip", "setpoint": sine, **extra}}, duration="2 s")
+        if fw is None:
+            del d["firmware"]
+        rms.append(frogsim.simulate(frogsim.load_scenario(d)).control_metrics()["c"]["tracking_error_rms_bar"])
+    assert abs(rms[1] - rms[0]) * BAR < COUNT

@@ -41,6 +41,7 @@ from frogsim.components import atmega2560 as chip
 from frogsim.control.signals import setpoint
 from frogsim.control.table import (L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0, L_ADC_V0,
                                    L_ADC_VREF, L_FW, L_SP_KIND, SP_CONSTANT)
+from frogsim.scenario.firmware import sensed_signals
 
 Q4 = 16                 # sixteenths of a count
 Q16 = 65536             # gains
@@ -124,7 +125,6 @@ def block(row: np.ndarray) -> tuple:
 def adc_full(sc) -> int:
     """2^bits of the run's conversions: 10 bits, or 8 where the controller period needs the faster
     ADC clock (:func:`frogsim.components.atmega2560.plan_adc`, the resolution it costs)."""
-    from frogsim.scenario.firmware import sensed_signals
     return 2 ** chip.plan_adc(len(sensed_signals(sc)), 1.0 / sc.controller.rate).bits
 
 
