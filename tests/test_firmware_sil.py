@@ -182,3 +182,12 @@ def test_sil_refuses_a_folder_without_firmware(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "firmware.json" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "o").exists()
+
+
+def test_log_refuses_a_port_it_cannot_open_and_writes_nothing(tmp_path, capsys):
+    pytest.importorskip("serial")
+    from frogsim.cli import main
+    code = main(["log", "--port", str(tmp_path / "no-such-port"), "--duration", "1", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and err.startswith("frogsim: error: --port")
+    assert not (tmp_path / "o").exists()

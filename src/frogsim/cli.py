@@ -413,20 +413,21 @@ def cmd_sil(args) -> int:
 
 def cmd_log(args) -> int:
     from frogsim.errors import ScenarioError, SimulationError
-    from frogsim.export.serial_log import first_lines, record_port, write_log_csv
+    from frogsim.export.serial_log import first_lines, open_port, record_port, write_log_csv
     from frogsim.export.sketch import read_plan_record
     out = out_folder(args.out)
     rec = read_plan_record(args.firmware) if args.firmware else None
     if args.duration is not None and not args.duration > 0:
         raise ScenarioError("--duration", args.duration, "must be a time in seconds > 0")
     folder = _folder(args, "log", files=["serial.csv"])
+    link = open_port(args.port, rec)           # a port that cannot be opened: refused before any write
 
     def work():
         what = (f"{rec['baud']} baud ({rec['name']}: {', '.join(ch['signal'] for ch in rec['channels'])})" if rec
                 else "115200 baud (no --firmware: the channels from the board's header line, as raw counts)")
         _progress(f"reading {args.port} at {what} " + (f"for {args.duration:g} s" if args.duration else
                                                          "until Ctrl-C") + " ...")
-        log = record_port(args.port, rec, args.duration, progress=_progress)
+        log = record_port(args.port, rec, args.duration, progress=_progress, link=link)
         plan = rec or log.plan
         if plan is None:
             raise SimulationError(f"--port {args.port}: no frogsim header line came (the board sends it "

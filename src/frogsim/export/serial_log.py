@@ -139,12 +139,9 @@ def write_log_csv(path, log: Log, rec: dict, last_sample: int | None = None) -> 
     return Path(path)
 
 
-def record_port(port, rec: dict | None, duration: float | None = None, progress=None, baud: int | None = None,
-                opener=None) -> Log:
-    """Read the firmware's lines from serial port ``port`` (pyserial) for ``duration`` [s] (None:
-    until interrupted with Ctrl-C). Without a plan (``rec`` None) the header line makes one and
-    the port is read at the default 115200 baud. ScenarioError naming the port if it cannot be
-    opened."""
+def open_port(port, rec: dict | None, baud: int | None = None, opener=None):
+    """The serial port ``port`` opened with pyserial at the plan's baud rate (without a plan the
+    default 115200), or ScenarioError naming the port (nothing is read yet)."""
     if opener is None:
         try:
             import serial
@@ -153,9 +150,19 @@ def record_port(port, rec: dict | None, duration: float | None = None, progress=
                 from None
         opener = serial.Serial
     try:
-        link = opener(port, baud or int((rec or {}).get("baud", DEFAULT_BAUD)), timeout=0.2)
+        return opener(port, baud or int((rec or {}).get("baud", DEFAULT_BAUD)), timeout=0.2)
     except Exception as exc:     # pyserial raises SerialException, OSError, ValueError
         raise ScenarioError("--port", port, f"cannot be opened: {exc}") from None
+
+
+def record_port(port, rec: dict | None, duration: float | None = None, progress=None, baud: int | None = None,
+                opener=None, link=None) -> Log:
+    """Read the firmware's lines from serial port ``port`` (pyserial; or from ``link``, a port
+    :func:`open_port` opened) for ``duration`` [s] (None: until interrupted with Ctrl-C), then
+    close it. Without a plan (``rec`` None) the header line makes one. ScenarioError naming the
+    port if it cannot be opened."""
+    if link is None:
+        link = open_port(port, rec, baud, opener)
     log = Log()
     pending = b""
     t0 = time.monotonic()
