@@ -367,6 +367,8 @@ def cmd_sil(args) -> int:
     elf = find_elf(args.firmware)
     kind, sc, model, plan = _firmware_target(args.scenario, args.cycles)
     sil.check_plan(rec, plan)
+    from frogsim.export.emulator import check_tools
+    check_tools()                          # simavr missing: refused before anything is written
     pneumatic = sc if kind == "pneumatic" else sc.pneumatic
     if kind == "pneumatic":
         files = ["timeseries.csv", "pressures.png", "summary.json", "serial.csv"]

@@ -123,6 +123,13 @@ def symbol_address(elf, name: str) -> int:
     raise FrogsimError(f"{elf}: no symbol {name!r} (a firmware of another frogsim version?)")
 
 
+def check_tools() -> None:
+    """ToolMissing (with the apt line) unless the emulated board can be built and loaded and the
+    ELF's symbols read: simavr's headers and library, gcc, avr-nm."""
+    require("avr-nm")
+    _lib()
+
+
 class EmulatedBoard:
     """An ATmega2560 at ``f_cpu`` running the ELF ``elf``, AVcc = AREF = ``vref`` [V].
 
