@@ -94,11 +94,10 @@ class BoardRun:
             if mv != self.mv[j]:
                 b.set_analog(a, mv)
                 self.mv[j] = mv
-        limit = b.cycle + (START_CYCLES if self.k == 0 else 50 * self.period)
-        if not b.run_until_pin(self.busy, 0, limit):
-            raise SimulationError(f"firmware {self.rec['name']!r}: sample {self.k} did not end within "
-                                  f"{limit - b.cycle if b.cycle < limit else 50 * self.period} AVR cycles "
-                                  "(its interrupt never ran or never ended)")
+        wait = START_CYCLES if self.k == 0 else 50 * self.period
+        if not b.run_until_pin(self.busy, 0, b.cycle + wait):
+            raise SimulationError(f"firmware {self.rec['name']!r}: sample {self.k} did not end within {wait} AVR "
+                                  "cycles (its interrupt never ran or never ended)")
         while True:
             n = b.events_into(self.ev_c, self.ev_i, self.ev_v)
             for cc, ii, vv in zip(self.ev_c[:n].tolist(), self.ev_i[:n].tolist(), self.ev_v[:n].tolist()):
