@@ -450,3 +450,39 @@ def test_each_pressure_law_on_counts_tracks_as_its_float_law_to_within_a_count(k
             del d["firmware"]
         rms.append(frogsim.simulate(frogsim.load_scenario(d)).control_metrics()["c"]["tracking_error_rms_bar"])
     assert abs(rms[1] - rms[0]) * BAR < COUNT
+
+
+def test_the_robots_compiled_sample_reads_the_joint_angle_through_the_angle_sensors_count():
+    from frogsim.control.sampled import observe_joints
+    rs = frogsim.load_robot_scenario(with_firmware("hip-angle-in-air"))
+    m = frogsim.build_model(rs.pneumatic)
+    plan = fwm.firmware_plan(m)
+    joints = list(rs.pneumatic.joints)
+    rng = np.random.default_rng(11)
+    y = m.y0.copy()
+    u = np.zeros(2 * m.n)
+    dt = 1.0 / rs.pneumatic.controller.rate
+    qpos = np.zeros(len(joints))
+    qvel = np.zeros(len(joints))
+    index = np.arange(len(joints), dtype=np.int64)       # joint j's angle at qpos[j] (as the engine maps it)
+    cs = start_controllers(m.laws, m.mp, 0.0, y, u, dt)
+    mem = np.zeros((m.n, FW_MEM))
+    rows = {int(m.laws[c, L_MUSCLE]): c for c in range(m.laws.shape[0]) if m.laws[c, L_FW] > 0}
+    assert sorted(m.names[i] for i in rows) == ["hip_left", "hip_left_recovery"]
+    theta = 0.0
+    seen = set()
+    for k in range(400):
+        if k:
+            theta = float(np.clip(theta + rng.normal(0.0, 0.01), -0.6, 0.6))     # a wandering hip [rad]
+            qpos[joints.index("hip_left")] = theta
+            for i in rows:
+                y[pressure_index(i)] = P_ATM + rng.uniform(1.0, 5.0) * BAR
+            observe_joints(m.laws, cs, qpos, qvel, index, index)               # what the engine does
+            sample_controllers(m.laws, m.mp, k * dt, y, u, cs)
+        counts = fwm.adc_counts(plan, m, y, {"hip_left": theta})
+        want = fwm.firmware_modes(plan, k, counts, mem)
+        seen.update((int(want[i]), int(counts[2])) for i in rows)
+        for i, c in rows.items():
+            b = int(CS_SIZE + c * cs[CS_BLOCK])
+            assert cs[b + B_MODE] == want[i], f"sample {k}, muscle {m.names[i]}"
+    assert {mode for mode, _ in seen} == {-1, 0, 1} and len({a for _, a in seen}) > 20     # not vacuous
