@@ -9,7 +9,7 @@ import pytest
 
 from frogsim.export.emulator import APT_LINE
 
-TOOLS = ("avr-gcc", "avr-objdump", "avr-size", "gcc")
+TOOLS = ("avr-gcc", "avr-objdump", "avr-size", "avr-nm", "gcc", "make")
 FILES = (Path("/usr/include/simavr/sim_avr.h"), Path("/usr/share/arduino/hardware/arduino/avr/cores/arduino"),
          Path("/usr/share/arduino/Arduino.mk"))
 

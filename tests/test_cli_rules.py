@@ -63,6 +63,9 @@ def commands(res: Path) -> dict[str, tuple[list[str], str]]:
         "sweep": (["sweep", str(res / "spec.toml")], ".nc"),
         "plot": (["plot", str(res / "r.nc"), "--x", "source.initial_pressure_gauge", "--metric", "rise_time"],
                  ".png"),
+        "firmware": (["firmware", "hold-3bar"], "dir"),
+        "sil": (["sil", "hold-3bar", "--firmware", str(res / "no-firmware-here")], "dir"),
+        "log": (["log", "--port", str(res / "no-port-here"), "--duration", "1"], "dir"),
     }
 
 
@@ -94,7 +97,7 @@ def _tree(path: Path) -> dict:
 
 
 @pytest.mark.parametrize("command", ["reproduce", "design", "control", "simulate", "swim", "compare", "fit",
-                                     "optimize-gait", "sweep", "plot"])
+                                     "optimize-gait", "sweep", "plot", "firmware", "sil", "log"])
 def test_bad_out_exit_2_one_line_nothing_written(command, sweep_results, tmp_path, monkeypatch, capsys):
     argv, kind = commands(sweep_results)[command]
     work = tmp_path / "work"

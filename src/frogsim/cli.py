@@ -18,6 +18,14 @@
                                             search the gait's phase timing (resumable; docs/control.md)
     frogsim compare RUN[:SIGNAL] ... [--signal NAME] --out DIR
                                             overlay one signal of several runs or scenarios
+    frogsim firmware SCENARIO --out DIR [--build]
+                                            the valve controllers as an Arduino Mega 2560 sketch
+                                            (docs/firmware.md); --build compiles it
+    frogsim sil SCENARIO --firmware DIR --out DIR
+                                            the built firmware on an emulated ATmega2560 in
+                                            lockstep with the plant (software in the loop)
+    frogsim log --port PORT [--firmware DIR] --out DIR
+                                            record a board's serial log as a CSV trace
 
 Output folders: a folder belongs to the command that first wrote it (its manifest.json says which:
 command line, frogsim version, time, SHA-256 of the scenario's files, the files written). Another
@@ -218,11 +226,8 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
 
 def cmd_simulate(args) -> int:
     from frogsim.engine.pneumatic import simulate
-    from frogsim._files import write_csv, write_figure, write_json
     from frogsim.io.outputs import scenario_inputs, scenario_record
-    from frogsim.io.results import plot_run, run_summary
     from frogsim.scenario.load import load_scenario
-    from frogsim.scenario.tables import unit_headers
     out = out_folder(args.out)
     scenario = load_scenario(args.scenario)          # all validation happens here, before any write
     folder = _folder(args, "simulate", files=["timeseries.csv", "pressures.png", "summary.json"],
@@ -233,14 +238,22 @@ def cmd_simulate(args) -> int:
         t0 = time.perf_counter()
         result = simulate(scenario)
         _progress(f"      {result.stats['steps']} steps in {time.perf_counter() - t0:.2f} s")
-        write_csv(out / "timeseries.csv", unit_headers(result.to_dataframe(units="display")))
-        write_figure(out / "pressures.png", lambda p: plot_run(result, p))
-        write_json(out / "summary.json", run_summary(result))
+        _write_simulate(out, result)
         folder.finish()
         _progress(f"wrote {out / 'timeseries.csv'}, {out / 'pressures.png'}, {out / 'summary.json'}, "
                   f"{out / 'manifest.json'}")
         return 0
     return _finishing(folder, work)
+
+
+def _write_simulate(out: Path, result, extra: dict | None = None) -> None:
+    """What simulate writes: timeseries.csv, pressures.png, summary.json (plus ``extra`` sections)."""
+    from frogsim._files import write_csv, write_figure, write_json
+    from frogsim.io.results import plot_run, run_summary
+    from frogsim.scenario.tables import unit_headers
+    write_csv(out / "timeseries.csv", unit_headers(result.to_dataframe(units="display")))
+    write_figure(out / "pressures.png", lambda p: plot_run(result, p))
+    write_json(out / "summary.json", {**run_summary(result), **(extra or {})})
 
 
 def cmd_swim(args) -> int:
@@ -278,6 +291,154 @@ def _swim_into(args, folder, out: Path, rs) -> int:
         _warn(f"animation skipped: {s['animation_skipped']}")
     _progress("wrote " + ", ".join(str(p) for p in files.values()))
     return 0
+
+
+def _firmware_target(source, cycles=None):
+    """(kind "pneumatic" | "robot", the scenario or robot scenario, the plant's model, the firmware
+    plan): every input checked, nothing run or written. ``cycles``: a robot's gait cycles. A
+    scenario without a ``[firmware]`` section runs on the board's defaults (as if ``[firmware]``
+    were written: :func:`frogsim.scenario.load.with_firmware`), which is said on stderr."""
+    from frogsim.control import firmware as fw
+    from frogsim.errors import ScenarioError
+    from frogsim.scenario.load import load_scenario, merged_raw, with_firmware
+    if "firmware" not in merged_raw(source)[0]:
+        _progress("note: the scenario has no [firmware] section: the board's defaults (docs/control.md, "
+                  "\"The robot's board\")")
+    raw = with_firmware(source)
+    try:
+        scenario = load_scenario(raw)
+    except ScenarioError as exc:
+        if exc.field != "gait":
+            raise
+        from frogsim.robot.scenario import load_robot_scenario
+        rs = load_robot_scenario(raw, cycles=cycles)
+        from frogsim.circuit.model import build_model
+        return "robot", rs, None, fw.firmware_plan(build_model(rs.pneumatic))
+    if cycles is not None:
+        raise ScenarioError("--cycles", cycles, "only a robot scenario (with a [gait]) has gait cycles")
+    from frogsim.circuit.model import build_model
+    model = build_model(scenario)
+    return "pneumatic", scenario, model, fw.firmware_plan(model)
+
+
+def cmd_firmware(args) -> int:
+    from frogsim._files import write_json
+    from frogsim.export import sketch
+    from frogsim.io.outputs import scenario_inputs, scenario_record
+    out = out_folder(args.out)
+    kind, sc, model, plan = _firmware_target(args.scenario, args.cycles)   # all validation before any write
+    pneumatic = sc if kind == "pneumatic" else sc.pneumatic
+    if args.build:
+        from frogsim.export.emulator import require
+        for tool in ("make", "avr-gcc", "avr-size", "avr-objdump"):
+            require(tool)
+    files = [f"{plan.name}/{plan.name}.ino", f"{plan.name}/frogsim_board.h", f"{plan.name}/frogsim_laws.h",
+             f"{plan.name}/frogsim_laws.c", "firmware.json"] + ([f"{plan.name}/Makefile", f"build/{plan.name}.elf", f"build/{plan.name}.hex"] if args.build else [])
+    folder = _folder(args, "firmware", files=files,
+                     scenario=scenario_record(sc.name, scenario_inputs(pneumatic, args.scenario)))
+
+    def work():
+        written = sketch.write_sketch(plan, out, sc.name)
+        _progress(f"{plan.name}: {len(plan.muscles)} muscle(s), {len(plan.channels)} ADC channel(s) at "
+                  f"{plan.rate:g} Hz, ADC prescaler {plan.adc.prescaler} ({plan.adc.bits} bits) -> "
+                  f"{written['ino']}")
+        if args.build:
+            _progress("building with arduino-mk (BOARD_TAG=mega, BOARD_SUB=atmega2560) ...")
+            built = sketch.build_sketch(out, plan.name)
+            rec = sketch.read_plan_record(out)
+            rec["flash_bytes"], rec["ram_bytes"] = built.flash_bytes, built.ram_bytes
+            rec["elf"] = str(built.elf.relative_to(out.resolve())) if built.elf.is_relative_to(out.resolve()) \
+                else str(built.elf)
+            write_json(out / "firmware.json", rec)
+            _progress(f"      {built.elf}: {built.describe()}")
+        folder.finish()
+        _progress(f"wrote {out / plan.name}/, {out / 'firmware.json'}" + (f", {out / 'build'}/" if args.build else ""))
+        return 0
+    return _finishing(folder, work)
+
+
+def cmd_sil(args) -> int:
+    from frogsim.export import sil
+    from frogsim.export.serial_log import parse_log, write_log_csv
+    from frogsim.export.sketch import find_elf, read_plan_record
+    from frogsim.io.outputs import scenario_inputs, scenario_record
+    out = out_folder(args.out)
+    rec = read_plan_record(args.firmware)
+    elf = find_elf(args.firmware)
+    kind, sc, model, plan = _firmware_target(args.scenario, args.cycles)
+    sil.check_plan(rec, plan)
+    from frogsim.export.emulator import check_tools
+    check_tools()                          # simavr missing: refused before anything is written
+    pneumatic = sc if kind == "pneumatic" else sc.pneumatic
+    if kind == "pneumatic":
+        files = ["timeseries.csv", "pressures.png", "summary.json", "serial.csv"]
+    else:
+        files = ["timeseries.csv", "swim.png", "frog.xml", "summary.json", "serial.csv"] + \
+            ([] if args.no_animation else ["animation.gif"])
+    folder = _folder(args, "sil", files=files,
+                     scenario=scenario_record(sc.name, scenario_inputs(pneumatic, args.scenario)))
+
+    def work():
+        _progress(f"software in the loop: {rec['name']} ({elf}) on an emulated ATmega2560 against "
+                  f"{sc.name!r} ({'the robot' if kind == 'robot' else 'the pneumatics'}), {sc.duration:g} s ...")
+        runner = sil.run_robot if kind == "robot" else sil.run_pneumatic
+        from frogsim.control.firmware import adc_counts
+        run = runner(sc if kind == "robot" else model, rec, elf, plan, adc_counts, progress=_progress)
+        s = run.sil
+        _progress(f"      {s['samples']} samples in {s['wall_s']:.1f} s ({s['real_time_factor']:.2f} x real time; "
+                  f"emulated AVR {s['avr_wall_s']:.1f} s, plant {s['plant_wall_s']:.1f} s)")
+        write_log_csv(out / "serial.csv", parse_log(run.serial, rec), rec, last_sample=s["samples"] - 1)
+        if kind == "robot":
+            from frogsim.studies.robot import write_outputs
+            write_outputs(run.result, out, animation=not args.no_animation, progress=_progress,
+                          extra={"sil": s})
+        else:
+            _write_simulate(out, run.result, {"sil": s})
+        folder.finish()
+        load = s["cpu_load_percent"]
+        _progress(f"mismatched samples {s['mismatched_samples']} of {s['samples']}, CPU load mean "
+                  f"{load['mean']:.1f} % max {load['max']:.1f} %, overruns {s['overruns']}; wrote "
+                  f"{out / 'summary.json'}, {out / 'serial.csv'}, {out / 'timeseries.csv'}")
+        if s["overruns"]:
+            _warn(f"the firmware overran its {1e3 / plan.rate:g} ms period at {s['overruns']} of {s['samples']} "
+                  f"samples (CPU load up to {load['max']:.0f} %): on the board those samples come late; "
+                  "lower controller.rate or control fewer muscles")
+        if s.get("adc_read_differs_samples"):
+            _warn(f"at {s['adc_read_differs_samples']} samples the firmware read other counts than the plant "
+                  f"gave it (the emulation's fault, not the firmware's); the first: {s['first_adc_difference']}")
+        if s["mismatched_samples"]:
+            _warn(f"the firmware's valve commands differ from the model's at {s['mismatched_samples']} "
+                  f"samples; the first: {s['first_mismatch']}")
+        return 0
+    return _finishing(folder, work)
+
+
+def cmd_log(args) -> int:
+    from frogsim.errors import ScenarioError, SimulationError
+    from frogsim.export.serial_log import first_lines, open_port, record_port, write_log_csv
+    from frogsim.export.sketch import read_plan_record
+    out = out_folder(args.out)
+    rec = read_plan_record(args.firmware) if args.firmware else None
+    if args.duration is not None and not args.duration > 0:
+        raise ScenarioError("--duration", args.duration, "must be a time in seconds > 0")
+    folder = _folder(args, "log", files=["serial.csv"])
+    link = open_port(args.port, rec)           # a port that cannot be opened: refused before any write
+
+    def work():
+        what = (f"{rec['baud']} baud ({rec['name']}: {', '.join(ch['signal'] for ch in rec['channels'])})" if rec
+                else "115200 baud (no --firmware: the channels from the board's header line, as raw counts)")
+        _progress(f"reading {args.port} at {what} " + (f"for {args.duration:g} s" if args.duration else
+                                                         "until Ctrl-C") + " ...")
+        log = record_port(args.port, rec, args.duration, progress=_progress, link=link)
+        plan = rec or log.plan
+        if plan is None:
+            raise SimulationError(f"--port {args.port}: no frogsim header line came (the board sends it "
+                                  "when it starts): give --firmware DIR, or reset the board while logging")
+        write_log_csv(out / "serial.csv", log, plan)
+        folder.finish()
+        _progress(f"{first_lines(log)}; wrote {out / 'serial.csv'}")
+        return 0
+    return _finishing(folder, work)
 
 
 def cmd_compare(args) -> int:
@@ -472,6 +633,10 @@ FLAGS = {
     "--trials": "trials in all (>= 1)",
     "--objective": "speed or distance-per-litre",
     "--seed": "sampler seed",
+    "--build": "compile the sketch for the ATmega2560 (arduino-mk) into DIR/build and report flash and RAM",
+    "--firmware": "a folder written by frogsim firmware (its firmware.json; for sil, built with --build)",
+    "--port": "the board's serial port, e.g. /dev/ttyACM0",
+    "--duration": "seconds to record (default: until Ctrl-C)",
 }
 
 
@@ -560,6 +725,30 @@ def build_parser() -> argparse.ArgumentParser:
     _flag(s, "--signal", default=None, metavar="NAME")
     _writes(s)
     s.set_defaults(func=cmd_compare)
+    s = sub.add_parser("firmware", help="the scenario's valve controllers as an Arduino Mega 2560 sketch: "
+                                        "DIR/NAME/NAME.ino, generated headers, DIR/firmware.json (docs/firmware.md)")
+    s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file or shipped name, pneumatic or robot")
+    _flag(s, "--build", action="store_true")
+    _flag(s, "--cycles", "the scenario's; the program tables cover them", type=int, default=None, metavar="N")
+    _writes(s)
+    s.set_defaults(func=cmd_firmware)
+    s = sub.add_parser("sil", help="software in the loop: the built firmware on an emulated ATmega2560 "
+                                   "(simavr) in lockstep with the plant: what simulate or swim writes, "
+                                   "summary.json 'sil', serial.csv")
+    s.add_argument("scenario", metavar="SCENARIO", help="the scenario the firmware was exported from")
+    _flag(s, "--firmware", required=True, metavar="DIR")
+    _flag(s, "--cycles", "the scenario's; as exported", type=int, default=None, metavar="N")
+    _flag(s, "--no-animation", action="store_true")
+    _writes(s)
+    s.set_defaults(func=cmd_sil)
+    s = sub.add_parser("log", help="record a board's serial log (pyserial) as serial.csv, a trace "
+                                   "frogsim fit reads")
+    _flag(s, "--port", required=True, metavar="PORT")
+    _flag(s, "--firmware", "none: the channels come from the board's header line, as raw counts",
+          default=None, metavar="DIR")
+    _flag(s, "--duration", type=float, default=None, metavar="S")
+    _writes(s)
+    s.set_defaults(func=cmd_log)
     s = sub.add_parser("params", help="show a parameter set with the source of every value")
     s.add_argument("name", nargs="?", default="fan2017", help="parameter set (default: fan2017)")
     s.set_defaults(func=cmd_params)
@@ -604,7 +793,7 @@ _QUIET = False
 
 def main(argv=None) -> int:
     global _QUIET
-    from frogsim.errors import ScenarioError, SimulationError
+    from frogsim.errors import FrogsimError, ScenarioError, SimulationError
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(argv)
     args.argv = argv
@@ -615,6 +804,9 @@ def main(argv=None) -> int:
         return _err(str(exc), 2)
     except SimulationError as exc:
         return _err(str(exc), 1)
+    except FrogsimError as exc:     # a firmware tool missing (exit 2) or a build that failed (exit 1)
+        from frogsim.export.emulator import ToolMissing
+        return _err(str(exc), 2 if isinstance(exc, ToolMissing) else 1)
     except OSError as exc:          # a write the checks could not foresee (disk full, a file vanished)
         from frogsim.errors import clip
         where = f"{exc.filename}: " if exc.filename else ""

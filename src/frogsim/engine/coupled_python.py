@@ -19,8 +19,9 @@ import numpy as np
 
 from frogsim.circuit import layout as CL
 from frogsim.control.sampled import (B_A_SENSED, B_SENSED, B_W_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE,
-                                     KIND_EXTERNAL, KIND_PUMP_BAND, L_JOINT1, L_KIND, L_MUSCLE,
-                                     command_from_python)
+                                     KIND_EXTERNAL, KIND_PUMP_BAND, L_DEAD_C, L_DEAD_D, L_JOINT1, L_KIND,
+                                     L_MUSCLE, L_SIZE, command_from_python)
+from frogsim.control.table import L_PATM
 from frogsim.engine.coupled import _failure, kernel_loose_args, run_record
 from frogsim.engine.coupled_kernel import step_kernel_loose
 from frogsim.engine.coupled_layout import S_CTRL_DT, S_TRUNK
@@ -29,28 +30,45 @@ from frogsim.errors import SimulationError
 from frogsim.robot import import_mujoco
 
 
-def external_laws(laws: np.ndarray) -> np.ndarray:
-    """The table of laws with every closed-loop row turned external (sensors kept)."""
-    if laws.ndim == 1:
+def external_laws(laws: np.ndarray, every: tuple = (), dead: tuple = (0.0, 0.0),
+                  patm: float = 0.0) -> np.ndarray:
+    """The table of laws with every closed-loop row turned external (sensors kept), plus an
+    external row (no sensor) for each muscle index in ``every`` that has no row yet (valve dead
+    times ``dead`` [s], atmospheric pressure ``patm`` [Pa])."""
+    if laws.ndim == 1 and not every:
         raise ValueError("the scenario has no closed-loop [controllers]: nothing for a Python "
                          "controller to drive")
-    out = laws.copy()
+    out = (laws.reshape(-1, L_SIZE) if laws.ndim == 1 else laws).copy()
     for c in range(out.shape[0]):
         if out[c, L_KIND] != KIND_PUMP_BAND:
             out[c, L_KIND] = KIND_EXTERNAL
+    have = {int(out[c, L_MUSCLE]) for c in range(out.shape[0]) if out[c, L_KIND] == KIND_EXTERNAL}
+    extra = [i for i in every if i not in have]
+    if extra:
+        add = np.zeros((len(extra), out.shape[1]))
+        for r, i in enumerate(extra):
+            add[r, L_KIND] = KIND_EXTERNAL
+            add[r, L_MUSCLE] = i
+            add[r, L_DEAD_C], add[r, L_DEAD_D] = dead
+            add[r, L_PATM] = patm
+        out = np.vstack([out, add])
     return out
 
 
 def body_velocity(m, d, tb: int) -> tuple:
     """(forward, sideways, yaw rate) of the hull: [m/s] along and across its heading, [rad/s]."""
     root = m.body_rootid[tb]
-    w = d.cvel[tb, :3]
-    v = d.cvel[tb, 3:] + np.cross(w, d.xpos[tb] - d.subtree_com[root])
+    w0, w1, w2, v0, v1, _ = d.cvel[tb].tolist()
+    r0, r1, r2 = (d.xpos[tb] - d.subtree_com[root]).tolist()
+    # v + w x r, its horizontal part written out (np.cross on 3-vectors costs more than the rest
+    # of a software-in-the-loop sample's Python; the same products and differences)
+    vx = v0 + (w1 * r2 - w2 * r1)
+    vy = v1 + (w2 * r0 - w0 * r2)
     hx, hy = d.xmat[tb, 0], d.xmat[tb, 3]
-    return (float(v[0] * hx + v[1] * hy), float(-v[0] * hy + v[1] * hx), float(w[2]))
+    return (float(vx * hx + vy * hy), float(-vx * hy + vy * hx), float(w2))
 
 
-def run_coupled_python(cm, fn, progress=None) -> dict:
+def run_coupled_python(cm, fn, progress=None, every_muscle: bool = False) -> dict:
     """Run a built coupled model (:func:`frogsim.engine.coupled.build_coupled`) with ``fn``
     deciding the valves of the muscles under ``[controllers]``; returns what
     :func:`frogsim.engine.coupled.run_coupled` returns.
@@ -62,6 +80,12 @@ def run_coupled_python(cm, fn, progress=None) -> dict:
     start of the MuJoCo step that ends at t, as the compiled joint-angle law reads them; a joint
     under a joint-angle controller is read through that controller's angle sensor. It returns
     {muscle: "charge" | "hold" | "vent"} (or +1, 0, -1); a muscle left out keeps its mode.
+    ``obs["state"]`` is a copy of the pneumatic state y at t, ``obs["qpos"]`` and ``obs["qvel"]``
+    copies of MuJoCo's whole qpos and qvel as the compiled laws read them (the step's start).
+
+    With ``every_muscle`` the function drives every muscle, those with a gait program too (the
+    gait's valve commands are not run; its palm commands are): the firmware in the loop runs the
+    programs (:mod:`frogsim.export.sil`).
     """
     mujoco = import_mujoco()
     m, d = cm.mjm, cm.mjd
@@ -72,9 +96,15 @@ def run_coupled_python(cm, fn, progress=None) -> dict:
         raise SimulationError(f"scenario {cm.name!r}: a Python controller needs the controller "
                               f"period ({dt_ctrl * 1e3:g} ms) to be a whole number of MuJoCo steps "
                               f"(robot.timestep = {cm.dt * 1e3:g} ms)")
-    laws = external_laws(a["laws"])
+    pn = cm.pneumatic
+    every = tuple(range(len(cm.muscle_names))) if every_muscle else ()
+    laws = external_laws(a["laws"], every, (pn.scenario.valves.charge.dead_time,
+                                            pn.scenario.valves.discharge.dead_time),
+                         float(pn.g[CL.G_PATM]))
     a["laws"] = laws
-    a["u"][:] = cm.pneumatic.u0
+    if every_muscle:
+        a["sched_t"], a["sched_u"] = np.zeros(0), np.zeros((0, a["u"].size))
+    a["u"][:] = 0.0 if every_muscle else cm.pneumatic.u0
     ds, cs = start(0.0, 1e-4, a["y"], a["u"], a["mp"], (a["sched_t"], a["sched_u"], laws, dt_ctrl))
     a["ds"], a["cs"] = ds, cs
     rows = {cm.muscle_names[int(laws[c, L_MUSCLE])]: c for c in range(laws.shape[0])
@@ -99,6 +129,7 @@ def run_coupled_python(cm, fn, progress=None) -> dict:
             angle[n], vel[n] = float(cs[b + B_A_SENSED]), float(cs[b + B_W_SENSED])
         obs["angle"], obs["velocity"] = angle, vel
         obs["body_velocity"] = body_velocity(m, d, tb)
+        obs["state"], obs["qpos"], obs["qvel"] = y.copy(), d.qpos.copy(), d.qvel.copy()
         command_from_python(laws, rows, cs, fn(t_k, obs), t_k, u, t_k)
 
     args = kernel_loose_args(cm)

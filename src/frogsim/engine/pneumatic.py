@@ -205,10 +205,11 @@ def _finish(model, status, ds, y_end, out_y, out_u, stats, cs) -> Result:
                   switchings=valve_switchings(model, cs))
 
 
-def python_laws(model: PneumaticModel) -> tuple[np.ndarray, list]:
+def python_laws(model: PneumaticModel, every_muscle: bool = False) -> tuple[np.ndarray, list]:
     """The model's table of laws with every closed-loop controller's row turned into an external
     one (its sensor kept, its law left to Python), plus an external row for each muscle without a
-    program; and the muscle name of each external row, in row order."""
+    program (``every_muscle``: for every other muscle, its program included); and the muscle name
+    of each external row, in row order."""
     # the open-loop 1-D row (or an empty one) as a table
     laws = (model.laws.reshape(-1, L_SIZE) if model.laws.ndim == 1 else model.laws).copy()
     names = []
@@ -218,7 +219,7 @@ def python_laws(model: PneumaticModel) -> tuple[np.ndarray, list]:
             laws[c, L_KIND] = KIND_EXTERNAL
             names.append(model.names[int(laws[c, L_MUSCLE])])
     for name in model.names:
-        if name in names or model.scenario.muscles[name].program.steps:
+        if name in names or (model.scenario.muscles[name].program.steps and not every_muscle):
             free.discard(name)
     extra = [n for n in model.names if n in free]
     if extra:
@@ -235,7 +236,7 @@ def python_laws(model: PneumaticModel) -> tuple[np.ndarray, list]:
 
 
 def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
-                          max_wall_s: float | None = None) -> Result:
+                          max_wall_s: float | None = None, every_muscle: bool = False) -> Result:
     """A run whose closed-loop muscles are driven by a Python function, sample by sample.
 
     At every controller sample t_k the driver stops (:func:`frogsim.engine.integrator.advance` to
@@ -243,7 +244,10 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
     reads it (the controller section's sensor model, if any), "source": p_s, "exhaust": p_e}
     [Pa abs]. It returns {muscle: "charge" | "hold" | "vent"} (or +1, 0, -1) for any of the
     muscles without a program (under a ``[controllers]`` section); a muscle left out keeps its
-    mode. The commands go through the same dead-time queue as the compiled laws', so the same
+    mode. ``obs["state"]`` is a copy of the whole state y at t_k (layout
+    :mod:`frogsim.circuit.layout`). With ``every_muscle`` the function drives every muscle, those
+    with a program too (their programs are not run: the firmware in the loop runs them, see
+    :mod:`frogsim.export.sil`). The commands go through the same dead-time queue as the compiled laws', so the same
     law written in Python gives the same valve sequence (the states agree to the solver tolerance:
     this driver stops on every sample, the compiled one reads samples from dense output). Slow but
     flexible: see docs/control.md for the cost.
@@ -251,12 +255,14 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
     sc = model.scenario
     limit = sc.solver.max_wall_time if max_wall_s is None else float(max_wall_s)
     check_volumes(model)
-    laws, ext = python_laws(model)
+    laws, ext = python_laws(model, every_muscle)
     rows = {n: c for c, n in zip([c for c in range(laws.shape[0]) if laws[c, L_KIND] == KIND_EXTERNAL], ext)}
     dt = 1.0 / sc.controller.rate
     T = sc.duration
     y0, atol = model.start
     sched_t, sched_u, u0, _ = model.schedule
+    if every_muscle:                 # no program runs: every valve starts shut, waits for fn
+        sched_t, sched_u, u0 = np.zeros(0), np.zeros((0, u0.size)), np.zeros_like(u0)
     out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, 0.0, u0, model.mp, laws, sched_t, sched_u, dt,
                                                         model.out_t, h0)
     circuit = model.rhs_model
@@ -268,6 +274,7 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
         t_k = cs[CS_SAMPLE] * dt
         obs = {n: float(cs[int(CS_SIZE + c * block) + B_SENSED]) for n, c in rows.items()}
         obs["source"], obs["exhaust"] = float(y[L.Y_PS]), float(y[L.Y_PE])
+        obs["state"] = y.copy()
         command_from_python(laws, rows, cs, fn(t_k, obs), t_k, u, ds[D_T])
 
     decide()

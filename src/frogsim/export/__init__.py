@@ -1,21 +1,19 @@
 """Export: what leaves Python. A scenario turned into something that runs outside frogsim.
 
-This layer sits above the engines (it may run a scenario to compare against) and below the
-command line. It holds, so far, the board the firmware is for and an emulation of it:
+This layer sits above the engines (software in the loop runs them as the plant) and below the
+command line. It holds:
 
 * :mod:`frogsim.export.board`: the Arduino Mega 2560's facts (pins read from the Arduino AVR
-  core, memories) and the ATmega2560's ADC conversion timing, with the plan that fits a control
-  period's conversions or refuses with the arithmetic;
+  core; the ATmega2560's memories and ADC timing from :mod:`frogsim.components.atmega2560`);
 * :mod:`frogsim.export.emulator`: simavr's ATmega2560 driven in lockstep from Python (analog
-  inputs, driven pins, timed pin changes, the serial port's bytes).
+  inputs, driven pins, timed pin changes, the serial port's bytes, the data memory);
+* :mod:`frogsim.export.sketch`: the firmware plan (:mod:`frogsim.control.firmware`: each
+  controller kind's law as C, from the kind's own module) as an Arduino sketch with its runtime
+  (timer interrupt, conversions, valve pins, overrun counter, serial log), and its build;
+* :mod:`frogsim.export.sil`: software in the loop, the built firmware on the emulated board
+  against the model, checked sample by sample against the model's compiled law;
+* :mod:`frogsim.export.serial_log`: the firmware's serial log as a CSV trace (from the emulated
+  board, or from a real one through pyserial) that ``frogsim fit`` reads.
 
-It is where these go next:
-
-* firmware for the robot's microcontroller (an ATmega2560): each controller kind's law as C code
-  (the kind's own module under :mod:`frogsim.control` holds it), a sketch that samples the
-  sensors and drives the valves at the scenario's controller rate, and its build;
-* software in the loop: that firmware run on an emulated board against the model, and the board's
-  serial log read back into a trace that compares with the model's compiled controller (the same
-  valves commanded at the same samples);
-* later, co-simulation units (the circuit as a unit another simulator steps).
+Later: co-simulation units (the circuit as a unit another simulator steps).
 """

@@ -2,8 +2,8 @@
  *
  * Built on first use by frogsim.export.emulator (gcc, linked against Debian's libsimavr) and
  * loaded with ctypes. Everything the plant and the firmware exchange passes through here:
- *   - analog inputs: the voltage of each ADC channel, in millivolts (simavr's unit), held until
- *     changed (board_set_adc_mv);
+ *   - analog inputs: the voltage of each of the 16 ADC inputs, in millivolts (simavr's unit),
+ *     held until changed (board_set_adc_mv; ADC8..15 through adc_trigger, below);
  *   - digital inputs: pins driven from outside (quadrature encoders; board_set_pin);
  *   - digital outputs: every change of a watched pin, with the AVR cycle at which the firmware
  *     wrote it, kept in a queue (board_watch, board_events): valve pins and the firmware's
@@ -12,6 +12,7 @@
  *     simavr paces the bytes at the baud rate the firmware set.
  * The AVR runs only inside board_run_until, up to a given cycle count.
  */
+#include <stdarg.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,11 +23,12 @@
 #include <simavr/avr_uart.h>
 
 #define MAX_WATCH 64
+#define ADC_INPUTS 16
 #define EVENT_CAP (1 << 16)
 #define UART_CAP (1 << 20)
 
 typedef struct board_t board_t;
-typedef struct { board_t *b; int index; } watch_t;
+typedef struct { board_t *b; int index; int last; } watch_t;
 
 struct board_t {
     avr_t *avr;
@@ -40,6 +42,11 @@ struct board_t {
     uint8_t uart[UART_CAP];
     uint64_t uart_cycle[UART_CAP];
     long uart_head, uart_tail, uart_lost;
+    /* the analog inputs' voltages [mV]; simavr 1.6 keeps only ADC0..ADC7 (adc_values[8]) */
+    uint32_t mv[ADC_INPUTS];
+    avr_adc_t *adc;
+    /* board_run_until_pin: stop when watch `stop_index` changes to `stop_value` */
+    int stop_index, stop_value, stop_hit;
 };
 
 static void pin_changed(struct avr_irq_t *irq, uint32_t value, void *param) {
@@ -51,6 +58,9 @@ static void pin_changed(struct avr_irq_t *irq, uint32_t value, void *param) {
     b->ev_index[k] = w->index;
     b->ev_value[k] = (int32_t)value;
     b->ev_tail++;
+    if (w->index == b->stop_index && (int)value == b->stop_value && w->last != (int)value)
+        b->stop_hit = 1;
+    w->last = (int)value;
 }
 
 static void uart_out(struct avr_irq_t *irq, uint32_t value, void *param) {
@@ -62,11 +72,49 @@ static void uart_out(struct avr_irq_t *irq, uint32_t value, void *param) {
     b->uart_tail++;
 }
 
+/* simavr's messages (the ELF loader's "Loaded N .text") go nowhere: frogsim reports itself */
+static void quiet(struct avr_t *avr, const int level, const char *format, va_list ap) {
+    (void)avr; (void)level; (void)format; (void)ap;
+}
+
+/* simavr's default sleep callback waits in real time for as long as the AVR sleeps (so that a
+ * firmware never runs faster than the wall clock); in lockstep the plant sets the pace: a
+ * sleeping AVR skips to its next event at once. */
+static void no_wait(struct avr_t *avr, avr_cycle_count_t how_long) {
+    (void)avr; (void)how_long;
+}
+
+/* simavr 1.6 emulates the ATmega2560's ADC with eight input slots (adc_values[8]): a conversion
+ * of ADC8..ADC15 (MUX5 set) does not read the voltage given for it. The harness keeps all
+ * sixteen voltages itself and, when a conversion starts (simavr raises ADC_IRQ_OUT_TRIGGER with
+ * the conversion's mux), writes the selected input's voltage into a slot simavr reads: ADC8..15
+ * are mapped onto slots 0..7 (their mux entries get src = n - 8 and, as the marker of the input
+ * they are, diff = n), and every conversion's slot is loaded just before it is made. */
+static void adc_trigger(struct avr_irq_t *irq, uint32_t value, void *param) {
+    board_t *b = (board_t *)param;
+    avr_adc_mux_t mux;
+    memcpy(&mux, &value, sizeof(mux));
+    if (mux.kind != ADC_MUX_SINGLE)
+        return;
+    int input = mux.diff >= 8 ? (int)mux.diff : (int)mux.src;
+    if (input < 0 || input >= ADC_INPUTS || mux.src >= 8)
+        return;
+    avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + mux.src), b->mv[input]);
+}
+
+static avr_adc_t *find_adc(avr_t *avr) {
+    for (avr_io_t *io = avr->io_port; io; io = io->next)
+        if (io->kind && strcmp(io->kind, "adc") == 0)
+            return (avr_adc_t *)io;
+    return NULL;
+}
+
 /* Load an ELF for the ATmega2560 at `frequency` Hz with AVcc = AREF = `vref_mv`.
  * Returns NULL if the file cannot be read or the core cannot be made. */
 board_t *board_open(const char *elf, uint32_t frequency, uint32_t vref_mv) {
     elf_firmware_t fw;
     memset(&fw, 0, sizeof(fw));
+    avr_global_logger_set(quiet);
     if (elf_read_firmware(elf, &fw) != 0)
         return NULL;
     avr_t *avr = avr_make_mcu_by_name("atmega2560");
@@ -74,16 +122,28 @@ board_t *board_open(const char *elf, uint32_t frequency, uint32_t vref_mv) {
         return NULL;
     avr_init(avr);
     avr->log = 0;
+    avr->sleep = no_wait;
     avr_load_firmware(avr, &fw);
     avr->frequency = frequency;
     avr->vcc = avr->avcc = avr->aref = vref_mv;
     board_t *b = (board_t *)calloc(1, sizeof(board_t));
     b->avr = avr;
+    b->stop_index = -1;
     uint32_t flags = 0;
     avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
     flags &= ~AVR_UART_FLAG_STDIO;                      /* bytes go to board_uart_read only */
     avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
     avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_OUTPUT), uart_out, b);
+    b->adc = find_adc(avr);
+    if (b->adc) {
+        for (int n = 8; n < ADC_INPUTS; n++) {           /* MUX5:0 = 1 0 0 n-8: single-ended ADCn */
+            avr_adc_mux_t *m = &b->adc->muxmode[32 + (n - 8)];
+            m->kind = ADC_MUX_SINGLE;
+            m->src = n - 8;
+            m->diff = n;
+        }
+        avr_irq_register_notify(avr_io_getirq(avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_OUT_TRIGGER), adc_trigger, b);
+    }
     return b;
 }
 
@@ -101,12 +161,17 @@ int board_watch(board_t *b, char port, int bit, int index) {
     watch_t *w = &b->watch[b->n_watch++];
     w->b = b;
     w->index = index;
+    w->last = 0;                                      /* every pin is low out of reset */
     avr_irq_register_notify(irq, pin_changed, w);
     return 0;
 }
 
 void board_set_adc_mv(board_t *b, int channel, uint32_t mv) {
-    avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + channel), mv);
+    if (channel < 0 || channel >= ADC_INPUTS)
+        return;
+    b->mv[channel] = mv;
+    if (channel < 8)
+        avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + channel), mv);
 }
 
 int board_set_pin(board_t *b, char port, int bit, int value) {
@@ -127,7 +192,34 @@ int board_run_until(board_t *b, uint64_t cycle) {
     return 0;
 }
 
+/* Run until watched pin `index` changes (from the other level) to `value` (the change is queued as an event) or the
+ * cycle counter reaches `max_cycle`. Returns 1 if the pin changed, 0 if the cycle limit came
+ * first, -1 if the firmware stopped or crashed. */
+int board_run_until_pin(board_t *b, int index, int value, uint64_t max_cycle) {
+    b->stop_index = index;
+    b->stop_value = value;
+    b->stop_hit = 0;
+    while (!b->stop_hit && b->avr->cycle < max_cycle) {
+        int st = avr_run(b->avr);
+        if (st == cpu_Done || st == cpu_Crashed) {
+            b->stop_index = -1;
+            return -1;
+        }
+    }
+    b->stop_index = -1;
+    return b->stop_hit;
+}
+
 uint64_t board_cycle(board_t *b) { return b->avr->cycle; }
+
+/* Copy `n` bytes of data memory from address `addr` (the data space: 0 = R0, 0x200 the first
+ * SRAM byte on the ATmega2560) into `out`; returns n, or -1 if the range is outside it. */
+long board_read_ram(board_t *b, uint32_t addr, uint8_t *out, long n) {
+    if (addr + (uint64_t)n > (uint64_t)b->avr->ramend + 1)
+        return -1;
+    memcpy(out, b->avr->data + addr, (size_t)n);
+    return n;
+}
 
 /* Move up to `max` queued pin events into the arrays; returns how many. */
 long board_events(board_t *b, uint64_t *cycle, int32_t *index, int32_t *value, long max) {

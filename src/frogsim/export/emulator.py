@@ -94,6 +94,10 @@ def _lib():
         lib.board_set_adc_mv.argtypes = [vp, ctypes.c_int, ctypes.c_uint32]
         lib.board_set_pin.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
         lib.board_run_until.argtypes = [vp, u64]
+        lib.board_read_ram.restype = ctypes.c_long
+        lib.board_read_ram.argtypes = [vp, ctypes.c_uint32, ctypes.c_char_p, ctypes.c_long]
+        lib.board_run_until_pin.restype = ctypes.c_int
+        lib.board_run_until_pin.argtypes = [vp, ctypes.c_int, ctypes.c_int, u64]
         lib.board_cycle.restype = u64
         lib.board_cycle.argtypes = [vp]
         ptr = np.ctypeslib.ndpointer
@@ -106,6 +110,24 @@ def _lib():
         del i32
         _LIB = lib
     return _LIB
+
+
+def symbol_address(elf, name: str) -> int:
+    """The data-space address of variable ``name`` in ``elf`` (from ``avr-nm``; the AVR tool chain
+    places data at 0x800000 + address); FrogsimError if the ELF has no such symbol."""
+    out = subprocess.run([require("avr-nm"), str(elf)], capture_output=True, text=True, check=True).stdout
+    for line in out.splitlines():
+        parts = line.split()
+        if len(parts) == 3 and parts[2] == name:
+            return int(parts[0], 16) - 0x800000
+    raise FrogsimError(f"{elf}: no symbol {name!r} (a firmware of another frogsim version?)")
+
+
+def check_tools() -> None:
+    """ToolMissing (with the apt line) unless the emulated board can be built and loaded and the
+    ELF's symbols read: simavr's headers and library, gcc, avr-nm."""
+    require("avr-nm")
+    _lib()
 
 
 class EmulatedBoard:
@@ -171,6 +193,23 @@ class EmulatedBoard:
         if self._lib.board_run_until(self._h, int(cycle)) != 0:
             raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
 
+    def read_ram(self, address: int, size: int) -> bytes:
+        """``size`` bytes of the AVR's data memory at ``address`` (data space; an ELF symbol's
+        address less 0x800000, see :func:`symbol_address`)."""
+        buf = ctypes.create_string_buffer(int(size))
+        if self._lib.board_read_ram(self._h, int(address), buf, int(size)) != size:
+            raise FrogsimError(f"data memory {address:#x}..{address + size:#x}: outside the ATmega2560's")
+        return buf.raw
+
+    def run_until_pin(self, index: int, value: int, max_cycle: int) -> bool:
+        """Run the firmware until watched pin ``index`` (from :meth:`watch`) changes to ``value``
+        (True; the change is among :meth:`events`) or the cycle counter reaches ``max_cycle``
+        (False). FrogsimError if the firmware stopped."""
+        st = self._lib.board_run_until_pin(self._h, int(index), 1 if value else 0, int(max_cycle))
+        if st < 0:
+            raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
+        return st == 1
+
     def events(self, limit: int = 1 << 16) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The watched pins' changes since the last call: (cycle, watch index, value) arrays."""
         c = np.empty(limit, np.uint64)
@@ -178,6 +217,11 @@ class EmulatedBoard:
         v = np.empty(limit, np.int32)
         n = self._lib.board_events(self._h, c, i, v, limit)
         return c[:n], i[:n], v[:n]
+
+    def events_into(self, c: np.ndarray, i: np.ndarray, v: np.ndarray) -> int:
+        """Move up to len(c) queued pin changes into the given arrays (uint64, int32, int32: no
+        allocation, for a loop that drains them every sample); returns how many."""
+        return int(self._lib.board_events(self._h, c, i, v, c.size))
 
     def serial(self, limit: int = 1 << 20) -> tuple[bytes, np.ndarray]:
         """The bytes the firmware sent on USART0 since the last call, and the cycle of each."""

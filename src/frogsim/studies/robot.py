@@ -213,8 +213,9 @@ def _draw_controller(a, result, name: str, ctl, m: dict, outside: dict) -> None:
                 f"(standard) of air{extra}", fontsize=8.5)
 
 
-def write_outputs(result, out, animation: bool = True, progress=None) -> dict:
-    """Write timeseries.csv, swim.png, summary.json, frog.xml and animation.gif into ``out``.
+def write_outputs(result, out, animation: bool = True, progress=None, extra: dict | None = None) -> dict:
+    """Write timeseries.csv, swim.png, summary.json, frog.xml and animation.gif into ``out``
+    (``extra``: more sections of summary.json, e.g. software in the loop's "sil").
 
     Every file is written atomically (a reader never sees half a file). If no OpenGL backend can
     draw offscreen, the animation is skipped and the reason kept in the summary under
@@ -226,7 +227,7 @@ def write_outputs(result, out, animation: bool = True, progress=None) -> dict:
     from frogsim.scenario.tables import unit_headers
     write_csv(out / "timeseries.csv", unit_headers(result.to_dataframe(units="display")))
     files["timeseries"] = out / "timeseries.csv"
-    summary = result.summary()
+    summary = {**result.summary(), **(extra or {})}
     write_figure(out / "swim.png", lambda p: plot_swim(result, p, summary))
     files["figure"] = out / "swim.png"
     atomic_write(out / "frog.xml", lambda tmp: Path(tmp).write_text(result.model.xml))

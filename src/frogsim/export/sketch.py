@@ -1,0 +1,449 @@
+"""The firmware as an Arduino sketch: the scenario's valve controllers on the Mega 2560.
+
+:func:`write_sketch` turns a firmware plan (:func:`frogsim.control.firmware.firmware_plan`: the
+laws as C, the pins, the sensor channels, the ADC clock) into a folder the Arduino IDE opens::
+
+    DIR/NAME/NAME.ino           the runtime below (setup, loop, the timer interrupt)
+    DIR/NAME/frogsim_board.h    generated: rate, pins, channels, ADC settings, valve writes
+    DIR/NAME/frogsim_laws.h     generated: the plan's C source (the laws and program tables)
+    DIR/NAME/frogsim_laws.c     includes it as C, with the tables in flash (PROGMEM)
+    DIR/firmware.json           the plan as data: what `frogsim sil` and `frogsim log` read
+
+The runtime. Timer1 in CTC mode (WGM12) with the smallest prescaler whose compare value fits
+16 bits interrupts at exactly F_CPU / (N (1 + OCR1A)) = the controller rate (datasheet Sec.
+17.9.2). Its interrupt (sample k):
+
+1. raises the busy pin;
+2. converts each channel in turn (single conversions, AVcc reference, the plan's ADC prescaler;
+   with an 8-bit plan the result is left adjusted and ADCH read: Sec. 26.8);
+3. calls ``frogsim_sample(k, adc, modes)`` (integer arithmetic only, see the plan);
+4. writes the valve pins: first every valve that closes, then every valve that opens
+   (mode +1: charge pin high, discharge low; -1 the other way round; 0 both low);
+5. every ``log_every`` samples copies (k, counts, valve bits, overruns) into a ring of records;
+6. counts an overrun when Timer1's compare flag OCF1A is already set again (the next period began
+   before this one's work ended; the flag is cleared on entry to the interrupt);
+7. lowers the busy pin.
+
+``loop()`` formats the queued records as text lines
+``k,count_0,...,count_n-1,valvebits,overruns`` (valve bit 2j: muscle j's charge valve, 2j+1 its
+discharge valve) and writes them to Serial, then sleeps (idle mode: timers and the serial port
+keep running) until the next interrupt. A record that finds the ring full is dropped and counted
+in a ``# dropped N`` line. The first line sent is ``# frogsim NAME rate=... channels=...``.
+Timer0's overflow interrupt (Arduino's millis) is switched off so that it never delays the
+control interrupt; the sketch uses neither millis nor delay.
+
+Where the fixed-point arithmetic lives: the laws' C source (the plan's); this runtime only moves
+counts and modes.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+from frogsim.errors import FrogsimError, ScenarioError
+from frogsim.export import board
+
+LOG_FORMAT = "k,count_0,...,count_n-1,valvebits,overruns"
+RING_RECORDS = 16           # log records queued between the interrupt and loop()
+TIMER1_PRESCALERS = ((1, 0b001), (8, 0b010), (64, 0b011), (256, 0b100), (1024, 0b101))
+AVAILABLE_FLASH = board.FLASH_BYTES - board.BOOTLOADER_BYTES
+
+
+def timer1_setting(period_cycles: int) -> tuple[int, int, int]:
+    """(prescaler N, CS12:0 bits, OCR1A) with F_CPU / (N (1 + OCR1A)) = F_CPU / period_cycles
+    exactly: the smallest N that divides the period and leaves OCR1A within 16 bits; ValueError
+    if none does."""
+    for n, bits in TIMER1_PRESCALERS:
+        if period_cycles % n == 0 and 1 <= period_cycles // n <= 65536:
+            return n, bits, period_cycles // n - 1
+    raise ValueError(f"a control period of {period_cycles} CPU cycles is no whole number of Timer1 ticks "
+                     "below 65536 at any prescaler (1, 8, 64, 256, 1024)")
+
+
+# -- the plan as data --------------------------------------------------------------------------------
+def _channel(ch) -> dict:
+    unit = "Pa gauge" if ch.quantity == "pressure" else "rad"
+    return {"signal": ch.signal, "quantity": ch.quantity, "name": ch.name, "analog_input": int(ch.analog_input),
+            "unit_per_count": float(ch.unit_per_count), "offset": float(ch.offset), "unit": unit}
+
+
+def plan_record(plan) -> dict:
+    """firmware.json's content: everything SIL and `frogsim log` need, and ``plan_sha256``, a
+    digest of what the firmware is made of (a plan of another scenario, or of the same scenario
+    edited since, has another)."""
+    adc = plan.adc
+    rec = {
+        "format": 1,
+        "name": plan.name,
+        "f_cpu_hz": board.F_CPU,
+        "rate_hz": float(plan.rate),
+        "period_cycles": int(plan.period_cycles),
+        "muscles": list(plan.muscles),
+        "valve_pins": [[int(c), int(d)] for c, d in plan.valve_pins],
+        "channels": [_channel(ch) for ch in plan.channels],
+        "adc": {"prescaler": int(adc.prescaler), "bits": int(adc.bits),
+                "adc_clocks_first": int(adc.first_cycles), "adc_clocks": int(adc.cycles),
+                "conversion_cpu_cycles": int(adc.cycles) * int(adc.prescaler)},
+        "busy_pin": int(plan.busy_pin),
+        "baud": int(plan.baud),
+        "log_every": int(plan.log_every),
+        "log_line": LOG_FORMAT,
+        "valve_bits": "bit 2j: charge valve of muscles[j], bit 2j+1: its discharge valve",
+    }
+    digest = hashlib.sha256(json.dumps(rec, sort_keys=True).encode() + plan.c_source.encode()).hexdigest()
+    rec["plan_sha256"] = digest
+    return rec
+
+
+# -- the generated files ---------------------------------------------------------------------------------
+def _pin(number: int) -> board.Pin:
+    pins = board.pin_map()
+    if number not in pins:
+        raise ScenarioError("firmware pin", number, f"the Mega 2560 has digital pins 0..{board.DIGITAL_PINS - 1}")
+    return pins[number]
+
+
+def board_header(plan) -> str:
+    """frogsim_board.h: the plan's numbers and the pin writes, as C."""
+    n_ch, n_m = len(plan.channels), len(plan.muscles)
+    prescaler, cs_bits, ocr = timer1_setting(int(plan.period_cycles))
+    adps = {2: 1, 4: 2, 8: 3, 16: 4, 32: 5, 64: 6, 128: 7}[int(plan.adc.prescaler)]
+    busy = _pin(plan.busy_pin)
+    lines = [
+        "/* Generated by frogsim from the scenario's [firmware] section: do not edit (export again). */",
+        "#ifndef FROGSIM_BOARD_H",
+        "#define FROGSIM_BOARD_H",
+        "#include <stdint.h>",
+        "#include <avr/io.h>",
+        "",
+        f'#define FS_NAME "{plan.name}"',
+        f"#define FS_RATE_HZ {float(plan.rate):g}",
+        f"#define FS_PERIOD_CYCLES {int(plan.period_cycles)}UL",
+        f"#define FS_TIMER1_PRESCALER {prescaler}  /* CS12:0 = {cs_bits:03b} */",
+        f"#define FS_TIMER1_CS {cs_bits}",
+        f"#define FS_OCR1A {ocr}",
+        f"#define FS_CHANNELS {n_ch}",
+        f"#define FS_MUSCLES {n_m}",
+        f"#define FS_ADC_PRESCALER {int(plan.adc.prescaler)}",
+        f"#define FS_ADC_ADPS {adps}",
+        f"#define FS_ADC_BITS {int(plan.adc.bits)}",
+        f"#define FS_BAUD {int(plan.baud)}UL",
+        f"#define FS_LOG_EVERY {int(plan.log_every)}UL",
+        f"#define FS_RING {RING_RECORDS}",
+        "",
+        f"/* busy pin D{busy.number} = P{busy.port}{busy.bit} */",
+        f"#define FS_BUSY_DDR DDR{busy.port}",
+        f"#define FS_BUSY_PORT PORT{busy.port}",
+        f"#define FS_BUSY_BIT {busy.bit}",
+        "",
+        "/* analog inputs of the channels, in the order frogsim_sample reads them */",
+        "static const uint8_t fs_channel_input[FS_CHANNELS > 0 ? FS_CHANNELS : 1] = {"
+        + ", ".join(str(int(ch.analog_input)) for ch in plan.channels or []) + (" 0" if not n_ch else "") + "};",
+        "",
+        "/* channel signals: " + "; ".join(f"{k}: {ch.signal} (A{int(ch.analog_input)})"
+                                          for k, ch in enumerate(plan.channels)) + " */",
+        "",
+    ]
+    setup = ["static inline void fs_valve_pins_output(void) {"]
+    close = ["/* close first, then open: a muscle's two valves are never commanded open together */",
+             "static inline void fs_write_valves(const int8_t *modes) {"]
+    opens = []
+    for j, (m, (pc, pd)) in enumerate(zip(plan.muscles, plan.valve_pins)):
+        c, d = _pin(int(pc)), _pin(int(pd))
+        setup.append(f"    DDR{c.port} |= (uint8_t)(1u << {c.bit}); DDR{d.port} |= (uint8_t)(1u << {d.bit});"
+                     f"  /* {m}: charge D{c.number}, discharge D{d.number} */")
+        close.append(f"    if (modes[{j}] <= 0) PORT{c.port} &= (uint8_t)~(1u << {c.bit});"
+                     f"  /* {m} charge D{c.number} */")
+        close.append(f"    if (modes[{j}] >= 0) PORT{d.port} &= (uint8_t)~(1u << {d.bit});"
+                     f"  /* {m} discharge D{d.number} */")
+        opens.append(f"    if (modes[{j}] > 0) PORT{c.port} |= (uint8_t)(1u << {c.bit});")
+        opens.append(f"    if (modes[{j}] < 0) PORT{d.port} |= (uint8_t)(1u << {d.bit});")
+    setup.append("}")
+    lines += setup + [""] + close + opens + ["}", "", "#endif", ""]
+    return "\n".join(lines)
+
+
+LAWS_C = """/* Generated by frogsim: the laws (frogsim_laws.h) compiled as C, their tables in flash. */
+#include <stdint.h>
+#include <avr/pgmspace.h>
+#define FS_TABLE PROGMEM
+#define FS_READ16(p) pgm_read_word(p)
+#define FS_READ32(p) pgm_read_dword(p)
+#include "frogsim_laws.h"
+"""
+
+INO = r"""/* {name}: frogsim's valve controllers on an Arduino Mega 2560 (ATmega2560, 16 MHz).
+ *
+ * Generated by `frogsim firmware` from scenario {scenario!r}; export again rather than editing.
+ * Controller rate {rate:g} Hz (Timer1 CTC interrupt), {n_ch} ADC channel(s), {n_m} muscle(s).
+ * The laws are in frogsim_laws.h (integer arithmetic only), the pins in frogsim_board.h.
+ * Serial log at {baud} baud, one line every {log_every} samples:
+ *     k,count_0,...,count_n-1,valvebits,overruns
+ * See docs/firmware.md in frogsim for the wiring and for flashing.
+ */
+#include <avr/io.h>
+#include <avr/interrupt.h>
+#include <avr/sleep.h>
+#include "frogsim_board.h"
+
+extern "C" void frogsim_sample(uint32_t k, const uint16_t *adc, int8_t *modes);
+
+struct fs_record {{
+    uint32_t k;
+    uint16_t adc[FS_CHANNELS > 0 ? FS_CHANNELS : 1];
+    uint32_t valves;
+    uint16_t overruns;
+}};
+
+/* not static, C names: software in the loop reads them from the emulated RAM by symbol */
+extern "C" {{
+volatile uint32_t fs_k = 0;                 /* samples taken */
+volatile uint16_t fs_overruns = 0;          /* samples whose work ran into the next period */
+volatile uint16_t fs_dropped = 0;           /* log records the full ring could not take */
+uint16_t fs_adc[FS_CHANNELS > 0 ? FS_CHANNELS : 1];   /* the counts of the last sample */
+}}
+static int8_t fs_modes[FS_MUSCLES];
+static uint32_t fs_log_count = 0;
+static struct fs_record fs_ring[FS_RING];
+static volatile uint8_t fs_head = 0, fs_tail = 0;
+
+static uint16_t fs_convert(uint8_t input) {{
+    /* AVcc reference; input 8..15 sets MUX5 in ADCSRB (datasheet Table 26-4) */
+    ADCSRB = (input & 8) ? (1 << MUX5) : 0;
+    ADMUX = (1 << REFS0) | ((FS_ADC_BITS == 8) ? (1 << ADLAR) : 0) | (input & 7);
+    ADCSRA |= (1 << ADSC);
+    while (ADCSRA & (1 << ADSC)) {{}}
+    if (FS_ADC_BITS == 8) return ADCH;
+    return ADC;
+}}
+
+ISR(TIMER1_COMPA_vect) {{
+    FS_BUSY_PORT |= (1 << FS_BUSY_BIT);
+    uint32_t k = fs_k;
+    for (uint8_t i = 0; i < FS_CHANNELS; i++)
+        fs_adc[i] = fs_convert(fs_channel_input[i]);
+    frogsim_sample(k, fs_adc, fs_modes);
+    fs_write_valves(fs_modes);
+    if (fs_log_count == 0) {{
+        uint8_t next = (uint8_t)((fs_head + 1) % FS_RING);
+        if (next == fs_tail) {{
+            fs_dropped++;
+        }} else {{
+            struct fs_record *r = &fs_ring[fs_head];
+            r->k = k;
+            for (uint8_t i = 0; i < FS_CHANNELS; i++) r->adc[i] = fs_adc[i];
+            uint32_t bits = 0;
+            for (uint8_t j = 0; j < FS_MUSCLES; j++) {{
+                if (fs_modes[j] > 0) bits |= 1UL << (2 * j);
+                if (fs_modes[j] < 0) bits |= 1UL << (2 * j + 1);
+            }}
+            r->valves = bits;
+            r->overruns = fs_overruns;
+            fs_head = next;
+        }}
+    }}
+    if (++fs_log_count >= FS_LOG_EVERY) fs_log_count = 0;
+    fs_k = k + 1;
+    if (TIFR1 & (1 << OCF1A)) fs_overruns++;   /* the next period has begun already */
+    FS_BUSY_PORT &= ~(1 << FS_BUSY_BIT);
+}}
+
+void setup() {{
+    TIMSK0 = 0;                               /* no millis() interrupt: nothing delays the control ISR */
+    FS_BUSY_DDR |= (1 << FS_BUSY_BIT);
+    fs_valve_pins_output();
+    for (uint8_t j = 0; j < FS_MUSCLES; j++) fs_modes[j] = 0;
+    fs_write_valves(fs_modes);                /* every valve shut */
+    ADCSRA = (1 << ADEN) | FS_ADC_ADPS;
+    Serial.begin(FS_BAUD);
+    Serial.print(F("# frogsim " FS_NAME " rate={rate:g} channels={channels} muscles={muscles}\n"));
+    Serial.flush();
+    cli();
+    TCCR1A = 0;
+    TCCR1B = 0;
+    TCNT1 = 0;
+    OCR1A = FS_OCR1A;
+    TIFR1 = (1 << OCF1A);
+    TIMSK1 = (1 << OCIE1A);
+    TCCR1B = (1 << WGM12) | FS_TIMER1_CS;    /* CTC on OCR1A: the timer starts here (sample 0) */
+    sei();
+    set_sleep_mode(SLEEP_MODE_IDLE);
+}}
+
+void loop() {{
+    static uint16_t dropped_told = 0;
+    while (fs_tail != fs_head) {{
+        struct fs_record r = fs_ring[fs_tail];  /* a copy: the ISR may refill the slot afterwards */
+        fs_tail = (uint8_t)((fs_tail + 1) % FS_RING);
+        Serial.print(r.k);
+        for (uint8_t i = 0; i < FS_CHANNELS; i++) {{
+            Serial.write(',');
+            Serial.print(r.adc[i]);
+        }}
+        Serial.write(',');
+        Serial.print(r.valves);
+        Serial.write(',');
+        Serial.print(r.overruns);
+        Serial.write('\n');
+    }}
+    cli();
+    uint16_t dropped = fs_dropped;
+    sei();
+    if (dropped != dropped_told) {{
+        Serial.print(F("# dropped "));
+        Serial.print(dropped);
+        Serial.write('\n');
+        dropped_told = dropped;
+    }}
+    cli();
+    if (fs_tail == fs_head) {{
+        sleep_enable();
+        sei();
+        sleep_cpu();                           /* woken by the next interrupt */
+        sleep_disable();
+    }}
+    sei();
+}}
+"""
+
+
+def _c_identifier(name: str) -> bool:
+    return re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name or "") is not None
+
+
+def write_sketch(plan, out: Path, scenario_name: str = "") -> dict:
+    """Write the sketch folder and firmware.json into ``out`` (an output folder already checked);
+    returns {file kind: path}."""
+    if not _c_identifier(plan.name):
+        raise ScenarioError("firmware.name", plan.name, "must be a C identifier (letters, digits, _; "
+                                                        "not starting with a digit)")
+    timer1_setting(int(plan.period_cycles))
+    folder = Path(out) / plan.name
+    from frogsim._files import atomic_write, write_json
+    files = {
+        "ino": folder / f"{plan.name}.ino",
+        "board_header": folder / "frogsim_board.h",
+        "laws_header": folder / "frogsim_laws.h",
+        "laws_c": folder / "frogsim_laws.c",
+        "plan": Path(out) / "firmware.json",
+    }
+    channels = ";".join(f"{ch.signal}@A{int(ch.analog_input)}" for ch in plan.channels)
+    texts = {
+        "ino": INO.format(name=plan.name, scenario=scenario_name or plan.name, rate=float(plan.rate),
+                          n_ch=len(plan.channels), n_m=len(plan.muscles), baud=int(plan.baud),
+                          log_every=int(plan.log_every), channels=channels,
+                          muscles=";".join(plan.muscles)),
+        "board_header": board_header(plan),
+        "laws_header": plan.c_source,
+        "laws_c": LAWS_C,
+    }
+    folder.mkdir(parents=True, exist_ok=True)
+    for key, text in texts.items():
+        atomic_write(files[key], lambda tmp, text=text: Path(tmp).write_text(text))
+    record = plan_record(plan)
+    record["scenario"] = scenario_name
+    record["sketch"] = f"{plan.name}/{plan.name}.ino"
+    write_json(files["plan"], record)
+    return files
+
+
+def read_plan_record(folder) -> dict:
+    """firmware.json of an exported firmware folder (ScenarioError if absent or unreadable)."""
+    path = Path(folder) / "firmware.json"
+    if not path.is_file():
+        raise ScenarioError("--firmware", str(folder), "holds no firmware.json: export the firmware "
+                                                        "first (frogsim firmware SCENARIO --out DIR --build)")
+    try:
+        rec = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise ScenarioError("--firmware", str(folder), f"firmware.json is not readable JSON ({type(exc).__name__})") \
+            from None
+    if not isinstance(rec, dict) or rec.get("format") != 1 or "channels" not in rec:
+        raise ScenarioError("--firmware", str(folder), "firmware.json is not a frogsim firmware plan (format 1)")
+    return rec
+
+
+# -- the build -------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Build:
+    """A built firmware: the ELF, its flash and RAM use [B], the architecture avr-objdump names."""
+    elf: Path
+    hex: Path | None
+    flash_bytes: int
+    ram_bytes: int
+    architecture: str
+
+    def describe(self) -> str:
+        return (f"flash {self.flash_bytes} B of {AVAILABLE_FLASH} B ({100 * self.flash_bytes / AVAILABLE_FLASH:.1f} %; "
+                f"256 KB less the 8 KB bootloader), RAM {self.ram_bytes} B of {board.SRAM_BYTES} B "
+                f"({100 * self.ram_bytes / board.SRAM_BYTES:.1f} %, static data; the stack takes more), "
+                f"{self.architecture}")
+
+
+ARDUINO_MK = Path("/usr/share/arduino/Arduino.mk")
+
+MAKEFILE = """# Generated by frogsim: build this sketch with arduino-mk (Debian: arduino-mk).
+BOARD_TAG = mega
+BOARD_SUB = atmega2560
+TARGET = {name}
+ARDUINO_LIBS =
+OBJDIR = {objdir}
+# Debian's avr-gcc 5.4 defines DECIMAL_DIG for C99 only; the AVR core 1.8's WString.cpp (written
+# for the IDE's avr-gcc 7) uses it in C++: give C++ the compiler's own value
+CXXFLAGS_STD = -std=gnu++11 -fno-threadsafe-statics -flto -DDECIMAL_DIG=__DECIMAL_DIG__
+include {arduino_mk}
+"""
+
+
+def build_sketch(out: Path, name: str, progress=None) -> Build:
+    """Compile DIR/NAME with arduino-mk (BOARD_TAG=mega, BOARD_SUB=atmega2560) into DIR/build;
+    the sizes from avr-size (flash: .text + .data, RAM: .data + .bss) and the architecture from
+    `avr-objdump -f`, which must say avr6 (the ATmega2560's core). FrogsimError with the
+    compiler's last lines if the build fails; ToolMissing if a tool is not installed."""
+    from frogsim.export.emulator import APT_LINE, ToolMissing, require
+    make = require("make")
+    require("avr-gcc")
+    size_tool, objdump = require("avr-size"), require("avr-objdump")
+    if not ARDUINO_MK.exists():
+        raise ToolMissing(f"{ARDUINO_MK} not found: install arduino-mk ({APT_LINE})")
+    sketch = Path(out) / name
+    objdir = (Path(out) / "build").resolve()
+    mk = sketch / "Makefile"
+    mk.write_text(MAKEFILE.format(name=name, objdir=objdir, arduino_mk=ARDUINO_MK))
+    run = subprocess.run([make, "-s", "-C", str(sketch)], capture_output=True, text=True)
+    if run.returncode != 0:
+        tail = "\n".join((run.stderr or run.stdout).strip().splitlines()[-12:])
+        raise FrogsimError(f"building the sketch failed (make -C {sketch}):\n{tail}")
+    elf = objdir / f"{name}.elf"
+    if not elf.exists():
+        raise FrogsimError(f"building the sketch made no {elf}")
+    hexfile = elf.with_suffix(".hex")
+    sizes = subprocess.run([size_tool, "-A", str(elf)], capture_output=True, text=True, check=True).stdout
+    sec = {}
+    for line in sizes.splitlines():
+        parts = line.split()
+        if len(parts) >= 2 and parts[0].startswith(".") and parts[1].isdigit():
+            sec[parts[0]] = int(parts[1])
+    flash = sec.get(".text", 0) + sec.get(".data", 0)
+    ram = sec.get(".data", 0) + sec.get(".bss", 0) + sec.get(".noinit", 0)
+    info = subprocess.run([objdump, "-f", str(elf)], capture_output=True, text=True, check=True).stdout
+    arch = re.search(r"architecture:\s*([^,\s]+)", info)
+    arch = arch.group(1) if arch else "unknown"
+    if arch != "avr:6":
+        raise FrogsimError(f"{elf}: avr-objdump -f says architecture {arch}, not avr:6 (the ATmega2560's)")
+    return Build(elf=elf, hex=hexfile if hexfile.exists() else None, flash_bytes=flash, ram_bytes=ram,
+                 architecture="avr6")
+
+
+def find_elf(folder) -> Path:
+    """The built ELF of an exported firmware folder (ScenarioError if it was not built)."""
+    rec = read_plan_record(folder)
+    elf = Path(folder) / "build" / f"{rec['name']}.elf"
+    if not elf.is_file():
+        raise ScenarioError("--firmware", str(folder), f"holds no build/{rec['name']}.elf: build it "
+                                                        "(frogsim firmware SCENARIO --out DIR --build)")
+    return elf

@@ -1,0 +1,227 @@
+"""The firmware path end to end on the scenarios' own plans (frogsim.control.firmware): export ->
+build (avr-gcc, the Arduino core) -> software in the loop (simavr) on the pneumatics alone and on
+the robot. The firmware's machine code must command the same valves at the same samples as the
+model's compiled law (mismatched_samples == 0) and the run's metrics must equal the compiled run's
+(`simulate`, `swim`: the engines stop at other points, so to the solver's tolerance).
+
+Independent checks: `avr-objdump -f` run here, the datasheet's conversion arithmetic for the CPU
+load, the ADC's inputs A8..A15 reaching the firmware, the firmware's log read back by `frogsim
+fit`, which recovers the valve constants the run was made with (C = 0.4 L/(s bar), b = 0.38)."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from avr_tools import need_avr_tools
+
+import frogsim
+from frogsim.cli import main
+from frogsim.export import sil, sketch
+
+HERE = Path(__file__).with_name("firmware")
+SHIPPED = Path(frogsim.__file__).with_name("scenarios")
+
+
+def _cli(*argv) -> int:
+    return main([*map(str, argv), "--quiet"])
+
+
+def _export_and_sil(scenario, tmp: Path, *extra) -> tuple[dict, dict]:
+    fw, out = tmp / "fw", tmp / "sil"
+    assert _cli("firmware", scenario, *extra, "--out", fw, "--build") == 0
+    assert _cli("sil", scenario, *extra, "--firmware", fw, "--out", out, *(
+        ["--no-animation"] if "swim" in str(scenario) or "hip-angle" in str(scenario) else [])) == 0
+    return json.loads((fw / "firmware.json").read_text()), json.loads((out / "summary.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def hold(tmp_path_factory):
+    need_avr_tools()
+    tmp = tmp_path_factory.mktemp("hold")
+    rec, summary = _export_and_sil("hold-3bar", tmp)
+    assert _cli("simulate", "hold-3bar", "--out", tmp / "sim") == 0
+    return tmp, rec, summary, json.loads((tmp / "sim" / "summary.json").read_text())
+
+
+def test_hold_3bar_exports_an_avr6_elf_that_fits(hold):
+    tmp, rec, _, _ = hold
+    elf = tmp / "fw" / "build" / f"{rec['name']}.elf"
+    info = subprocess.run(["avr-objdump", "-f", str(elf)], capture_output=True, text=True, check=True).stdout
+    assert "architecture: avr:6" in info
+    assert 0 < rec["flash_bytes"] < (256 - 8) * 1024 and 0 < rec["ram_bytes"] < 8 * 1024
+    assert (tmp / "fw" / rec["name"] / f"{rec['name']}.ino").is_file()
+
+
+def test_hold_3bar_sil_matches_the_compiled_run(hold):
+    _, rec, s, sim = hold
+    assert s["sil"]["mismatched_samples"] == 0
+    assert s["sil"]["samples"] == 2001 and s["sil"]["overruns"] == 0
+    assert s["sil"]["adc_read_differs_samples"] == 0
+    # one 10-bit conversion at prescaler 128 (13 ADC clocks, the first ever 25) is the least the
+    # interrupt can take; a bang-bang law adds little
+    assert 100 * 13 * 128 / 16000 < s["sil"]["cpu_load_percent"]["mean"] < 40
+    assert s["sil"]["cpu_load_percent"]["max"] >= 100 * 25 * 128 / 16000
+    assert s["sil"]["flash_bytes"] == rec["flash_bytes"]
+    a, b = s["control"]["hold"], sim["control"]["hold"]
+    for key in ("tracking_error_rms_bar", "tracking_error_max_bar", "air_used_L_std"):
+        assert a[key] == pytest.approx(b[key], rel=1e-6), key
+    for key in ("switchings_charge_valve", "switchings_discharge_valve"):
+        assert a[key] == b[key]
+    assert a["kind"] == "bang-bang"
+
+
+def test_every_pneumatic_kind_commands_the_same_valves(tmp_path):
+    """Bang-bang, PWM (closed and open loop), sliding mode and a program on one board."""
+    need_avr_tools()
+    scenario = HERE / "every-kind.toml"
+    rec, s = _export_and_sil(scenario, tmp_path)
+    assert s["sil"]["mismatched_samples"] == 0 and s["sil"]["overruns"] == 0
+    assert s["sil"]["samples"] == 1001
+    assert len(rec["muscles"]) == 5 and len(rec["channels"]) == 3     # PWM open loop and the program sense nothing
+    assert _cli("simulate", scenario, "--out", tmp_path / "sim") == 0
+    sim = json.loads((tmp_path / "sim" / "summary.json").read_text())
+    for name, entry in sim["control"].items():
+        for key in ("switchings_charge_valve", "switchings_discharge_valve"):
+            assert s["control"][name][key] == entry[key], (name, key)
+        if "tracking_error_rms_bar" in entry:
+            assert s["control"][name]["tracking_error_rms_bar"] == pytest.approx(entry["tracking_error_rms_bar"],
+                                                                                 rel=1e-6)
+    # the program's valves were the firmware's too: its muscle ends where the compiled run's does
+    # (to the solvers' tolerance: 1 Pa, the run's atol being far below it)
+    assert s["muscles"]["hip_e"]["final_pressure_bar_gauge"] == pytest.approx(
+        sim["muscles"]["hip_e"]["final_pressure_bar_gauge"], abs=1e-5)
+
+
+def test_a_plan_forced_past_its_period_overruns_and_still_agrees(tmp_path):
+    """hold-3bar at 10 kHz: the export plans a 52 us conversion (prescaler 64) for the 100 us
+    period; forced to prescaler 128 (13 x 128 = 1664 cycles > the period's 1600), the firmware
+    overruns at every sample and counts it, and still decides as the model (the same counts,
+    later)."""
+    need_avr_tools()
+    from frogsim.circuit.model import build_model
+    from frogsim.control.firmware import adc_counts, firmware_plan
+    text = (SHIPPED / "hold-3bar.toml").read_text().replace('rate = "1 kHz"', 'rate = "10 kHz"').replace(
+        'duration = "2 s"', 'duration = "0.05 s"').replace('settle = "0.5 s"', 'settle = "0.01 s"')
+    path = tmp_path / "fast.toml"
+    path.write_text(text)
+    model = build_model(frogsim.load_scenario(path))
+    plan = firmware_plan(model)
+    assert plan.adc.prescaler == 64
+    assert 13 * 128 > plan.period_cycles
+    forced = dataclasses.replace(plan, adc=dataclasses.replace(plan.adc, prescaler=128))
+    sketch.write_sketch(forced, tmp_path / "fw", "fast")
+    built = sketch.build_sketch(tmp_path / "fw", forced.name)
+    run = sil.run_pneumatic(model, sketch.read_plan_record(tmp_path / "fw"), built.elf, forced, adc_counts)
+    assert run.sil["overruns"] >= run.sil["samples"] - 1
+    assert run.sil["cpu_load_percent"]["mean"] > 100
+    assert run.sil["mismatched_samples"] == 0
+
+
+def test_all_sixteen_analog_inputs_reach_the_firmware(tmp_path):
+    """Each input A0..A15 fed its own count is read as that count by the firmware's conversion
+    (A8..A15 need MUX5 in ADCSRB; the emulation keeps them apart)."""
+    need_avr_tools()
+    from fw_stub import bang_bang_plan
+    plan = bang_bang_plan(channels=16, rate=100.0)
+    sketch.write_sketch(plan, tmp_path, "x")
+    built = sketch.build_sketch(tmp_path, plan.name)
+    rec = sketch.read_plan_record(tmp_path)
+    b = sil.BoardRun(rec, built.elf)
+    counts = np.array([40 + 61 * i for i in range(16)], np.int64)
+    for k in range(3):
+        b.sample(np.roll(counts, k))
+    assert b.adc_differs == 0
+    b.finish()
+
+
+def test_sil_refuses_a_firmware_of_another_scenario(hold, tmp_path, capsys):
+    tmp, _, _, _ = hold
+    code = main(["sil", str(HERE / "every-kind.toml"), "--firmware", str(tmp / "fw"), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and "another scenario" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("section, field", [
+    ("valve_pins = { hip = [22, 70] }", "firmware.valve_pins.hip"),         # D70: the Mega has D0..D69
+    ("valve_pins = { hip = [22, 22] }", "firmware.valve_pins.hip"),         # one pin twice
+    ("valve_pins = { hip = [1, 23] }", "firmware.valve_pins.hip"),          # the serial port's TX
+    ("pressure_inputs = { hip = 16 }", "firmware.pressure_inputs.hip"),     # A16: the Mega has A0..A15
+    ('log_rate = "1 kHz"\nbaud = 9600', "firmware.log_rate"),              # 1000 lines/s at 960 bytes/s
+])
+def test_firmware_refuses_bad_wiring_in_one_line_and_writes_nothing(tmp_path, capsys, section, field):
+    text = (SHIPPED / "hold-3bar.toml").read_text()
+    head = text.split("\n[firmware]")[0] + "\n"
+    path = tmp_path / "bad.toml"
+    path.write_text(head + "[firmware]\n" + section + "\n")
+    code = main(["firmware", str(path), "--out", str(tmp_path / "fw")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and field in err, err
+    assert not (tmp_path / "fw").exists()
+
+
+@pytest.mark.slow
+def test_robot_hip_angle_in_air_commands_the_same_valves(tmp_path):
+    """The joint-angle controller on the robot's firmware: 3 s of the fixed-base robot."""
+    need_avr_tools()
+    from frogsim.scenario.load import with_firmware
+    _, s = _export_and_sil("hip-angle-in-air", tmp_path)      # no [firmware] in it: the board's defaults
+    assert s["sil"]["mismatched_samples"] == 0 and s["sil"]["overruns"] == 0
+    compiled = frogsim.swim(frogsim.load_robot_scenario(with_firmware("hip-angle-in-air"))).control_metrics()["hip"]
+    for key in ("tracking_error_rms_deg", "tracking_error_max_deg"):
+        assert s["control"]["hip"][key] == pytest.approx(compiled[key], rel=1e-6)
+    assert s["control"]["hip"]["switchings"] == compiled["switchings"]
+    assert s["control"]["hip"]["samples_pressure_target_clipped"] == compiled["samples_pressure_target_clipped"]
+
+
+@pytest.mark.slow
+def test_robot_swimming_gait_runs_from_the_firmware(tmp_path):
+    """The gait (programs as tables) on the firmware, the robot free in water, one 2 s cycle."""
+    need_avr_tools()
+    scenario = SHIPPED / "swim.toml"            # the shipped gait carries its [firmware] section
+    rec, s = _export_and_sil(scenario, tmp_path, "--cycles", "1")
+    assert rec["channels"] == [] and len(rec["muscles"]) == 6
+    assert s["sil"]["mismatched_samples"] == 0 and s["sil"]["samples"] == 2001
+    compiled = frogsim.swim(frogsim.load_robot_scenario(scenario, cycles=1)).summary()
+    for key in ("distance_per_cycle_m", "air_used_per_cycle_L_std"):
+        assert s[key] == pytest.approx(compiled[key], rel=1e-6), key
+
+
+@pytest.mark.slow
+def test_the_sil_log_of_a_pressure_controlled_run_fits_back_to_the_valve(tmp_path):
+    """Design, flash, log, fit: the SIL serial.csv of a bang-bang run (tests/firmware/rig-steps.toml:
+    the paper's charge valve, C = 0.4 L/(s bar) and b = 0.38, Sec. 3.3) is a trace `frogsim fit`
+    reads as it is; with C and b free, started far from them, the fit's 95 % intervals hold them.
+
+    The trace's only error is the ADC's rounding: steps of 10 bar / (0.8 x 1024) = 12.2 mbar, an
+    rms error of 12.2 / sqrt(12) = 3.5 mbar, the stated noise. The bang-bang law makes the model
+    step-wise in C and b (a rise ends one sample earlier or later): the finite-difference step
+    is 1 % of each range, so that the Jacobian sees the slope through those steps."""
+    need_avr_tools()
+    scenario = HERE / "rig-steps.toml"
+    _, s = _export_and_sil(scenario, tmp_path)
+    assert s["sil"]["mismatched_samples"] == 0
+    trace = tmp_path / "sil" / "serial.csv"
+    spec = tmp_path / "FIT.toml"
+    spec.write_text(f'''scenario = "{scenario}"
+starts = 1
+diff_step = 0.01
+noise = "0.0035 bar"
+
+[[experiments]]
+name = "sil"
+trace = "{trace}"
+
+[parameters]
+"valves.charge.sonic_conductance" = {{ min = "0.1 L/(s*bar)", max = "1 L/(s*bar)", start = "0.7 L/(s*bar)" }}
+"valves.charge.critical_ratio" = {{ min = "0.1", max = "0.6", start = "0.2" }}
+''')
+    assert _cli("fit", spec, "--out", tmp_path / "fit") == 0
+    fitted = json.loads((tmp_path / "fit" / "summary.json").read_text())["parameters"]
+    c, b = fitted["valves.charge.sonic_conductance"], fitted["valves.charge.critical_ratio"]
+    assert c["ci_low_si"] <= 0.4e-3 / 1e5 <= c["ci_high_si"], c
+    assert b["ci_low_si"] <= 0.38 <= b["ci_high_si"], b
