@@ -304,13 +304,15 @@ def _globals_part(air, source, exhaust, pump, supply, valves) -> np.ndarray:
         supply.main_tube_inner_diameter, supply.discharge_coefficient, R, k, rho_ref, air.reference_temperature)
     g[L.G_TUBE_B] = critical_pressure_ratio(k)
     g[L.G_TUBE_RLAM] = valves.charge.laminar_ratio
+    g[L.G_H_S], g[L.G_A_S] = source.heat_transfer_coefficient, source.inner_wall_area
+    g[L.G_H_E], g[L.G_A_E] = exhaust.heat_transfer_coefficient, exhaust.inner_wall_area
     return g
 
 
 @functools.lru_cache(maxsize=_CACHE)
 def _muscle_part(valves, types: tuple) -> np.ndarray:
-    """The per-muscle parameter matrix mp: braid, dead volume, both valves' ISO 6358 constants
-    (the fixed-volume column comes with the motions)."""
+    """The per-muscle parameter matrix mp: braid, dead volume, both valves' ISO 6358 constants,
+    the wall's heat transfer coefficient (the fixed-volume column comes with the motions)."""
     vc, vd = valves.charge, valves.discharge
     mp = np.zeros((len(types), L.M_SIZE))
     for i, mt in enumerate(types):
@@ -321,6 +323,7 @@ def _muscle_part(valves, types: tuple) -> np.ndarray:
         mp[i, L.M_DC], mp[i, L.M_DB], mp[i, L.M_DM], mp[i, L.M_DRL] = (
             vd.sonic_conductance, vd.critical_ratio, vd.subsonic_index, vd.laminar_ratio)
         mp[i, L.M_L0] = mt.nominal_length
+        mp[i, L.M_H] = mt.heat_transfer_coefficient
     return mp
 
 
