@@ -8,3 +8,4 @@ from frogsim.studies import design  # noqa: F401,E402  (registers the design stu
 from frogsim.studies import robot  # noqa: F401,E402  (registers the robot's in-air study)
 from frogsim.studies import control  # noqa: F401,E402  (registers the closed-loop control study)
 from frogsim.studies import control_joint  # noqa: F401,E402  (registers the joint-angle control study)
+from frogsim.studies import heat  # noqa: F401,E402  (registers the wall heat transfer study)
