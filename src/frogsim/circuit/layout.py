@@ -49,7 +49,8 @@ G_H_S = 18         # source: heat transfer coefficient air-wall [W/(m^2 K)] (0: 
 G_A_S = 19         # source: inner wall area [m^2]
 G_H_E = 20         # exhaust: heat transfer coefficient air-wall [W/(m^2 K)] (0: adiabatic)
 G_A_E = 21         # exhaust: inner wall area [m^2]
-G_SIZE = 22
+G_HEAT = 22        # 1 if some wall passes heat (G_H_S, G_H_E or some mp[i, M_H] > 0), else 0
+G_SIZE = 23
 
 SUPPLY_NONE = 0
 SUPPLY_PAPER = 1

@@ -252,7 +252,10 @@ def assemble(scenario: Scenario, parts: dict) -> PneumaticModel:
     mot_t, mot_L, mot_d, mot_n, sched_t, _, u0, opens, _, _ = motion
     laws, sched_u = parts["laws"], parts["sched_u"]
     y0, atol = parts["state"]
-    return PneumaticModel(scenario=scenario, names=list(names), circuit=Circuit(parts["g"].copy(), mp.copy()),
+    g = parts["g"].copy()
+    # (g's part does not see the muscles)
+    g[L.G_HEAT] = 1.0 if g[L.G_H_S] > 0.0 or g[L.G_H_E] > 0.0 or (mp[:, L.M_H] > 0.0).any() else 0.0
+    return PneumaticModel(scenario=scenario, names=list(names), circuit=Circuit(g, mp.copy()),
                           motion=Motion(mot_t.copy(), mot_L.copy(), mot_d.copy(), mot_n.copy()),
                           schedule=Schedule(sched_t.copy(), sched_u.copy(), u0.copy(), [o.copy() for o in opens]),
                           start=Start(y0.copy(), atol.copy()), out_t=parts["out_t"].copy(), laws=laws.copy())
