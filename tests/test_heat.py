@@ -276,3 +276,14 @@ def test_the_wall_heat_as_a_volume_rate_is_the_same_term():
     from frogsim.physics.heat import heat_volume_rate
     for Q, p in ((-3.7, 7e5), (2.1, 0.4e5), (0.0, 1e5)):
         assert -K_AIR * p * -heat_volume_rate(Q, p, K_AIR) == pytest.approx((K_AIR - 1.0) * Q, rel=1e-14, abs=0.0)
+
+
+def test_a_parameter_set_extends_only_a_shipped_one(tmp_path):
+    from frogsim.errors import ScenarioError
+    from frogsim.scenario.load import load_parameter_set
+    heat_set, base = load_parameter_set("fan2017-heat"), load_parameter_set("fan2017")
+    assert heat_set["muscle_types"]["hip"]["heat_transfer_coefficient"]["value"] == "20 W/(m^2*K)"
+    assert heat_set["source"]["volume"] == base["source"]["volume"]          # the rest is fan2017's
+    (tmp_path / "mine.toml").write_text('[meta]\nextends = "fan2099"\n')
+    with pytest.raises(ScenarioError, match="meta.extends"):
+        load_parameter_set("mine.toml", str(tmp_path))
