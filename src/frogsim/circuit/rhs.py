@@ -24,8 +24,8 @@ import numpy as np
 from frogsim._jit import jit, jit_step
 
 from frogsim.circuit.layout import (
-    G_A_E, G_A_S, G_BRANCH_LIMIT, G_H_E, G_H_S, G_HEAT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF, G_SUPPLY_MODE, G_TAMB,
-    G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_B0, M_CB, M_CC, M_CM, M_CRL, M_DB,
+    G_A_E, G_A_S, G_BRANCH_LIMIT, G_H_E, G_H_S, G_HEAT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF,
+    G_SUPPLY_MODE, G_TAMB, G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_B0, M_CB, M_CC, M_CM, M_CRL, M_DB,
     M_DC, M_DEAD, M_DM, M_DRL, M_FIXEDV, M_H, M_N, SUPPLY_PAPER, SUPPLY_PHYSICAL, Y_ME, Y_MS, Y_PE, Y_PS,
     charged_index, mass_index, pressure_index, pump_index, vented_index,
 )
