@@ -30,6 +30,11 @@ Checks and targets (acceptance criteria)
       own). The verdict uses the reference at frogsim's own method and tolerance (RK45, the
       scenario's rtol) so that the ratio compares implementations, not tolerances; the tight
       reference's time is shown too;
+    * wall heat transfer: the same cycle with the parameter set "fan2017-heat" (heat through the
+      walls of the muscle, the source and the exhaust) at most 15 % slower than with it off
+      (fan2017), both timed in turns in this run, best of rounds (option --heat, on by default);
+      the steps and right-hand-side evaluations of each are shown, since the heat changes the
+      dynamics the integrator follows, not only the cost of one evaluation;
     * ``frogsim reproduce --out <tmpdir>`` wall time, with a fresh Numba cache so compilation is
       included, below 15 s, best of --reproduce-runs (2) cold runs (option --reproduce, on by
       default; skipped with a message when the command is missing or fails). Each run follows a
@@ -78,6 +83,8 @@ AGREEMENT_TOL = 1e-3                # 0.1 % of PRESSURE_SCALE
 SPEEDUP_TARGET = 100.0
 REPRODUCE_TARGET = 15.0             # [s]
 CHECK_METHOD, CHECK_RTOL = "DOP853", 1e-9
+HEAT_PARAMETERS = "fan2017-heat"
+HEAT_SLOWDOWN_TARGET = 1.15         # heat on / heat off, wall time
 BASELINE = "e625af2"                # the last commit before the one stepping driver
 
 # reference state vector
@@ -317,6 +324,23 @@ def time_calls(fn, repeats: int) -> tuple[float, float, object]:
     return min(times), statistics.median(times), value
 
 
+def heat_on_off(calls: int, rounds: int) -> dict:
+    """Best wall time per call [s] of frogsim.simulate on the benchmark cycle with wall heat transfer
+    off (fan2017) and on (fan2017-heat), timed in turns (``rounds`` rounds of ``calls`` calls each),
+    and each run's stats."""
+    models = {"off": frogsim.build_model(frogsim.load_scenario(SCENARIO)),
+              "on": frogsim.build_model(frogsim.load_scenario({**SCENARIO, "parameters": HEAT_PARAMETERS}))}
+    stats = {k: frogsim.simulate(m).stats for k, m in models.items()}      # (compiles, if needed)
+    best = {k: float("inf") for k in models}
+    for _ in range(rounds):
+        for k, m in models.items():
+            t0 = time.perf_counter()
+            for _ in range(calls):
+                frogsim.simulate(m)
+            best[k] = min(best[k], (time.perf_counter() - t0) / calls)
+    return {"best": best, "stats": stats}
+
+
 def fmt_time(seconds: float) -> str:
     """A wall time with a readable unit."""
     if seconds >= 1.0:
@@ -401,6 +425,8 @@ def main(argv=None) -> int:
                     help="solve_ivp method of the reference timed for the verdict (default RK45)")
     ap.add_argument("--ref-rtol", type=float, default=None,
                     help="rtol of the reference timed for the verdict (default: frogsim's own)")
+    ap.add_argument("--heat", action=argparse.BooleanOptionalAction, default=True,
+                    help="also time the cycle with wall heat transfer on against off (default on)")
     ap.add_argument("--reproduce", action=argparse.BooleanOptionalAction, default=True,
                     help="also time `frogsim reproduce` with a fresh Numba cache (default on)")
     ap.add_argument("--reproduce-runs", type=int, default=2,
@@ -481,7 +507,23 @@ def main(argv=None) -> int:
     if not ok:
         failures.append("speed-up")
 
-    # 3. frogsim reproduce, cold; the code before the one-core change as the baseline, in turns
+    # 3. wall heat transfer on against off, in turns
+    if args.heat:
+        h = heat_on_off(calls=50, rounds=max(3, args.repeats // 50))
+        ratio = h["best"]["on"] / h["best"]["off"]
+        print(f"\nWall heat transfer ({HEAT_PARAMETERS} against fan2017, the same cycle, timed in turns)")
+        for k in ("off", "on"):
+            st = h["stats"][k]
+            print(f"  heat {k:<4}{fmt_time(h['best'][k]):>11}   ({st['steps']} steps, {st['rejected']} rejected, "
+                  f"{st['rhs_evaluations']} rhs evaluations)")
+        evals = h["stats"]["on"]["rhs_evaluations"] / h["stats"]["off"]["rhs_evaluations"]
+        ok = ratio <= HEAT_SLOWDOWN_TARGET
+        print(f"  on / off: {ratio:.3f} in wall time, {evals:.3f} in rhs evaluations: "
+              f"{'PASS' if ok else 'FAIL'} (target <= {HEAT_SLOWDOWN_TARGET:g})")
+        if not ok:
+            failures.append("heat transfer slowdown")
+
+    # 4. frogsim reproduce, cold; the code before the one-core change as the baseline, in turns
     print(f"\n`frogsim reproduce` with a fresh Numba cache (target < {REPRODUCE_TARGET:g} s; baseline: the "
           f"code of {BASELINE}, before the one stepping driver, in turns with it)")
     if args.reproduce:

@@ -113,3 +113,18 @@ def test_force_hysteresis_table(study):
         check(cells[2], [(NUM + " deg", r["step"]["final_error_deg"])])
         check(cells[3], [(NUM + " deg", r["sine"]["tracking_error_rms_deg"])])
         check(cells[4], [(NUM + " deg", r["sine"]["loop_width_deg"])])
+
+
+def test_heat_table(study):
+    rows = table_rows("runs each case both ways and prints")
+    runs = study("heat").summary["heat"]["runs"]
+    a, h = runs["adiabatic"], runs["heat"]
+    check(rows["hip charged to 5.91 bar, held closed 1.7 s: pressure sag"][0],
+          [(r"charged to " + NUM + " bar", a["hold_pressure_at_close_bar_gauge"])])
+    for key, col, unit in (("hold_pressure_sag_bar", "hip charged to 5.91 bar, held closed 1.7 s: pressure sag", "bar"),
+                           ("paper_cycle_air_per_stroke_L_std", "paper cycle: air per stroke (six muscles)", "L std"),
+                           ("paper_cycle_hip_temperature_at_1s_K", "paper cycle: hip air at the end of its 1 s charge", "K"),
+                           ("bang_bang_switchings_per_s", "bang-bang holding 3 bar for 4 s: switchings per second", ""),
+                           ("bang_bang_air_used_L_std", "bang-bang holding 3 bar for 4 s: air used", "L std")):
+        for cell, run in ((rows[col][1], a), (rows[col][2], h)):
+            check(cell, [("^" + NUM + (" " + unit if unit else "") + "$", run[key])])

@@ -45,7 +45,12 @@ G_BRANCH_LIMIT = 14  # paper mode: per-branch mass-flow limit [kg/s]
 G_TUBE_C = 15      # physical mode: sonic conductance of the main tube(s) [m^3/(s Pa)]
 G_TUBE_B = 16      # physical mode: critical ratio of the main tube [-]
 G_TUBE_RLAM = 17   # physical mode: laminar ratio of the main tube [-]
-G_SIZE = 18
+G_H_S = 18         # source: heat transfer coefficient air-wall [W/(m^2 K)] (0: adiabatic)
+G_A_S = 19         # source: inner wall area [m^2]
+G_H_E = 20         # exhaust: heat transfer coefficient air-wall [W/(m^2 K)] (0: adiabatic)
+G_A_E = 21         # exhaust: inner wall area [m^2]
+G_HEAT = 22        # 1 if some wall passes heat (G_H_S, G_H_E or some mp[i, M_H] > 0), else 0
+G_SIZE = 23
 
 SUPPLY_NONE = 0
 SUPPLY_PAPER = 1
@@ -65,7 +70,8 @@ M_DB = 9
 M_DM = 10
 M_DRL = 11
 M_L0 = 12       # rest length [m]
-M_SIZE = 13
+M_H = 13        # heat transfer coefficient air-wall [W/(m^2 K)] (0: adiabatic)
+M_SIZE = 14
 
 # fixed part of the state: the source and exhaust chambers
 Y_MS = 0

@@ -255,7 +255,10 @@ def assemble(scenario: Scenario, parts: dict) -> PneumaticModel:
     mot_t, mot_L, mot_d, mot_n, sched_t, _, u0, opens, _, _ = motion
     laws, sched_u = parts["laws"], parts["sched_u"]
     y0, atol = parts["state"]
-    return PneumaticModel(scenario=scenario, names=list(names), circuit=Circuit(parts["g"].copy(), mp.copy()),
+    g = parts["g"].copy()
+    # (g's part does not see the muscles)
+    g[L.G_HEAT] = 1.0 if g[L.G_H_S] > 0.0 or g[L.G_H_E] > 0.0 or (mp[:, L.M_H] > 0.0).any() else 0.0
+    return PneumaticModel(scenario=scenario, names=list(names), circuit=Circuit(g, mp.copy()),
                           motion=Motion(mot_t.copy(), mot_L.copy(), mot_d.copy(), mot_n.copy()),
                           schedule=Schedule(sched_t.copy(), sched_u.copy(), u0.copy(), [o.copy() for o in opens]),
                           start=Start(y0.copy(), atol.copy()), out_t=parts["out_t"].copy(), laws=laws.copy())
@@ -307,13 +310,15 @@ def _globals_part(air, source, exhaust, pump, supply, valves) -> np.ndarray:
         supply.main_tube_inner_diameter, supply.discharge_coefficient, R, k, rho_ref, air.reference_temperature)
     g[L.G_TUBE_B] = critical_pressure_ratio(k)
     g[L.G_TUBE_RLAM] = valves.charge.laminar_ratio
+    g[L.G_H_S], g[L.G_A_S] = source.heat_transfer_coefficient, source.inner_wall_area
+    g[L.G_H_E], g[L.G_A_E] = exhaust.heat_transfer_coefficient, exhaust.inner_wall_area
     return g
 
 
 @functools.lru_cache(maxsize=_CACHE)
 def _muscle_part(valves, types: tuple) -> np.ndarray:
-    """The per-muscle parameter matrix mp: braid, dead volume, both valves' ISO 6358 constants
-    (the fixed-volume column comes with the motions)."""
+    """The per-muscle parameter matrix mp: braid, dead volume, both valves' ISO 6358 constants,
+    the wall's heat transfer coefficient (the fixed-volume column comes with the motions)."""
     vc, vd = valves.charge, valves.discharge
     mp = np.zeros((len(types), L.M_SIZE))
     for i, mt in enumerate(types):
@@ -324,6 +329,7 @@ def _muscle_part(valves, types: tuple) -> np.ndarray:
         mp[i, L.M_DC], mp[i, L.M_DB], mp[i, L.M_DM], mp[i, L.M_DRL] = (
             vd.sonic_conductance, vd.critical_ratio, vd.subsonic_index, vd.laminar_ratio)
         mp[i, L.M_L0] = mt.nominal_length
+        mp[i, L.M_H] = mt.heat_transfer_coefficient
     return mp
 
 

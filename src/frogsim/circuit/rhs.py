@@ -6,6 +6,15 @@ segment; muscle lengths come from the motion tables (cubic Hermite knots, see
 :func:`motion_length`). ``aux`` receives per-muscle charge and discharge mass flows [kg/s] (2n) and
 the pump flow (last entry) for diagnostics; ``work`` is scratch space of length 3n (no allocation
 in the hot loop).
+
+Each volume whose heat transfer coefficient is positive (mp[i, M_H], g[G_H_S], g[G_H_E]) takes the
+wall heat Q = h A (T_wall - T) into its energy balance (Eq. (**) of :mod:`frogsim.physics.heat`),
+the wall at the ambient temperature. Without any (g[G_HEAT] = 0: every h = 0) no heat term is
+computed or added, so dp/dt is the same numbers as without the term. With heat on, the volume loop,
+which has each muscle's length at hand, takes a muscle's wall heat into its volume rate: in Eq. (**)
+(k - 1) Q enters V dp/dt as -k p dV/dt does, so the flow loop's pressure rate with the volume rate
+dV/dt - (k - 1) Q / (k p) (:func:`frogsim.physics.heat.heat_volume_rate`) is the rate with the wall
+heat.
 """
 from __future__ import annotations
 
@@ -15,13 +24,14 @@ import numpy as np
 from frogsim._jit import jit, jit_step
 
 from frogsim.circuit.layout import (
-    G_BRANCH_LIMIT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF, G_SUPPLY_MODE, G_TAMB,
-    G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_B0, M_CB, M_CC, M_CM, M_CRL, M_DB,
-    M_DC, M_DEAD, M_DM, M_DRL, M_FIXEDV, M_N, SUPPLY_PAPER, SUPPLY_PHYSICAL, Y_ME, Y_MS, Y_PE, Y_PS,
+    G_A_E, G_A_S, G_BRANCH_LIMIT, G_H_E, G_H_S, G_HEAT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF,
+    G_SUPPLY_MODE, G_TAMB, G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_B0, M_CB, M_CC, M_CM, M_CRL, M_DB,
+    M_DC, M_DEAD, M_DM, M_DRL, M_FIXEDV, M_H, M_N, SUPPLY_PAPER, SUPPLY_PHYSICAL, Y_ME, Y_MS, Y_PE, Y_PS,
     charged_index, mass_index, pressure_index, pump_index, vented_index,
 )
 from frogsim.physics.flow import iso6358_mass_flow, pump_mass_flow
 from frogsim.physics.gas import pressure_rate
+from frogsim.physics.heat import heat_pressure_rate, heat_volume_rate, muscle_wall_area, wall_heat_flow
 from frogsim.physics.muscle import muscle_volume, muscle_volume_slope
 
 
@@ -102,6 +112,21 @@ def muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n):
     b0 = mp[i, M_B0]
     nt = mp[i, M_N]
     return muscle_volume(L, b0, nt) + mp[i, M_DEAD], muscle_volume_slope(L, b0, nt) * dL
+
+
+@jit_step
+def muscle_wall_heat(t, i, lo, T, T_wall, mp, mot_t, mot_L, mot_d, mot_n):
+    """Heat flow from muscle i's wall (at T_wall [K]) into its air (at T [K])  [W]: h A (T_wall - T)
+    with A the braid cylinder's mantle at the muscle's length (:func:`muscle_wall_area`; lo: the
+    common knot piece of :func:`common_piece`, or -1). A muscle of fixed volume keeps the area at
+    its one knot's length (the rest length)."""
+    if mp[i, M_FIXEDV] > 0.0:
+        L = mot_L[i, 0]
+    elif lo >= 0:
+        L = _hermite(t, i, lo, lo + 1, mot_t, mot_L, mot_d)[0]
+    else:
+        L = motion_length(t, i, mot_t, mot_L, mot_d, mot_n)[0]
+    return wall_heat_flow(mp[i, M_H], muscle_wall_area(L, mp[i, M_B0], mp[i, M_N]), T_wall, T)
 
 
 @jit_step
@@ -191,9 +216,24 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     hin_e = 0.0
     out_e = 0.0
     mode = int(g[G_SUPPLY_MODE])
-    # work holds muscle temperatures [0, n), volumes [n, 2n) and volume rates [2n, 3n)
+    # work holds muscle temperatures [0, n), volumes [n, 2n) and volume rates [2n, 3n) (with heat on,
+    # less the wall heat's equivalent (k - 1) Q / (k p): see the module docstring)
     lo = common_piece(t, mp, mot_t, mot_n)
-    if lo >= 0:
+    if lo >= 0 and g[G_HEAT] > 0.0:
+        # the loop below, each muscle's wall heat taken into its volume rate
+        T_wall = g[G_TAMB]
+        for i in range(n):
+            L, dL = _hermite(t, i, lo, lo + 1, mot_t, mot_L, mot_d)
+            b0 = mp[i, M_B0]
+            nt = mp[i, M_N]
+            p_i = y[pressure_index(i)]
+            V = muscle_volume(L, b0, nt) + mp[i, M_DEAD]
+            T = p_i * V / (y[mass_index(i)] * R)
+            Q = wall_heat_flow(mp[i, M_H], muscle_wall_area(L, b0, nt), T_wall, T)
+            work[i] = T
+            work[n + i] = V
+            work[2 * n + i] = muscle_volume_slope(L, b0, nt) * dL - heat_volume_rate(Q, p_i, k)
+    elif lo >= 0:
         # the same numbers as the loop below (motion_length's piece, muscle_volume_state's sums)
         for i in range(n):
             L, dL = _hermite(t, i, lo, lo + 1, mot_t, mot_L, mot_d)
@@ -209,6 +249,10 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
             work[n + i] = V
             work[2 * n + i] = dV
             work[i] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
+            if g[G_HEAT] > 0.0:
+                p_i = y[pressure_index(i)]
+                Q = muscle_wall_heat(t, i, -1, work[i], g[G_TAMB], mp, mot_t, mot_L, mot_d, mot_n)
+                work[2 * n + i] = dV - heat_volume_rate(Q, p_i, k)
     p_up = p_s
     if mode == SUPPLY_PHYSICAL:
         p_up = manifold_pressure(p_s, T_s, y, u, g, mp, n, work)
@@ -259,4 +303,7 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     dydt[Y_PS] = pressure_rate(p_s, V_s, 0.0, hin_s, out_s, T_s, R, k)
     dydt[Y_ME] = min_e - out_e
     dydt[Y_PE] = pressure_rate(p_e, V_e, 0.0, hin_e, out_e, T_e, R, k)
+    if g[G_HEAT] > 0.0:
+        dydt[Y_PS] += heat_pressure_rate(wall_heat_flow(g[G_H_S], g[G_A_S], g[G_TAMB], T_s), V_s, k)
+        dydt[Y_PE] += heat_pressure_rate(wall_heat_flow(g[G_H_E], g[G_A_E], g[G_TAMB], T_e), V_e, k)
     dydt[pump_index(n)] = m_pump

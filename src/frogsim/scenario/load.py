@@ -64,7 +64,10 @@ def parameter_set_names() -> list[str]:
 
 
 def load_parameter_set(name_or_path: str, base_dir: str = ".") -> dict:
-    """The raw dict of a parameter set, by shipped name or by path (relative to base_dir)."""
+    """The raw dict of a parameter set, by shipped name or by path (relative to base_dir).
+
+    A set whose ``[meta]`` says ``extends = "NAME"`` is the shipped set NAME with its own values
+    laid over it, key by key (:func:`deep_merge`)."""
     if name_or_path in parameter_set_names():
         path = PARAMS_DIR / f"{name_or_path}.toml"
     else:
@@ -74,10 +77,17 @@ def load_parameter_set(name_or_path: str, base_dir: str = ".") -> dict:
                                 f"must be a shipped parameter set ({', '.join(parameter_set_names())}) "
                                 "or a path to a parameter file")
     raw = read_toml(path, "parameters")
-    raw.pop("meta", None)
+    meta = raw.pop("meta", None)
     for key in raw:
         if key not in PARAM_SECTIONS:
             raise unknown_key_error(f"parameters file {path.name}", key, PARAM_SECTIONS)
+    base = meta.get("extends") if isinstance(meta, dict) else None
+    if base is not None:
+        # a set written as changes to a shipped set: [meta] extends = "fan2017", then its own values
+        if base not in parameter_set_names() or base == Path(path).stem:
+            raise ScenarioError(f"parameters file {path.name}: meta.extends", base,
+                                f"must name another shipped parameter set ({', '.join(parameter_set_names())})")
+        raw = deep_merge(load_parameter_set(base), raw)
     return raw
 
 

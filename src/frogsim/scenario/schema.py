@@ -15,6 +15,7 @@ from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, 
                                      unwrap)
 from frogsim.errors import MISSING, ScenarioError, Shown
 from frogsim.scenario.files import read_text
+from frogsim.physics.heat import cylinder_wall_area
 from frogsim.physics.muscle import braid_parameters, muscle_volume
 
 BAR = 1e5
@@ -51,9 +52,29 @@ class Air:
 
 @dataclass(frozen=True)
 class Chamber:
-    """A rigid air chamber (the source tanks or the exhaust space inside the hull)."""
+    """A rigid air chamber (the source tanks or the exhaust space inside the hull).
+
+    Its air exchanges heat with the wall (at the ambient temperature) by Newton's law,
+    Q = h A (T_wall - T) (:mod:`frogsim.physics.heat`); h = 0 keeps it adiabatic (the paper's
+    model). A is ``wall_area``, or when that is not given the inner wall of one closed cylinder of
+    the chamber's volume and ``length_over_diameter``.
+    """
     volume: float = quantity("volume", gt=0, display="L")
     initial_pressure_gauge: float = gauge_pressure()
+    heat_transfer_coefficient: float = quantity("heat_transfer_coefficient", ge=0.0, le=1e5,
+                                                display="W/(m^2*K)", default=0.0,
+                                                doc="air to wall; 0: adiabatic")
+    wall_area: float | None = quantity("area", gt=0.0, display="m^2", default=None,
+                                       doc="inner wall area (none: a cylinder of length_over_diameter)")
+    length_over_diameter: float = quantity("dimensionless", gt=0.0, le=100.0, default=1.0,
+                                           doc="the cylinder's shape when wall_area is not given")
+
+    @property
+    def inner_wall_area(self) -> float:
+        """The wall area the air exchanges heat with [m^2] (see the class docstring)."""
+        if self.wall_area is not None:
+            return self.wall_area
+        return cylinder_wall_area(self.volume, self.length_over_diameter)
 
 
 @dataclass(frozen=True)
@@ -112,6 +133,10 @@ class MuscleType:
     anchor_distance: float = quantity("length", gt=0, display="mm")
     rest_angle: float = quantity("angle", ge=-math.pi, le=math.pi, display="deg")
     side: int = integer(ge=-1, le=1, default=1)
+    heat_transfer_coefficient: float = quantity("heat_transfer_coefficient", ge=0.0, le=1e5,
+                                                display="W/(m^2*K)", default=0.0,
+                                                doc="air to the braided wall (Q = h A (T_wall - T), A the "
+                                                    "braid cylinder's mantle as it contracts); 0: adiabatic")
 
     def check(self, path: str) -> None:
         if self.stroke_contraction > self.max_contraction:

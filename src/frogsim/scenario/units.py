@@ -45,6 +45,7 @@ SI_UNITS = {
     "conductance": ("m**3/(s*Pa)", "a sonic conductance such as \"0.4 L/(s*bar)\""),
     "gas_constant": ("J/(kg*K)", "a specific gas constant such as \"287 J/(kg*K)\""),
     "voltage": ("V", "a voltage such as \"4.5 V\""),
+    "heat_transfer_coefficient": ("W/(m**2*K)", "a heat transfer coefficient such as \"20 W/(m^2*K)\""),
     "dimensionless": ("", "a plain number or a percentage such as \"25 %\""),
     "mass": ("kg", "a mass such as \"12 kg\""),
     "area": ("m**2", "an area such as \"0.0335 m^2\""),

@@ -9,3 +9,4 @@ from frogsim.studies import robot  # noqa: F401,E402  (registers the robot's in-
 from frogsim.studies import control  # noqa: F401,E402  (registers the closed-loop control study)
 from frogsim.studies import control_joint  # noqa: F401,E402  (registers the joint-angle control study)
 from frogsim.studies import hysteresis  # noqa: F401,E402  (registers the hysteresis study)
+from frogsim.studies import heat  # noqa: F401,E402  (registers the wall heat transfer study)
