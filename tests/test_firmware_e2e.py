@@ -56,6 +56,16 @@ def test_hold_3bar_exports_an_avr6_elf_that_fits(hold):
     assert (tmp / "fw" / rec["name"] / f"{rec['name']}.ino").is_file()
 
 
+def test_the_build_times_the_interrupt_within_the_period(hold):
+    """`firmware --build` times the interrupt on the emulated board: at least one 10-bit
+    conversion (13 ADC clocks at prescaler 128, the datasheet's; 25 for the very first), and
+    for one bang-bang law well inside the 1 ms period."""
+    _, rec, _, _ = hold
+    t = rec["interrupt"]
+    assert t["period_cycles"] == 16000 and t["samples_over_period"] == 0 and t["overruns"] == 0
+    assert 100 * 13 * 128 / 16000 < t["mean_percent"] < t["max_percent"] < 100
+
+
 def test_hold_3bar_sil_matches_the_compiled_run(hold):
     _, rec, s, sim = hold
     assert s["sil"]["mismatched_samples"] == 0
@@ -117,6 +127,10 @@ def test_a_plan_forced_past_its_period_overruns_and_still_agrees(tmp_path):
     built = sketch.build_sketch(tmp_path / "fw", forced.name)
     run = sil.run_pneumatic(model, sketch.read_plan_record(tmp_path / "fw"), built.elf, forced, adc_counts)
     assert run.sil["overruns"] >= run.sil["samples"] - 1
+    # the build's own timing of the interrupt (random counts, no plant) sees the same: every
+    # sample's conversion alone (1664 cycles) is longer than the period (1600)
+    timing = sil.interrupt_timing(sketch.read_plan_record(tmp_path / "fw"), built.elf, samples=20)
+    assert timing["samples_over_period"] == 20 and timing["overruns"] >= 19
     assert run.sil["cpu_load_percent"]["mean"] > 100
     assert run.sil["mismatched_samples"] == 0
 

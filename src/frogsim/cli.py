@@ -349,8 +349,25 @@ def cmd_firmware(args) -> int:
             rec["flash_bytes"], rec["ram_bytes"] = built.flash_bytes, built.ram_bytes
             rec["elf"] = str(built.elf.relative_to(out.resolve())) if built.elf.is_relative_to(out.resolve()) \
                 else str(built.elf)
-            write_json(out / "firmware.json", rec)
             _progress(f"      {built.elf}: {built.describe()}")
+            from frogsim.export.emulator import ToolMissing, check_tools
+            try:
+                check_tools()
+            except ToolMissing as exc:
+                _warn(f"the interrupt was not timed ({exc})")
+            else:
+                from frogsim.export.sil import interrupt_timing
+                timing = interrupt_timing(rec, built.elf)
+                rec["interrupt"] = timing
+                _progress(f"      interrupt on the emulated ATmega2560, {timing['samples']} samples of random "
+                          f"counts: mean {timing['mean_percent']:.1f} %, max {timing['max_percent']:.1f} % of "
+                          f"the {timing['period_cycles']}-cycle period")
+                if timing["samples_over_period"]:
+                    _warn(f"the interrupt overran its period at {timing['samples_over_period']} of "
+                          f"{timing['samples']} timed samples (max {timing['max_percent']:.0f} % of the period): "
+                          "the board cannot run these laws at this rate; lower [controller] rate or control "
+                          "fewer muscles (`frogsim sil` counts the overruns)")
+            write_json(out / "firmware.json", rec)
         folder.finish()
         _progress(f"wrote {out / plan.name}/, {out / 'firmware.json'}" + (f", {out / 'build'}/" if args.build else ""))
         return 0
