@@ -34,7 +34,8 @@ def _export_and_sil(scenario, tmp: Path, *extra) -> tuple[dict, dict]:
     fw, out = tmp / "fw", tmp / "sil"
     assert _cli("firmware", scenario, *extra, "--out", fw, "--build") == 0
     assert _cli("sil", scenario, *extra, "--firmware", fw, "--out", out, *(
-        ["--no-animation"] if "swim" in str(scenario) or "hip-angle" in str(scenario) else [])) == 0
+        ["--no-animation"] if "swim" in str(scenario) or "hip-angle" in str(scenario) or "robot" in str(scenario)
+        else [])) == 0
     return json.loads((fw / "firmware.json").read_text()), json.loads((out / "summary.json").read_text())
 
 
@@ -176,6 +177,27 @@ def test_firmware_refuses_bad_wiring_in_one_line_and_writes_nothing(tmp_path, ca
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and field in err, err
     assert not (tmp_path / "fw").exists()
+
+
+def test_every_kind_on_the_robot_commands_the_same_valves(tmp_path):
+    """Joint-angle, bang-bang, sliding mode and PWM (closed and open loop) on the robot's board at
+    once, 0.6 s of the fixed-base robot in air: the firmware decides as the model's compiled
+    laws at every sample, and every controller's metrics equal the compiled `swim` run's."""
+    need_avr_tools()
+    from frogsim.scenario.load import with_firmware
+    scenario = HERE / "robot-every-kind.toml"
+    rec, s = _export_and_sil(scenario, tmp_path)
+    assert s["sil"]["mismatched_samples"] == 0 and s["sil"]["samples"] == 601
+    assert s["sil"]["adc_read_differs_samples"] == 0
+    kinds = {entry["kind"] for name, entry in s["control"].items() if isinstance(entry, dict) and "kind" in entry}
+    assert kinds == {"joint-angle", "bang-bang", "sliding-mode", "pwm"}
+    compiled = frogsim.swim(frogsim.load_robot_scenario(with_firmware(scenario))).control_metrics()
+    for name, entry in compiled.items():
+        for key, value in entry.items():
+            if isinstance(value, float):
+                assert s["control"][name][key] == pytest.approx(value, rel=1e-6, abs=1e-12), (name, key)
+            elif isinstance(value, (int, dict)):
+                assert s["control"][name][key] == value, (name, key)
 
 
 @pytest.mark.slow
