@@ -5,18 +5,8 @@ ADC's timing and transfer function) live in :mod:`frogsim.components.atmega2560`
 scenario and control layers read them; they are re-exported here, beside the pin map read from
 the installed Arduino core.
 
-Sources:
+Sources (the datasheet's ADC timing is quoted in :mod:`frogsim.components.atmega2560`):
 
-* Atmel, *ATmega640/V-1280/V-1281/V-2560/V-2561/V* datasheet (2549Q-AVR-02/2014), Sec. 26.4
-  "Prescaling and Conversion Timing" and Table 26-1: "A normal conversion takes 13 ADC clock
-  cycles. The first conversion after the ADC is switched on (ADEN in ADCSRA is set) takes 25 ADC
-  clock cycles"; auto-triggered conversions 13.5; "the successive approximation circuitry requires
-  an input clock frequency between 50 kHz and 200 kHz to get maximum resolution. If a lower
-  resolution than 10 bits is needed, the input clock frequency to the ADC can be higher than 200
-  kHz"; the ADC prescaler divides the CPU clock by 2, 4, 8, 16, 32, 64 or 128 (ADPS2:0).
-* Atmel's ADC documentation for the megaAVR ADC ("ADC Clock and Conversion Timing"): "it is not
-  recommended to use an ADC clock with a frequency higher than 1 MHz. At 1 MHz we can expect
-  maximum 8 bits of resolution."
 * Arduino Mega 2560 Rev3: ATmega2560 at 16 MHz, 256 KB flash of which 8 KB are used by the
   bootloader, 8 KB SRAM, 54 digital pins and 16 analog inputs (A0-A15 = digital pins 54-69);
   pins 0 and 1 carry USART0 (the USB serial port). The pin-to-port map is read from the installed
