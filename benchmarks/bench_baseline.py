@@ -49,6 +49,21 @@ TOLERANCE = 1.05
 #: the cold run is judged by wall time alone, which drifts by about 10 % here even as best of rounds
 TOLERANCE_COLD = 1.10
 
+#: a workload's timed block: ``n`` calls of its ``once`` timed into ``wall``, and counted by
+#: callgrind (started with --instr-atstart=no) only around them when BENCH_CALLGRIND=1, so that
+#: imports and cache loading are not counted. Shared with bench_heat.py.
+TIMED_CALLS = r'''
+counting = os.environ.get("BENCH_CALLGRIND") == "1"     # under callgrind --instr-atstart=no
+if counting:
+    subprocess.run(["callgrind_control", "-i", "on", str(os.getpid())], check=True, capture_output=True)
+t0 = time.perf_counter()
+for _ in range(n):
+    once()
+wall = time.perf_counter() - t0
+if counting:
+    subprocess.run(["callgrind_control", "-i", "off", str(os.getpid())], check=True, capture_output=True)
+'''
+
 WORKLOAD = r'''
 import json, os, subprocess, sys, time
 import numpy as np
@@ -86,16 +101,7 @@ if n < 0:                       # warm-up only: load or compile the cache
     once()
     raise SystemExit(0)
 once()
-counting = os.environ.get("BENCH_CALLGRIND") == "1"     # under callgrind --instr-atstart=no
-if counting:
-    subprocess.run(["callgrind_control", "-i", "on", str(os.getpid())], check=True, capture_output=True)
-t0 = time.perf_counter()
-for _ in range(n):
-    once()
-wall = time.perf_counter() - t0
-if counting:
-    subprocess.run(["callgrind_control", "-i", "off", str(os.getpid())], check=True, capture_output=True)
-print(json.dumps({"seconds_per_call": wall / max(n, 1)}))
+''' + TIMED_CALLS + r'''print(json.dumps({"seconds_per_call": wall / max(n, 1)}))
 '''
 CALLS = {"simulate": 20, "closed-loop": 20, "batch": 3, "swim": 2, "joint": 2}
 
@@ -141,14 +147,25 @@ def instructions(src: str, name: str, env: dict, folder: str) -> float:
     switches it on and off with callgrind_control; imports and cache loading are not counted)."""
     n = CALLS[name]
     out = os.path.join(folder, f"cg-{name}-{abs(hash(src))}.out")
-    p = run(src, name, n, dict(env, BENCH_CALLGRIND="1"),
-            ("valgrind", "--tool=callgrind", "--instr-atstart=no", f"--callgrind-out-file={out}"))
+    p = run(src, name, n, dict(env, BENCH_CALLGRIND="1"), callgrind_prefix(out))
     if p.returncode != 0:
         raise SystemExit(f"callgrind of {name} failed:\n{p.stderr[-2000:]}")
+    return callgrind_total(out) / n
+
+
+def callgrind_prefix(out: str) -> tuple:
+    """The command prefix that runs a workload under callgrind, counting off until the workload
+    switches it on (:data:`TIMED_CALLS`), its output to ``out``."""
+    return ("valgrind", "--tool=callgrind", "--instr-atstart=no", f"--callgrind-out-file={out}")
+
+
+def callgrind_total(out: str) -> int:
+    """The instructions callgrind counted (its last ``totals:`` line; ``summary:`` is the count at
+    the start, 0 with --instr-atstart=no)."""
     totals = [int(line.split()[1]) for line in open(out) if line.startswith("totals:")]
-    if not totals:          # ("summary:" is the count at the start, 0 with --instr-atstart=no)
+    if not totals:
         raise SystemExit(f"no totals in {out}")
-    return totals[-1] / n
+    return totals[-1]
 
 
 def main(argv=None) -> int:

@@ -27,6 +27,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from bench_baseline import TIMED_CALLS, callgrind_prefix, callgrind_total
+
 HERE = Path(__file__).resolve().parent
 TARGET = 1.15
 CALLS = {"engine": 20, "joint": 1}
@@ -47,16 +49,7 @@ else:
     def once():
         return frogsim.swim(sc)
 stats = once().stats
-counting = os.environ.get("BENCH_CALLGRIND") == "1"
-if counting:
-    subprocess.run(["callgrind_control", "-i", "on", str(os.getpid())], check=True, capture_output=True)
-t0 = time.perf_counter()
-for _ in range(n):
-    once()
-wall = time.perf_counter() - t0
-if counting:
-    subprocess.run(["callgrind_control", "-i", "off", str(os.getpid())], check=True, capture_output=True)
-print(json.dumps({"seconds_per_call": wall / n, "stats": stats}))
+''' + TIMED_CALLS + r'''print(json.dumps({"seconds_per_call": wall / n, "stats": stats}))
 '''
 
 
@@ -70,12 +63,8 @@ def run(name: str, heat: str, env: dict, prefix=()) -> dict:
 
 def instructions(name: str, heat: str, env: dict, folder: str) -> float:
     out = os.path.join(folder, f"cg-{name}-{heat}.out")
-    run(name, heat, dict(env, BENCH_CALLGRIND="1"),
-        ("valgrind", "--tool=callgrind", "--instr-atstart=no", f"--callgrind-out-file={out}"))
-    totals = [int(line.split()[1]) for line in open(out) if line.startswith("totals:")]
-    if not totals:
-        raise SystemExit(f"no totals in {out}")
-    return totals[-1] / CALLS[name]
+    run(name, heat, dict(env, BENCH_CALLGRIND="1"), callgrind_prefix(out))
+    return callgrind_total(out) / CALLS[name]
 
 
 def main(argv=None) -> int:
