@@ -35,6 +35,7 @@ from typing import NamedTuple
 from frogsim.components import atmega2560 as chip
 from frogsim.errors import ScenarioError
 from frogsim.scenario.fields import build, integer, quantity, unwrap
+from frogsim.scenario.motion import command_sample
 from frogsim.scenario.schema import GAUGE_MAX, GAUGE_MIN
 
 FIRST_VALVE_PIN = 22          # the Mega's double header D22..D53: valve pins by default
@@ -292,7 +293,7 @@ def check_firmware(sc) -> None:
         raise ScenarioError(f"{path}.log_rate", f"{fw.log_rate:g} Hz",
                             f"must divide the controller rate ({rate:g} Hz): a line every whole number of "
                             "samples")
-    samples = int(math.ceil(sc.duration * rate - 1e-9))
+    samples = command_sample(sc.duration, rate)      # the last sample's index (its digits in a log line)
     line = log_line_bytes(n_analog, len(sc.muscles), samples)
     if line * fw.log_rate > fw.baud / 10.0:
         raise ScenarioError(f"{path}.log_rate", f"{fw.log_rate:g} Hz",

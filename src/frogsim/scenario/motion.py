@@ -33,9 +33,15 @@ class MotionKnots:
     fixed_volume: float = 0.0   # > 0: the total volume is held at this value [m^3]
 
 
+def command_sample(t: float, rate: float) -> int:
+    """The index k of the first controller sample at or after t [s] (t_k = k / rate; commands are
+    issued at samples)."""
+    return math.ceil(t * rate - 1e-9)
+
+
 def command_time(t: float, rate: float) -> float:
     """The first controller sample at or after t [s] (commands are issued at samples)."""
-    return math.ceil(t * rate - 1e-9) / rate
+    return command_sample(t, rate) / rate
 
 
 def _stroke_knots(mname, m, mt, L0, rate):

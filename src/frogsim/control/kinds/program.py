@@ -8,13 +8,13 @@ the board, the robot's gait too.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from frogsim._jit import jit
 from frogsim.scenario.kinds import ControllerSettings, register
+from frogsim.scenario.motion import command_sample
 
 
 @register
@@ -34,12 +34,12 @@ _MODE = {"charge": 1, "hold": 0, "vent": -1}
 def firmware_table(program, rate: float) -> np.ndarray:
     """The program as the board's table: entries ``(k << 2) | (mode + 1)`` (int32), one per sample
     k at which the mode (charge 1, hold 0, vent -1) changes, in order. A step at t is issued at
-    the first sample at or after it (k = ceil(t rate - 1e-9), as
-    :func:`frogsim.scenario.motion.command_time`); of steps on one sample the last holds. Before
+    the first sample at or after it (:func:`frogsim.scenario.motion.command_sample`, the model's
+    rule); of steps on one sample the last holds. Before
     the first entry the valves are shut (hold), after the last its mode holds."""
     by_k = {}
     for t, state in program.steps:
-        by_k[max(0, math.ceil(t * rate - 1e-9))] = _MODE[state]
+        by_k[max(0, command_sample(t, rate))] = _MODE[state]
     out = []
     last = 0
     for k in sorted(by_k):
