@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from frogsim.errors import ScenarioError
+from frogsim.scenario.tables import header
 
 BAR = 1e5
 DEFAULT_BAUD = 115200       # the [firmware] section's default baud rate
@@ -100,12 +101,11 @@ def parse_log(data: bytes, rec: dict) -> Log:
 
 def columns(rec: dict) -> list[str]:
     """The table's headers (module docstring)."""
-    cols = ["time [s]"]
+    cols = [header("time", "s")]
     for ch in rec["channels"]:
-        unit = {"pressure": "bar gauge", "angle": "deg"}.get(ch["quantity"], "count")
-        cols.append(f"{ch['signal']} [{unit}]")
+        cols.append(header(ch["signal"], {"pressure": "bar gauge", "angle": "deg"}.get(ch["quantity"], "count")))
     for m in rec["muscles"]:
-        cols += [f"{m} charge valve [1 = open]", f"{m} discharge valve [1 = open]"]
+        cols += [header(f"{m} charge valve", "1 = open"), header(f"{m} discharge valve", "1 = open")]
     return cols
 
 
@@ -117,18 +117,19 @@ def log_table(log: Log, rec: dict, last_sample: int | None = None):
     rate = float(rec["rate_hz"])
     n_ch, n_m = len(rec["channels"]), len(rec["muscles"])
     a = np.array(rows, dtype=np.int64).reshape(len(rows), n_ch + 3)
-    data = {"time [s]": a[:, 0] / rate}
+    names = columns(rec)
+    data = {names[0]: a[:, 0] / rate}
     for i, ch in enumerate(rec["channels"]):
-        name = columns(rec)[1 + i]
+        name = names[1 + i]
         if ch["quantity"] == "count":
             data[name] = a[:, 1 + i]
             continue
         si = a[:, 1 + i] * ch["unit_per_count"] + ch["offset"]
         data[name] = si / BAR if ch["quantity"] == "pressure" else np.degrees(si)
     bits = a[:, 1 + n_ch]
-    for j, m in enumerate(rec["muscles"]):
-        data[f"{m} charge valve [1 = open]"] = (bits >> (2 * j)) & 1
-        data[f"{m} discharge valve [1 = open]"] = (bits >> (2 * j + 1)) & 1
+    for j in range(n_m):
+        data[names[1 + n_ch + 2 * j]] = (bits >> (2 * j)) & 1
+        data[names[2 + n_ch + 2 * j]] = (bits >> (2 * j + 1)) & 1
     return pd.DataFrame(data)
 
 
