@@ -375,3 +375,21 @@ def test_the_studys_loop_width_and_area_are_the_ellipses_closed_forms():
     out = setpoint_loop(t, sp, th, 1.0)
     assert out["loop_width_deg"] == pytest.approx(2 * A * np.sin(phi), rel=1e-4)
     assert out["loop_area_deg2"] == pytest.approx(np.pi * A * A * np.sin(phi), rel=1e-4)
+
+
+def test_a_pneumatic_scenarios_own_force_law_settings_are_used_and_kept_by_variants():
+    # [muscle_force] in a pneumatic scenario lies over its parameter set's (tensions, force-table
+    # fits); a variant keeps it (it has no typed field to live in)
+    from frogsim.robot.params import parameter_set_law
+    from fit_helpers import RIG, STROKE
+    import tomllib
+    raw = tomllib.loads(RIG.replace("MOTION", STROKE))
+    plain = frogsim.load_scenario(raw)
+    assert parameter_set_law(plain).hysteresis == "none"             # fan2017's
+    own = frogsim.load_scenario({**raw, "muscle_force": {"hysteresis": "maxwell-slip", "slip_strain": "0.1 %"}})
+    law = parameter_set_law(own)
+    assert law.hysteresis == "maxwell-slip" and law.slip_strain == pytest.approx(1e-3)
+    assert law.force_scale == parameter_set_law(plain).force_scale   # the rest is the set's
+    variant = own.replace({"duration": 0.2})
+    assert parameter_set_law(variant) == law
+    assert parameter_set_law(plain.replace({"duration": 0.2})).hysteresis == "none"

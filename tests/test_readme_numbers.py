@@ -107,12 +107,22 @@ def test_readme_check_catches_a_moved_number():
 def test_force_hysteresis_table(study):
     runs = study("hysteresis").summary["hysteresis"]["runs"]
     rows = table_rows("## Force hysteresis at the joint")
-    for key, label in (("off", "off"), ("10_N_per_bar", "10 N/bar"), ("25_N_per_bar", "25 N/bar")):
+    for key, label in (("off", "off"), ("published", "2.75 N/bar (fan2017-hysteresis)"),
+                       ("10_N_per_bar", "10 N/bar (assumed)"), ("25_N_per_bar", "25 N/bar (assumed)")):
         cells, r = rows[label], runs[key]
         check(cells[1], [(NUM + " deg", r["step"]["tracking_error_rms_deg"])])
         check(cells[2], [(NUM + " deg", r["step"]["final_error_deg"])])
         check(cells[3], [(NUM + " deg", r["sine"]["tracking_error_rms_deg"])])
         check(cells[4], [(NUM + " deg", r["sine"]["loop_width_deg"])])
+    # the fit to the published loop quoted above the table
+    loop = study("hysteresis").summary["hysteresis"]["published_loop"]
+    text = README[README.index("## Force hysteresis at the joint"):README.index("| hysteresis |")]
+    check(text, [(r"FIT.toml` \(" + NUM + " N/bar", loop["slip_per_pressure_N_per_bar"]),
+                 (r"95 % interval " + NUM + "-", loop["slip_per_pressure_ci95_N_per_bar"][0]),
+                 (r"95 % interval [\d.]+-" + NUM, loop["slip_per_pressure_ci95_N_per_bar"][1]),
+                 (r"the forces to " + NUM + " N rms", loop["force_rms_error_N"]),
+                 (r"mean height " + NUM + " N fitted", loop["mean_height_fitted_N"]),
+                 (r"against\s+" + NUM + r" N\s+published", loop["mean_height_published_N"])])
 
 
 def test_heat_table(study):

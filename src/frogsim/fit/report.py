@@ -138,20 +138,35 @@ def draw_force_table(res: FitResult, k: int, path: str) -> None:
     ax, axr = axes[0, 0], axes[1, 0]
     lo, hi = min(tab.contraction.min(), 0.0), tab.contraction.max()
     grid = np.linspace(lo, hi, 200)
+    # a table with a direction column is a loop: the fitted law is drawn branch by branch over each
+    # pressure's rows (loading solid, unloading dotted), the rows marked by their branch
+    looped = tab.direction is not None and ft.model.hysteresis(c["point_after"]) is not None
     for i, p in enumerate(tab.pressures()):
         color = f"C{i % 10}"
         idx = tab.pressure == p
-        ax.plot(tab.contraction[idx] * 100, tab.force[idx], "o", color=color, mfc="none", label=f"{p / 1e5:g} bar measured")
         pp = np.full_like(grid, p)
         ax.plot(grid * 100, ft.model.forces(c["point_before"], pp, grid), "--", color=color, lw=0.9)
-        ax.plot(grid * 100, ft.model.forces(c["point_after"], pp, grid), "-", color=color, lw=1.4)
+        if looped:
+            for d, marker, ls, word in ((-1, "o", "-", "loading"), (1, "v", ":", "unloading")):
+                rows = idx & (tab.direction == d)
+                ax.plot(tab.contraction[rows] * 100, tab.force[rows], marker, color=color, mfc="none", ms=5,
+                        label=f"{p / 1e5:g} bar {word}" if i == 0 else (f"{p / 1e5:g} bar" if d < 0 else None))
+                span = np.linspace(tab.contraction[idx].min(), tab.contraction[idx].max(), 100)
+                ax.plot(span * 100, ft.model.forces(c["point_after"], np.full_like(span, p), span,
+                                                    np.full(span.size, d)), ls, color=color, lw=1.3)
+        else:
+            ax.plot(tab.contraction[idx] * 100, tab.force[idx], "o", color=color, mfc="none",
+                    label=f"{p / 1e5:g} bar measured")
+            ax.plot(grid * 100, ft.model.forces(c["point_after"], pp, grid), "-", color=color, lw=1.4)
         axr.plot(tab.contraction[idx] * 100, (c["after"] - tab.force)[idx], "o", color=color, ms=4)
     order = np.argsort(tab.contraction)
     axr.fill_between(tab.contraction[order] * 100, -2 * ft.sigma[order], 2 * ft.sigma[order], color="tab:green",
                      alpha=0.1, lw=0, label="+-2 x stated noise")
     axr.axhline(0.0, color="k", lw=0.8)
     ax.set_ylabel("force [N]")
-    ax.set_title(f"{c['name']}: measured (o), law with fitted (solid) and start (dashed) constants", fontsize=10)
+    ax.set_title(f"{c['name']}: measured and the law with fitted constants\n"
+                 + ("(loading: o and solid, unloading: v and dotted)" if looped else "(o and solid)")
+                 + ", with start constants (dashed)", fontsize=10)
     ax.legend(fontsize=7, ncol=2, loc="best")
     axr.set_ylabel("fitted - measured [N]")
     axr.set_xlabel("contraction [%] (negative: stretched)")

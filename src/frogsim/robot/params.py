@@ -185,11 +185,13 @@ def robot_params_from_raw(raw: dict, muscle_types: dict) -> RobotParams:
 
 
 def parameter_set_law(scenario, purpose: str = "muscle tensions need a force law") -> MuscleForceLaw:
-    """The ``[muscle_force]`` law of a scenario's parameter set (a pneumatic scenario holds none of
-    its own), or a ScenarioError saying the set has none and what needed it (``purpose``)."""
+    """The ``[muscle_force]`` law of a pneumatic scenario: its parameter set's, with the scenario's
+    own ``[muscle_force]`` settings laid over it (kept in ``scenario.raw``, variants included), or a
+    ScenarioError saying there is none and what needed it (``purpose``)."""
     from frogsim.errors import UNKNOWN
     from frogsim.scenario.load import load_parameter_set
-    raw = load_parameter_set(scenario.parameters, scenario.base_dir)
+    raw = scenario.raw if "muscle_force" in scenario.raw else load_parameter_set(scenario.parameters,
+                                                                                 scenario.base_dir)
     if "muscle_force" not in raw:
         raise ScenarioError(f"parameters {scenario.parameters!r}", UNKNOWN,
                             f"has no [muscle_force] table: {purpose}")

@@ -32,7 +32,8 @@ _LEAF_KEYS = ("kind", "integer", "boolean", "choices", "choices_from")
 class Scenario:
     """Everything about one run: parameters of the robot's circuit plus the run's own settings.
 
-    ``raw`` is the merged file dict the scenario was loaded from (empty for a variant);
+    ``raw`` is the merged file dict the scenario was loaded from (for a variant, only the
+    sections no typed field holds: UNTYPED_RAW);
     ``base_dir`` the folder relative paths in it (CSV tables) are read from.
     """
     name: str
@@ -167,13 +168,20 @@ def _parse(changes: dict) -> _Tree:
 
 
 def _top_changes(sc: Scenario, tree: _Tree) -> dict:
-    """{top-level setting: its new value} for a tree of changes of sc (its ``raw`` cleared): each
-    top-level entry is made from its own branch of the tree alone (:func:`_top_change`)."""
+    """{top-level setting: its new value} for a tree of changes of sc (its ``raw`` cleared but for
+    the sections no typed field holds, UNTYPED_RAW): each top-level entry is made from its own branch
+    of the tree alone (:func:`_top_change`)."""
     changes = {}
     for name, value in tree.items():
         changes.update(_top_change(sc, name, value))
-    changes["raw"] = {}
+    changes["raw"] = {k: sc.raw[k] for k in UNTYPED_RAW if k in sc.raw}
     return changes
+
+
+#: merged sections a pneumatic scenario keeps only in ``raw`` (no typed field), carried to its
+#: variants: the force law its tensions and force-table fits use
+#: (:func:`frogsim.robot.params.parameter_set_law`)
+UNTYPED_RAW = ("muscle_force",)
 
 
 def _top_change(sc: Scenario, name: str, value) -> dict:
