@@ -320,6 +320,44 @@ def test_pneumatic_result_tensions_off_are_the_static_law_and_on_lag_the_motion(
     assert shortening > 100
 
 
+def test_the_pneumatic_tensions_follow_turning_points_between_output_samples():
+    """A hip muscle (valves as in the fit rig: charged 0.25 s, vented 0.25 s) moved along a zigzag
+    table whose reversals (monotone cubic: dL/dt = 0 there) fall between the 10 ms output samples:
+    the elements must still see each reversal. Reference: the anchors replayed along the exact
+    motion sampled every 10 us (rate independence: a dense enough sampling is the path), the
+    tension at each output point the static one less the slip force there."""
+    import dataclasses
+    import tomllib
+    from fit_helpers import RIG
+    from frogsim.circuit import layout as CL
+    from frogsim.circuit.rhs import length_turning_times, motion_length
+    from frogsim.robot.params import parameter_set_law
+    raw = tomllib.loads(RIG.replace("MOTION", "constant").replace('"1 ms"', '"10 ms"'))
+    raw["muscles"]["hip"]["motion"] = {
+        "kind": "table", "time_s": [0, 0.0437, 0.1013, 0.1571, 0.2129, 0.2683, 0.3241, 0.3797, 0.4353, 0.5],
+        "contraction_percent": [2, 9, 3, 10, 4, 11, 2, 8, 3, 6]}
+    r = frogsim.simulate(frogsim.load_scenario(raw))
+    law = dataclasses.replace(parameter_set_law(r.model.scenario), hysteresis="maxwell-slip",
+                              slip_per_pressure=C_SLIP, slip_strain=S_SLIP / 4)
+    T_on, T_off = r.tensions(law), r.tensions()
+    k, f = element_table(law.slip_elements, law.slip_per_pressure, law.slip_strain)
+    m = r.model
+    motion = (m.mot_t, m.mot_L, m.mot_d, m.mot_n)
+    turns = length_turning_times(0, *motion)
+    assert np.sum(np.min(np.abs(turns[:, None] - r.t[None, :]), axis=1) > 1e-4) >= 8    # off the grid
+    L0 = m.mp[0, CL.M_L0]
+    p = r.muscle_pressure("hip") - r.atmospheric_pressure
+    a = np.full(k.size, 1.0 - r.lengths[0, 0] / L0)
+    expect = np.empty(r.t.size)
+    for j in range(r.t.size):
+        if j > 0:
+            for tt in np.arange(r.t[j - 1], r.t[j], 1e-5)[1:]:
+                maxwell_slip_force(1.0 - motion_length(float(tt), 0, *motion)[0] / L0, a, k, f)
+        expect[j] = hysteretic_tension(T_off[j, 0], float(p[j]), 1.0 - r.lengths[j, 0] / L0, a, k, f)
+    # the replay's own error: a reversal falls up to 10 us from a sample of it
+    np.testing.assert_allclose(T_on[:, 0], expect, rtol=0, atol=0.02 * C_SLIP * BAR)
+
+
 def test_the_pneumatic_engines_loop_does_not_change_with_the_cycling_rate():
     """A sealed hip muscle (3 bar gauge at the start, valves shut) cycled between 2 and 10 %
     contraction twice, once in 1 s and once in 4 s: its air is adiabatic, so its pressure is the

@@ -57,6 +57,29 @@ def motion_length(t, i, mot_t, mot_L, mot_d, mot_n):
     return _hermite(t, i, lo, hi, mot_t, mot_L, mot_d)
 
 
+def length_turning_times(i, mot_t, mot_L, mot_d, mot_n):
+    """Times [s] at which muscle i's length path may turn (dL/dt = 0 or a knot), sorted: every
+    knot and every root of dL/dt inside a piece (the derivative of a cubic Hermite piece is a
+    quadratic in its parameter s). A path monotone between consecutive times listed here is what a
+    rate-independent memory (the muscles' slip elements) needs to follow it exactly; listing a
+    time where the path does not turn changes nothing for such a memory."""
+    import numpy as np
+    nk = int(mot_n[i])
+    times = [float(x) for x in mot_t[i, :nk]]
+    for lo in range(nk - 1):
+        t0, t1 = float(mot_t[i, lo]), float(mot_t[i, lo + 1])
+        h = t1 - t0
+        y0, y1 = float(mot_L[i, lo]), float(mot_L[i, lo + 1])
+        d0, d1 = float(mot_d[i, lo]) * h, float(mot_d[i, lo + 1]) * h
+        # dL/ds = a s^2 + b s + c (the derivative _hermite evaluates)
+        a = 6.0 * y0 + 3.0 * d0 - 6.0 * y1 + 3.0 * d1
+        b = -6.0 * y0 - 4.0 * d0 + 6.0 * y1 - 2.0 * d1
+        roots = np.roots([a, b, d0]) if (a != 0.0 or b != 0.0) else []
+        times += [t0 + float(r.real) * h for r in np.atleast_1d(roots)
+                  if abs(r.imag) < 1e-12 and 0.0 < r.real < 1.0]
+    return np.array(sorted(times))
+
+
 @jit_step
 def _hermite(t, i, lo, hi, mot_t, mot_L, mot_d):
     """Muscle i's (L, dL/dt) on its path's piece between knots lo and hi = lo + 1."""

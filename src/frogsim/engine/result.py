@@ -219,12 +219,15 @@ class Result:
         does not act back on them).
 
         ``law``: a :class:`frogsim.robot.params.MuscleForceLaw`; default: the scenario's parameter
-        set's ``[muscle_force]``. With its hysteresis on, each muscle's slip elements start relaxed
-        at its first contraction and follow the output grid: exact (the model is rate independent)
-        when every turning point of the length lies on the grid, as it does for paths whose knots
-        are output points; between, a turning point is cut to the nearer sample.
+        set's ``[muscle_force]`` (with the scenario's own settings over it). With its hysteresis
+        on, each muscle's slip elements start relaxed at its first contraction and follow its
+        length path exactly: between two output points they are also taken through every point
+        where the path may turn (:func:`frogsim.circuit.rhs.length_turning_times`: its knots and
+        the roots of dL/dt), so a turning point between samples is not cut off (the model is rate
+        independent: only the path's turning points matter).
         """
-        from frogsim.physics.hysteresis import element_table
+        from frogsim.circuit.rhs import length_turning_times, motion_length
+        from frogsim.physics.hysteresis import element_table, maxwell_slip_force
         from frogsim.robot.params import parameter_set_law
         from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL, hysteretic_tension, muscle_force
         law = law if law is not None else parameter_set_law(self.model.scenario)
@@ -233,6 +236,7 @@ class Result:
         mp = self.model.mp
         patm = self.atmospheric_pressure
         out = np.empty((self.t.size, self.n))
+        motion = (self.model.mot_t, self.model.mot_L, self.model.mot_d, self.model.mot_n)
         elements = None if law.hysteresis == "none" else element_table(
             law.slip_elements, law.slip_per_pressure, law.slip_strain)
         for i, name in enumerate(self.names):
@@ -240,9 +244,14 @@ class Result:
             Lm = self.lengths[:, i]
             L0 = mp[i, L.M_L0]
             anchors = None if elements is None else np.full(elements[0].size, 1.0 - Lm[0] / L0)
+            turns = None if elements is None else length_turning_times(i, *motion)
             for k in range(self.t.size):
                 f = muscle_force(code, float(p[k]), float(Lm[k]), L0, mp[i, L.M_B0], mp[i, L.M_N], *bl)
                 if anchors is not None:
+                    if k > 0:
+                        for tt in turns[(turns > self.t[k - 1]) & (turns < self.t[k])]:
+                            Lt, _ = motion_length(float(tt), i, *motion)
+                            maxwell_slip_force(1.0 - Lt / L0, anchors, *elements)
                     f = hysteretic_tension(f, float(p[k]), 1.0 - float(Lm[k]) / L0, anchors, *elements)
                 out[k, i] = f
         return out
