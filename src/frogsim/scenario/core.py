@@ -174,7 +174,7 @@ def _top_changes(sc: Scenario, tree: _Tree) -> dict:
     changes = {}
     for name, value in tree.items():
         changes.update(_top_change(sc, name, value))
-    changes["raw"] = {k: sc.raw[k] for k in UNTYPED_RAW if k in sc.raw}
+    changes["raw"] = variant_raw(sc)
     return changes
 
 
@@ -182,6 +182,12 @@ def _top_changes(sc: Scenario, tree: _Tree) -> dict:
 #: variants: the force law its tensions and force-table fits use
 #: (:func:`frogsim.robot.params.parameter_set_law`)
 UNTYPED_RAW = ("muscle_force",)
+
+
+def variant_raw(sc: Scenario) -> dict:
+    """The ``raw`` of a variant of sc: its UNTYPED_RAW sections (the rest of raw describes the file
+    sc was loaded from, which a variant no longer is)."""
+    return {k: sc.raw[k] for k in UNTYPED_RAW if k in sc.raw}
 
 
 def _top_change(sc: Scenario, name: str, value) -> dict:

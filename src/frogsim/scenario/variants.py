@@ -23,7 +23,7 @@ import numpy as np
 
 from frogsim.errors import ScenarioError
 from frogsim.scenario import rules
-from frogsim.scenario.core import Scenario, _parse, _relinked, _top_change, _with
+from frogsim.scenario.core import Scenario, _parse, _relinked, _top_change, _with, variant_raw
 from frogsim.scenario.view import Settings
 
 _PLAIN = (bool, int, float, str, np.generic)
@@ -123,7 +123,7 @@ class Variants:
 
     def scenario(self, k: int) -> Scenario:
         """The Scenario of point k: equal to ``base.replace(points[k])``, field for field."""
-        return _with(self.base, raw={}, **{n: made[inv[k]] for n, (made, inv) in self.values.items()})
+        return _with(self.base, raw=variant_raw(self.base), **{n: made[inv[k]] for n, (made, inv) in self.values.items()})
 
     def each(self, names: tuple, step, deps: tuple = ()) -> tuple[list, np.ndarray]:
         """Run ``step(Settings of names, *dependencies)`` once per distinct combination of the
