@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from frogsim._jit import jit, jit_step
+from frogsim._jit import jit, jit_inline, jit_step
 
 from frogsim.circuit.layout import (
     G_A_E, G_A_S, G_BRANCH_LIMIT, G_H_E, G_H_S, G_HEAT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF,
@@ -213,13 +213,15 @@ def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
     return pm
 
 
-@jit
-def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
-    """dy/dt of the whole circuit (see the module docstring and :mod:`frogsim.circuit.layout`).
-
-    Every transfer moves mass out of one volume at that volume's temperature and into another, so
-    the sum of the mass rates is zero term by term: air is conserved to rounding.
-    """
+@jit_inline
+def _rhs_body(heat, t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
+    """The right-hand side for one setting of the heat switch, ``heat`` a constant at each call
+    (:func:`_rhs_adiabatic`, :func:`_rhs_heat`): this body is inlined there and its heat branches
+    pruned before the code is typed. The variant without heat (False) carries no heat term, test
+    or branch, the code of the right-hand side before the wall heat existed. The variant with heat
+    still tests g[G_HEAT] where the one body did (true whenever it runs): with the tests gone the
+    compiler would fuse the heat terms into the neighbouring arithmetic differently, and heat-on
+    runs would change in their last bits."""
     n = mp.shape[0]
     k = g[G_K]
     R = g[G_R]
@@ -242,7 +244,7 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     # work holds muscle temperatures [0, n), volumes [n, 2n) and volume rates [2n, 3n) (with heat on,
     # less the wall heat's equivalent (k - 1) Q / (k p): see the module docstring)
     lo = common_piece(t, mp, mot_t, mot_n)
-    if lo >= 0 and g[G_HEAT] > 0.0:
+    if lo >= 0 and heat and g[G_HEAT] > 0.0:
         # the loop below, each muscle's wall heat taken into its volume rate
         T_wall = g[G_TAMB]
         for i in range(n):
@@ -272,7 +274,7 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
             work[n + i] = V
             work[2 * n + i] = dV
             work[i] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
-            if g[G_HEAT] > 0.0:
+            if heat and g[G_HEAT] > 0.0:
                 p_i = y[pressure_index(i)]
                 Q = muscle_wall_heat(t, i, -1, work[i], g[G_TAMB], mp, mot_t, mot_L, mot_d, mot_n)
                 work[2 * n + i] = dV - heat_volume_rate(Q, p_i, k)
@@ -326,7 +328,37 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     dydt[Y_PS] = pressure_rate(p_s, V_s, 0.0, hin_s, out_s, T_s, R, k)
     dydt[Y_ME] = min_e - out_e
     dydt[Y_PE] = pressure_rate(p_e, V_e, 0.0, hin_e, out_e, T_e, R, k)
-    if g[G_HEAT] > 0.0:
+    if heat and g[G_HEAT] > 0.0:
         dydt[Y_PS] += heat_pressure_rate(wall_heat_flow(g[G_H_S], g[G_A_S], g[G_TAMB], T_s), V_s, k)
         dydt[Y_PE] += heat_pressure_rate(wall_heat_flow(g[G_H_E], g[G_A_E], g[G_TAMB], T_e), V_e, k)
     dydt[pump_index(n)] = m_pump
+
+
+@jit_step
+def _rhs_adiabatic(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
+    """:func:`rhs` with every wall adiabatic (g[G_HEAT] = 0)."""
+    _rhs_body(False, t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)
+
+
+@jit_step
+def _rhs_heat(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
+    """:func:`rhs` with the walls' heat (g[G_HEAT] = 1)."""
+    _rhs_body(True, t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)
+
+
+@jit_inline
+def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
+    """dy/dt of the whole circuit (see the module docstring and :mod:`frogsim.circuit.layout`).
+
+    Every transfer moves mass out of one volume at that volume's temperature and into another, so
+    the sum of the mass rates is zero term by term: air is conserved to rounding.
+
+    The body is compiled twice (:func:`_rhs_body`): with the heat terms when g[G_HEAT] > 0, and
+    without them (every wall adiabatic). This choice is the one test a call makes of the switch,
+    and it is inlined into the compiled callers (the integrator's steps), so the adiabatic run
+    pays one well-predicted branch per evaluation and no call more than before.
+    """
+    if g[G_HEAT] > 0.0:
+        _rhs_heat(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)
+    else:
+        _rhs_adiabatic(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)

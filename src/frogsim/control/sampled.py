@@ -27,8 +27,9 @@ evaluates the right-hand side again) and :func:`apply_due` (the queued commands 
 the coupled engine also :func:`observe_joints`, the Python drivers :func:`command_from_python`,
 the results :func:`switch_counts`.
 
-A kind's law is dispatched in :func:`sample_controllers`, one branch per kind (the one place a
-new kind is listed besides its module; Numba compiles calls to functions it can name). A law
+A kind's law is dispatched in :func:`sample_controllers` (its body :func:`_sample_table`), one
+branch per kind (the one place a new kind is listed besides its module; Numba compiles calls to
+functions it can name). A law
 returns a mode; :func:`command_valves` turns it into valve commands due one dead time later,
 kept with their due times in ``cs``; :func:`next_control_time` returns the earliest of the next
 sample and the due times, and :func:`apply_due` writes a command into u when its time has come.
@@ -39,13 +40,13 @@ import math
 
 import numpy as np
 
-from frogsim._jit import jit, jit_alloc, jit_step
+from frogsim._jit import jit, jit_alloc, jit_inline, jit_step
 from frogsim.circuit.layout import pressure_index
 from frogsim.control.kinds import bang_bang, joint_angle, pwm, sliding_mode
 from frogsim.control.signals import (  # noqa: F401  (the memory layout and signals, re-exported)
     B_A_FILT, B_A_FILT_ON, B_A_SENSED, B_ANGLE, B_CLIPS, B_CMD_C, B_CMD_D, B_FILT, B_FILT_ON, B_INT, B_MODE,
     B_OMEGA, B_PHASE, B_PULSE, B_Q0, B_QC_HEAD, B_QC_N, B_QD_HEAD, B_QD_N, B_SENSED, B_SP, B_SW_C, B_SW_D,
-    B_TARGET, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_PUMP, CS_Q, CS_SAMPLE, CS_SIZE, MODE_CHARGE,
+    B_TARGET, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_FW, CS_PUMP, CS_Q, CS_SAMPLE, CS_SIZE, MODE_CHARGE,
     MODE_HOLD, MODE_VENT, TOL, B_FW0, FW_MEM, adc_count, pump_band, sense, sense_joint, sensor_noise, setpoint)
 from frogsim.control.table import (  # noqa: F401  (the table's layout, re-exported)
     KIND_EXTERNAL, KIND_PUMP_BAND, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0, L_ADC_V0,
@@ -201,24 +202,29 @@ def next_due_time(laws, cs):
     return t
 
 
-@jit
-def sample_controllers(laws, mp, t, y, u, cs):
-    """At a stop t: write the valve commands that have come due into u; if t is the next sample,
-    take it: evaluate every law on the state y and write or queue its commands (the pump's switch
-    cs[CS_PUMP] at once, valve commands one dead time later). ``mp`` is the model's muscle rows,
-    where a law that models the valves reads their ISO 6358 constants (the table holds none).
-    True if a command changed."""
-    if laws.ndim == 1:                     # open loop (see sampled_laws): the pump's band only
-        if t < (cs[CS_SAMPLE] + 1.0) * cs[CS_DT] - TOL:
-            return False
-        cs[CS_SAMPLE] += 1.0
-        if laws.size == 0:
-            return False
-        on = pump_band(y[int(laws[L_INPUT])], cs[CS_PUMP], laws[L_LOW], laws[L_HIGH])
-        if on != cs[CS_PUMP]:
-            cs[CS_PUMP] = on
-            return True
+@jit_inline
+def _sample_pump_band(laws, t, y, cs):
+    """:func:`sample_controllers` of an open-loop run (see :func:`sampled_laws`): the pump's band
+    only (inlined into the variants, as :func:`_sample_table`)."""
+    if t < (cs[CS_SAMPLE] + 1.0) * cs[CS_DT] - TOL:
         return False
+    cs[CS_SAMPLE] += 1.0
+    if laws.size == 0:
+        return False
+    on = pump_band(y[int(laws[L_INPUT])], cs[CS_PUMP], laws[L_LOW], laws[L_HIGH])
+    if on != cs[CS_PUMP]:
+        cs[CS_PUMP] = on
+        return True
+    return False
+
+
+@jit_inline
+def _sample_table(firmware, laws, mp, t, y, u, cs):
+    """:func:`sample_controllers` of a table of laws, for one setting of the run's firmware switch,
+    ``firmware`` a constant at each call (:func:`_sample_float`, :func:`_sample_firmware`): this
+    body is inlined there and its firmware branch pruned before the code is typed. The variant
+    without firmware has no integer twin in it, not even the test of a row's L_FW: a float run's
+    sample is the code it was before the twins existed."""
     changed = apply_due(laws, t, u, cs)
     dt = cs[CS_DT]
     if t < (cs[CS_SAMPLE] + 1.0) * dt - TOL:
@@ -240,7 +246,7 @@ def sample_controllers(laws, mp, t, y, u, cs):
         valves = True
         b = _block(cs, c)
         i = int(laws[c, L_MUSCLE])
-        if laws[c, L_FW] > 0.0 and kind != KIND_EXTERNAL:
+        if firmware and laws[c, L_FW] > 0.0 and kind != KIND_EXTERNAL:
             # [firmware]: the law's integer twin on the ADC's counts (frogsim.control.fixed)
             command_valves(laws, c, cs, firmware_mode(laws, c, cs, b, y, k, ts), ts)
             continue
@@ -264,6 +270,38 @@ def sample_controllers(laws, mp, t, y, u, cs):
     if valves and apply_due(laws, t, u, cs):       # commands without dead time act at once
         changed = True
     return changed
+
+
+@jit_step
+def _sample_float(laws, mp, t, y, u, cs):
+    """:func:`sample_controllers` without integer twins (cs[CS_FW] = 0)."""
+    if laws.ndim == 1:
+        return _sample_pump_band(laws, t, y, cs)
+    return _sample_table(False, laws, mp, t, y, u, cs)
+
+
+@jit_step
+def _sample_firmware(laws, mp, t, y, u, cs):
+    """:func:`sample_controllers` with each firmware row's integer twin (cs[CS_FW] = 1)."""
+    if laws.ndim == 1:
+        return _sample_pump_band(laws, t, y, cs)
+    return _sample_table(True, laws, mp, t, y, u, cs)
+
+
+@jit_inline
+def sample_controllers(laws, mp, t, y, u, cs):
+    """At a stop t: write the valve commands that have come due into u; if t is the next sample,
+    take it: evaluate every law on the state y and write or queue its commands (the pump's switch
+    cs[CS_PUMP] at once, valve commands one dead time later). ``mp`` is the model's muscle rows,
+    where a law that models the valves reads their ISO 6358 constants (the table holds none).
+    True if a command changed.
+
+    A run whose table has a firmware block (cs[CS_FW] = 1, set by :func:`start_controllers`)
+    samples with the body that runs a row's integer twin where it has one; any other with the
+    body without them (:func:`_sample_table`). The choice is inlined into the compiled callers."""
+    if cs[CS_FW] > 0.0:
+        return _sample_firmware(laws, mp, t, y, u, cs)
+    return _sample_float(laws, mp, t, y, u, cs)
 
 
 @jit
@@ -315,9 +353,10 @@ def firmware_mode(laws, c, cs, b, y, k, ts):
 
 @jit_alloc
 def start_controllers(laws, mp, t0, y, u, ctrl_dt):
-    """Controller state at the start of a run at t0: pump stopped, valves under control shut, then
-    the sample at or just before t0 taken (its commands hold from t0 on, or a dead time later);
-    ``mp`` as :func:`sample_controllers` takes it."""
+    """Controller state at the start of a run at t0: pump stopped, valves under control shut, the
+    firmware switch cs[CS_FW] on when some row of the table has a firmware block, then the sample
+    at or just before t0 taken (its commands hold from t0 on, or a dead time later); ``mp`` as
+    :func:`sample_controllers` takes it."""
     if laws.ndim == 1:                     # open loop: no valve laws, no command queue
         cs = np.zeros(CS_SIZE)
         cs[CS_DT] = ctrl_dt
@@ -334,6 +373,9 @@ def start_controllers(laws, mp, t0, y, u, ctrl_dt):
     cs[CS_DT] = ctrl_dt
     cs[CS_BLOCK] = block
     cs[CS_Q] = Q
+    for c in range(laws.shape[0]):
+        if laws[c, L_FW] > 0.0:
+            cs[CS_FW] = 1.0
     cs[CS_SAMPLE] = math.floor(t0 / ctrl_dt + 1e-9) - 1.0
     sample_controllers(laws, mp, t0, y, u, cs)
     return cs

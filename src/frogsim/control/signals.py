@@ -27,7 +27,8 @@ CS_PUMP = 1      # the pump's switch: 1 running, 0 stopped
 CS_DT = 2        # the controller period [s]
 CS_BLOCK = 3     # length of each law's block of memory
 CS_Q = 4         # capacity of each valve's queue of pending commands
-CS_SIZE = 5      # law c's block starts at CS_SIZE + c * cs[CS_BLOCK]
+CS_FW = 5        # 1 if some row of the table has a firmware block (its integer twin runs), else 0
+CS_SIZE = 6      # law c's block starts at CS_SIZE + c * cs[CS_BLOCK]
 # a valve law's block (offsets)
 B_MODE = 0       # the mode last commanded (MODE_*)
 B_CMD_C = 1      # the charge valve's last commanded state (queued or applied)

@@ -15,21 +15,27 @@ import dataclasses
 
 class Settings:
     """Read-only access to the top-level settings ``names`` of a scenario (or of a variant given as
-    a dict of its top-level values)."""
+    a dict of its top-level values).
 
-    __slots__ = ("_values", "_names", "_owner")
+    The declared settings are copied into the instance's attributes when it is made, so reading
+    one is a plain attribute read (a model's build reads about thirty); only a name not declared
+    reaches :meth:`__getattr__`, which refuses it."""
 
     def __init__(self, values: dict, names: tuple, owner: type):
-        self._values = values
-        self._names = names
-        self._owner = owner          # the scenario's class (its fields' metadata)
+        d = self.__dict__
+        for name in names:
+            d[name] = values[name]
+        d["_names"] = names
+        d["_owner"] = owner          # the scenario's class (its fields' metadata)
 
     def meta(self, name: str) -> dict:
         """The field metadata (kind, bounds, display unit) of top-level setting ``name``."""
         return next(f.metadata for f in dataclasses.fields(self._owner) if f.name == name)
 
     def __getattr__(self, name):
-        if name in self._names:
-            return self._values[name]
+        # only names that are not attributes come here: those the step did not declare
         raise AttributeError(f"{name!r} is not among the settings this step declares it reads "
                              f"({', '.join(self._names)}); add it to the declaration")
+
+    def __setattr__(self, name, value):
+        raise AttributeError(f"{name!r}: a step's settings are read-only")
