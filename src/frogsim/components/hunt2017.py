@@ -64,8 +64,10 @@ def pressure(contraction: float, tension: float, branch: str) -> float:
 
 def tension(p_gauge: float, contraction: float, branch: str) -> float:
     """The tension [N] (H) gives at gauge pressure ``p_gauge`` [Pa] and ``contraction`` [-], or NaN
-    where the muscle cannot pull at all (it would contract further on its own: no tension >= 0
-    balances the pressure).
+    where no tension in (H)'s domain balances the pressure: the muscle cannot pull at all (it
+    would contract further on its own), or the tension would pass the domain's top (where
+    c4 F + eps_max or the tangent's argument reaches its limit, about 500 N near rest length: 614
+    kPa at 0 %, just below the 620 kPa the model was fitted to).
 
     (H) rises with the tension on 0 <= F < eps_max / |c4| (the tangent's argument grows with F and
     c5 > 0), so the root is bracketed and unique there; it is found with scipy's brentq.
