@@ -45,10 +45,10 @@ def test_tension_inverts_the_published_pressure(p, eps, branch):
     else:
         # no tension in the model's domain balances p: with no load the muscle needs more pressure
         # than p to sit here, or p lies beyond the pressure at the domain's top tension
-        top = h.EPS_MAX / -h.C4 * (1.0 - 1e-9)
-        arg_top = ((eps / ((math.pi / 2.0) / h.C2 - h.C3) - h.EPS_MAX) / h.C4 * (1.0 - 1e-9)
-                   if eps > 0.0 else top)
-        top = min(top, arg_top) if arg_top > 0.0 else top
+        top = h.tension_top(eps)
+        # the domain's top: (H)'s denominator still positive, its tangent's argument below pi/2
+        assert h.C4 * top + h.EPS_MAX > 0.0
+        assert h.C2 * (eps / (h.C4 * top + h.EPS_MAX) + h.C3) < math.pi / 2.0
         assert h.pressure(eps, 0.0, branch) > p or h.pressure(eps, top, branch) < p
 
 
@@ -72,21 +72,10 @@ def fitted():
 
 def _loop_heights(res):
     """Per table row present on both branches: (pressure, contraction, published height, fitted
-    height) [Pa, -, N, N], heights loading less unloading."""
-    ft = res.spec.force_tables[0]
-    point = res.force_curves[0]["point_after"]
-    tab = ft.table
-    out = []
-    for p in tab.pressures():
-        at = tab.pressure == p
-        shared = sorted(set(tab.contraction[at & (tab.direction < 0)]) & set(tab.contraction[at & (tab.direction > 0)]))
-        e = np.array(shared)
-        pp = np.full(e.size, p)
-        model = (ft.model.forces(point, pp, e, np.full(e.size, -1))
-                 - ft.model.forces(point, pp, e, np.full(e.size, 1)))
-        published = np.array([h.loop_width(p, x) for x in e])
-        out += [(p, x, a, b) for x, a, b in zip(e, published, model)]
-    return np.array(out)
+    height) [Pa, -, N, N], heights loading less unloading (the study's row-by-row comparison)."""
+    from frogsim.studies.hysteresis import loop_heights
+    return np.array([(r["pressure_bar_gauge"] * BAR, e, a, b) for r in loop_heights(res)
+                     for e, a, b in zip(r["contraction"], r["published_height_N"], r["fitted_height_N"])])
 
 
 def test_the_fit_finds_the_published_loop_on_average(fitted):

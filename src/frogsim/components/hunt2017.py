@@ -62,6 +62,15 @@ def pressure(contraction: float, tension: float, branch: str) -> float:
     return C0 + C1 * math.tan(arg) + C5 * tension + C6 * BRANCH_S[branch]
 
 
+def tension_top(contraction: float) -> float:
+    """The top of (H)'s tension domain [N] at ``contraction`` [-]: just below where c4 F + eps_max
+    reaches 0 or the tangent's argument pi/2 (whichever comes first)."""
+    f_top = EPS_MAX / -C4 * (1.0 - 1e-9)          # c4 F + eps_max > 0
+    arg_limit = (math.pi / 2.0) / C2 - C3        # eps / (c4 F + eps_max) below it
+    f_arg = (contraction / arg_limit - EPS_MAX) / C4 if contraction > 0.0 else f_top
+    return min(f_top, f_arg * (1.0 - 1e-9)) if f_arg > 0.0 else f_top
+
+
 def tension(p_gauge: float, contraction: float, branch: str) -> float:
     """The tension [N] (H) gives at gauge pressure ``p_gauge`` [Pa] and ``contraction`` [-], or NaN
     where no tension in (H)'s domain balances the pressure: the muscle cannot pull at all (it
@@ -73,11 +82,7 @@ def tension(p_gauge: float, contraction: float, branch: str) -> float:
     c5 > 0), so the root is bracketed and unique there; it is found with scipy's brentq.
     """
     from scipy.optimize import brentq
-    f_top = EPS_MAX / -C4 * (1.0 - 1e-9)          # c4 F + eps_max > 0
-    # the tangent's argument must stay below pi/2 on the bracket
-    arg_limit = (math.pi / 2.0) / C2 - C3
-    f_arg = (contraction / arg_limit - EPS_MAX) / C4 if contraction > 0.0 else f_top
-    hi = min(f_top, f_arg * (1.0 - 1e-9)) if f_arg > 0.0 else f_top
+    hi = tension_top(contraction)
 
     def gap(f):
         return pressure(contraction, f, branch) - p_gauge

@@ -60,18 +60,15 @@ def runs() -> list[tuple[str, str, float, dict]]:
     return out
 
 
-def published_loop() -> dict:
-    """The force-table fit against Hunt et al.'s loop (the files of examples/fit/hysteresis, written
-    afresh by :func:`frogsim.components.hunt2017.write_example`), row by row: per pressure the rows
-    on both branches with the published and the fitted loop height [N], and the fit's values."""
+def loop_heights(res) -> list[dict]:
+    """Per pressure of a fit's force table against Hunt et al.'s loop: the contractions [-] present
+    on both branches, and there the published and the fitted loop height [N] (loading less
+    unloading tension; the fitted one from the fit's model at its fitted point)."""
     from frogsim.components import hunt2017
-    from frogsim.fit import fit
-    with tempfile.TemporaryDirectory() as folder:
-        res = fit(hunt2017.write_example(folder))
     ft = res.spec.force_tables[0]
     point = res.force_curves[0]["point_after"]
     tab = ft.table
-    per_pressure, published_all, fitted_all = [], [], []
+    out = []
     for p in tab.pressures():
         at = tab.pressure == p
         e = np.array(sorted(set(tab.contraction[at & (tab.direction < 0)])
@@ -79,13 +76,25 @@ def published_loop() -> dict:
         pp = np.full(e.size, p)
         fitted = ft.model.forces(point, pp, e, np.full(e.size, -1)) - ft.model.forces(point, pp, e, np.full(e.size, 1))
         published = np.array([hunt2017.loop_width(p, x) for x in e])
-        per_pressure.append({"pressure_bar_gauge": p / BAR, "contraction": e.tolist(),
-                             "published_height_N": published.tolist(), "fitted_height_N": fitted.tolist()})
-        published_all += published.tolist()
-        fitted_all += fitted.tolist()
+        out.append({"pressure_bar_gauge": p / BAR, "contraction": e.tolist(),
+                    "published_height_N": published.tolist(), "fitted_height_N": fitted.tolist()})
+    return out
+
+
+def published_loop() -> dict:
+    """The force-table fit against Hunt et al.'s loop (the files of examples/fit/hysteresis, written
+    afresh by :func:`frogsim.components.hunt2017.write_example`), row by row
+    (:func:`loop_heights`), and the fit's values."""
+    from frogsim.components import hunt2017
+    from frogsim.fit import fit
+    with tempfile.TemporaryDirectory() as folder:
+        res = fit(hunt2017.write_example(folder))
+    tab = res.spec.force_tables[0].table
+    per_pressure = loop_heights(res)
+    published_all = np.concatenate([r["published_height_N"] for r in per_pressure])
+    fitted_all = np.concatenate([r["fitted_height_N"] for r in per_pressure])
     j = [prm.path for prm in res.spec.parameters].index("muscle_force.slip_per_pressure")
     err = res.force_curves[0]["after"] - tab.force
-    published_all, fitted_all = np.array(published_all), np.array(fitted_all)
     return {"source": "Hunt, Szczecinski and Quinn 2017, Front. Neurorobot. 11:18 (FESTO 10 mm muscle)",
             "fit": "frogsim fit examples/fit/hysteresis/FIT.toml",
             "slip_per_pressure_N_per_bar": res.values[j] * BAR,
@@ -121,7 +130,8 @@ def setpoint_loop(t, sp, th, period: float) -> dict:
           group="control", cost=2.5)
 def hysteresis() -> StudyData:
     frames, results = [], {}
-    for key, label, slip, law in runs():
+    cases = runs()
+    for key, label, slip, law in cases:
         results[key] = {}
         for exp, e in EXPERIMENTS.items():
             r = swim(scenario(exp, CO_CONTRACTION_BAR, law, name="hysteresis"))
@@ -141,7 +151,7 @@ def hysteresis() -> StudyData:
             i_ext = r.muscle_names.index("hip_left")
             frames.append(pd.DataFrame({SLIP: slip * CO_CONTRACTION_BAR, "experiment": exp, TIME: r.t, SETPOINT: sp,
                                         ANGLE: th, EXTENSOR_TENSION: r.tensions[:, i_ext]}))
-    labels = {key: label for key, label, _, _ in runs()}
+    labels = {key: label for key, label, _, _ in cases}
     loop = published_loop()
 
     def line(k, x, exp):
