@@ -270,14 +270,6 @@ def test_fit_recovers_h_within_its_interval_in_at_least_17_of_20_seeds(heat_rig)
     assert np.max(np.abs(errors)) < 0.1
 
 
-def test_the_wall_heat_as_a_volume_rate_is_the_same_term():
-    # Eq. (**): V dp/dt = ... - k p dV/dt + (k - 1) Q; the volume rate (k - 1) Q/(k p) taken off
-    # dV/dt adds exactly (k - 1) Q
-    from frogsim.physics.heat import heat_volume_rate
-    for Q, p in ((-3.7, 7e5), (2.1, 0.4e5), (0.0, 1e5)):
-        assert -K_AIR * p * -heat_volume_rate(Q, p, K_AIR) == pytest.approx((K_AIR - 1.0) * Q, rel=1e-14, abs=0.0)
-
-
 def test_a_parameter_set_extends_only_a_shipped_one(tmp_path):
     from frogsim.errors import ScenarioError
     from frogsim.scenario.load import load_parameter_set

@@ -72,16 +72,6 @@ def jit(func):
     return njit(_nrt=False, **_OPTIONS)(func)
 
 
-def jit_inline(func):
-    """:func:`jit`, and inlined into every compiled caller (Numba's ``inline="always"``: its
-    Numba IR is copied into the caller's before typing). For a small dispatch in front of compiled
-    variants (:func:`frogsim.circuit.rhs.rhs`), or a variant compiled into its dispatch
-    (:func:`frogsim.control.sampled.sample_controllers`): a call with a dozen array arguments
-    passes each array's shape, strides and data separately, which a second call in a row would
-    pay again. Python calls it as any :func:`jit` function."""
-    return njit(_nrt=False, inline="always", **_OPTIONS)(func)
-
-
 class _CompiledCallersOnly(CPUDispatcher):
     """A dispatcher compiled without the wrapper that lets Python call it (see :func:`jit_step`):
     calling it from Python raises instead of jumping to the missing wrapper."""

@@ -4,24 +4,22 @@
 the valve states (u[2i] charge, u[2i+1] discharge of muscle i, 1 = open), constant over the call's
 segment; muscle lengths come from the motion tables (cubic Hermite knots, see
 :func:`motion_length`). ``aux`` receives per-muscle charge and discharge mass flows [kg/s] (2n) and
-the pump flow (last entry) for diagnostics; ``work`` is scratch space of length 3n (no allocation
+the pump flow (last entry) for diagnostics; ``work`` is scratch space of length 4n (no allocation
 in the hot loop).
 
 Each volume whose heat transfer coefficient is positive (mp[i, M_H], g[G_H_S], g[G_H_E]) takes the
 wall heat Q = h A (T_wall - T) into its energy balance (Eq. (**) of :mod:`frogsim.physics.heat`),
-the wall at the ambient temperature. Without any (g[G_HEAT] = 0: every h = 0) no heat term is
-computed or added, so dp/dt is the same numbers as without the term. With heat on, the volume loop,
-which has each muscle's length at hand, takes a muscle's wall heat into its volume rate: in Eq. (**)
-(k - 1) Q enters V dp/dt as -k p dV/dt does, so the flow loop's pressure rate with the volume rate
-dV/dt - (k - 1) Q / (k p) (:func:`frogsim.physics.heat.heat_volume_rate`) is the rate with the wall
-heat.
+the wall at the ambient temperature. The heat's share of dp/dt, (k - 1) Q / V, is a term added to
+the adiabatic rate, so :func:`rhs` computes the adiabatic circuit and, when some volume has heat
+transfer (g[G_HEAT] > 0), adds the walls' shares at its end. Without any (every h = 0) no heat term
+is computed or added: dp/dt is the same numbers as without the term.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from frogsim._jit import jit, jit_inline, jit_step
+from frogsim._jit import jit, jit_step
 
 from frogsim.circuit.layout import (
     G_A_E, G_A_S, G_BRANCH_LIMIT, G_H_E, G_H_S, G_HEAT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF,
@@ -31,7 +29,7 @@ from frogsim.circuit.layout import (
 )
 from frogsim.physics.flow import iso6358_mass_flow, pump_mass_flow
 from frogsim.physics.gas import pressure_rate
-from frogsim.physics.heat import heat_pressure_rate, heat_volume_rate, muscle_wall_area, wall_heat_flow
+from frogsim.physics.heat import heat_pressure_rate, muscle_wall_area, wall_heat_flow
 from frogsim.physics.muscle import muscle_volume, muscle_volume_slope
 
 
@@ -128,28 +126,14 @@ def common_piece(t, mp, mot_t, mot_n):
 
 @jit
 def muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n):
-    """Total volume V [m^3] (Eq. (5) plus dead volume, or the fixed volume) and dV/dt [m^3/s]."""
+    """Total volume V [m^3] (Eq. (5) plus dead volume, or the fixed volume), dV/dt [m^3/s] and the
+    length L [m] (a muscle of fixed volume: its one knot's length, the rest length)."""
     if mp[i, M_FIXEDV] > 0.0:
-        return mp[i, M_FIXEDV], 0.0
+        return mp[i, M_FIXEDV], 0.0, mot_L[i, 0]
     L, dL = motion_length(t, i, mot_t, mot_L, mot_d, mot_n)
     b0 = mp[i, M_B0]
     nt = mp[i, M_N]
-    return muscle_volume(L, b0, nt) + mp[i, M_DEAD], muscle_volume_slope(L, b0, nt) * dL
-
-
-@jit_step
-def muscle_wall_heat(t, i, lo, T, T_wall, mp, mot_t, mot_L, mot_d, mot_n):
-    """Heat flow from muscle i's wall (at T_wall [K]) into its air (at T [K])  [W]: h A (T_wall - T)
-    with A the braid cylinder's mantle at the muscle's length (:func:`muscle_wall_area`; lo: the
-    common knot piece of :func:`common_piece`, or -1). A muscle of fixed volume keeps the area at
-    its one knot's length (the rest length)."""
-    if mp[i, M_FIXEDV] > 0.0:
-        L = mot_L[i, 0]
-    elif lo >= 0:
-        L = _hermite(t, i, lo, lo + 1, mot_t, mot_L, mot_d)[0]
-    else:
-        L = motion_length(t, i, mot_t, mot_L, mot_d, mot_n)[0]
-    return wall_heat_flow(mp[i, M_H], muscle_wall_area(L, mp[i, M_B0], mp[i, M_N]), T_wall, T)
+    return muscle_volume(L, b0, nt) + mp[i, M_DEAD], muscle_volume_slope(L, b0, nt) * dL, L
 
 
 @jit_step
@@ -213,15 +197,17 @@ def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
     return pm
 
 
-@jit_inline
-def _rhs_body(heat, t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
-    """The right-hand side for one setting of the heat switch, ``heat`` a constant at each call
-    (:func:`_rhs_adiabatic`, :func:`_rhs_heat`): this body is inlined there and its heat branches
-    pruned before the code is typed. The variant without heat (False) carries no heat term, test
-    or branch, the code of the right-hand side before the wall heat existed. The variant with heat
-    still tests g[G_HEAT] where the one body did (true whenever it runs): with the tests gone the
-    compiler would fuse the heat terms into the neighbouring arithmetic differently, and heat-on
-    runs would change in their last bits."""
+@jit
+def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
+    """dy/dt of the whole circuit (see the module docstring and :mod:`frogsim.circuit.layout`).
+
+    Every transfer moves mass out of one volume at that volume's temperature and into another, so
+    the sum of the mass rates is zero term by term: air is conserved to rounding.
+
+    The walls' heat is added at the end, behind one test of g[G_HEAT] (see the module docstring):
+    an adiabatic run pays that one well-predicted branch per evaluation, and the body is compiled
+    once.
+    """
     n = mp.shape[0]
     k = g[G_K]
     R = g[G_R]
@@ -241,24 +227,10 @@ def _rhs_body(heat, t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, a
     hin_e = 0.0
     out_e = 0.0
     mode = int(g[G_SUPPLY_MODE])
-    # work holds muscle temperatures [0, n), volumes [n, 2n) and volume rates [2n, 3n) (with heat on,
-    # less the wall heat's equivalent (k - 1) Q / (k p): see the module docstring)
+    # work holds muscle temperatures [0, n), volumes [n, 2n), volume rates [2n, 3n) and lengths
+    # [3n, 4n) (the last for the wall heat)
     lo = common_piece(t, mp, mot_t, mot_n)
-    if lo >= 0 and heat and g[G_HEAT] > 0.0:
-        # the loop below, each muscle's wall heat taken into its volume rate
-        T_wall = g[G_TAMB]
-        for i in range(n):
-            L, dL = _hermite(t, i, lo, lo + 1, mot_t, mot_L, mot_d)
-            b0 = mp[i, M_B0]
-            nt = mp[i, M_N]
-            p_i = y[pressure_index(i)]
-            V = muscle_volume(L, b0, nt) + mp[i, M_DEAD]
-            T = p_i * V / (y[mass_index(i)] * R)
-            Q = wall_heat_flow(mp[i, M_H], muscle_wall_area(L, b0, nt), T_wall, T)
-            work[i] = T
-            work[n + i] = V
-            work[2 * n + i] = muscle_volume_slope(L, b0, nt) * dL - heat_volume_rate(Q, p_i, k)
-    elif lo >= 0:
+    if lo >= 0:
         # the same numbers as the loop below (motion_length's piece, muscle_volume_state's sums)
         for i in range(n):
             L, dL = _hermite(t, i, lo, lo + 1, mot_t, mot_L, mot_d)
@@ -267,17 +239,15 @@ def _rhs_body(heat, t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, a
             V = muscle_volume(L, b0, nt) + mp[i, M_DEAD]
             work[n + i] = V
             work[2 * n + i] = muscle_volume_slope(L, b0, nt) * dL
+            work[3 * n + i] = L
             work[i] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
     else:
         for i in range(n):
-            V, dV = muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n)
+            V, dV, L = muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n)
             work[n + i] = V
             work[2 * n + i] = dV
+            work[3 * n + i] = L
             work[i] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
-            if heat and g[G_HEAT] > 0.0:
-                p_i = y[pressure_index(i)]
-                Q = muscle_wall_heat(t, i, -1, work[i], g[G_TAMB], mp, mot_t, mot_L, mot_d, mot_n)
-                work[2 * n + i] = dV - heat_volume_rate(Q, p_i, k)
     p_up = p_s
     if mode == SUPPLY_PHYSICAL:
         p_up = manifold_pressure(p_s, T_s, y, u, g, mp, n, work)
@@ -328,37 +298,15 @@ def _rhs_body(heat, t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, a
     dydt[Y_PS] = pressure_rate(p_s, V_s, 0.0, hin_s, out_s, T_s, R, k)
     dydt[Y_ME] = min_e - out_e
     dydt[Y_PE] = pressure_rate(p_e, V_e, 0.0, hin_e, out_e, T_e, R, k)
-    if heat and g[G_HEAT] > 0.0:
-        dydt[Y_PS] += heat_pressure_rate(wall_heat_flow(g[G_H_S], g[G_A_S], g[G_TAMB], T_s), V_s, k)
-        dydt[Y_PE] += heat_pressure_rate(wall_heat_flow(g[G_H_E], g[G_A_E], g[G_TAMB], T_e), V_e, k)
     dydt[pump_index(n)] = m_pump
-
-
-@jit_step
-def _rhs_adiabatic(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
-    """:func:`rhs` with every wall adiabatic (g[G_HEAT] = 0)."""
-    _rhs_body(False, t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)
-
-
-@jit_step
-def _rhs_heat(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
-    """:func:`rhs` with the walls' heat (g[G_HEAT] = 1)."""
-    _rhs_body(True, t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)
-
-
-@jit_inline
-def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
-    """dy/dt of the whole circuit (see the module docstring and :mod:`frogsim.circuit.layout`).
-
-    Every transfer moves mass out of one volume at that volume's temperature and into another, so
-    the sum of the mass rates is zero term by term: air is conserved to rounding.
-
-    The body is compiled twice (:func:`_rhs_body`): with the heat terms when g[G_HEAT] > 0, and
-    without them (every wall adiabatic). This choice is the one test a call makes of the switch,
-    and it is inlined into the compiled callers (the integrator's steps), so the adiabatic run
-    pays one well-predicted branch per evaluation and no call more than before.
-    """
     if g[G_HEAT] > 0.0:
-        _rhs_heat(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)
-    else:
-        _rhs_adiabatic(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)
+        # the walls' heat, (k - 1) Q / V on each volume's pressure rate (Eq. (**)); Q = h A (T_wall - T)
+        # with a muscle's A the braid cylinder's mantle at its length (work[3n + i]; a muscle of fixed
+        # volume keeps its one knot's length, the rest length); h = 0 gives Q = 0
+        T_wall = g[G_TAMB]
+        for i in range(n):
+            Q = wall_heat_flow(mp[i, M_H], muscle_wall_area(work[3 * n + i], mp[i, M_B0], mp[i, M_N]), T_wall,
+                               work[i])
+            dydt[pressure_index(i)] += heat_pressure_rate(Q, work[n + i], k)
+        dydt[Y_PS] += heat_pressure_rate(wall_heat_flow(g[G_H_S], g[G_A_S], T_wall, T_s), V_s, k)
+        dydt[Y_PE] += heat_pressure_rate(wall_heat_flow(g[G_H_E], g[G_A_E], T_wall, T_e), V_e, k)

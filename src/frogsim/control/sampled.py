@@ -27,8 +27,7 @@ evaluates the right-hand side again) and :func:`apply_due` (the queued commands 
 the coupled engine also :func:`observe_joints`, the Python drivers :func:`command_from_python`,
 the results :func:`switch_counts`.
 
-A kind's law is dispatched in :func:`sample_controllers` (its body :func:`_sample_table`), one
-branch per kind (the one place a new kind is listed besides its module; Numba compiles calls to
+A kind's law is dispatched in :func:`sample_controllers`, one branch per kind (the one place a new kind is listed besides its module; Numba compiles calls to
 functions it can name). A law
 returns a mode; :func:`command_valves` turns it into valve commands due one dead time later,
 kept with their due times in ``cs``; :func:`next_control_time` returns the earliest of the next
@@ -40,7 +39,7 @@ import math
 
 import numpy as np
 
-from frogsim._jit import jit, jit_alloc, jit_inline, jit_step
+from frogsim._jit import jit, jit_alloc, jit_step
 from frogsim.circuit.layout import pressure_index
 from frogsim.control.kinds import bang_bang, joint_angle, pwm, sliding_mode
 from frogsim.control.signals import (  # noqa: F401  (the memory layout and signals, re-exported)
@@ -202,29 +201,28 @@ def next_due_time(laws, cs):
     return t
 
 
-@jit_inline
-def _sample_pump_band(laws, t, y, cs):
-    """:func:`sample_controllers` of an open-loop run (see :func:`sampled_laws`): the pump's band
-    only (inlined into the variants, as :func:`_sample_table`)."""
-    if t < (cs[CS_SAMPLE] + 1.0) * cs[CS_DT] - TOL:
-        return False
-    cs[CS_SAMPLE] += 1.0
-    if laws.size == 0:
-        return False
-    on = pump_band(y[int(laws[L_INPUT])], cs[CS_PUMP], laws[L_LOW], laws[L_HIGH])
-    if on != cs[CS_PUMP]:
-        cs[CS_PUMP] = on
-        return True
-    return False
+@jit
+def sample_controllers(laws, mp, t, y, u, cs):
+    """At a stop t: write the valve commands that have come due into u; if t is the next sample,
+    take it: evaluate every law on the state y and write or queue its commands (the pump's switch
+    cs[CS_PUMP] at once, valve commands one dead time later). ``mp`` is the model's muscle rows,
+    where a law that models the valves reads their ISO 6358 constants (the table holds none).
+    True if a command changed.
 
-
-@jit_inline
-def _sample_table(firmware, laws, mp, t, y, u, cs):
-    """:func:`sample_controllers` of a table of laws, for one setting of the run's firmware switch,
-    ``firmware`` a constant at each call (:func:`_sample_float`, :func:`_sample_firmware`): this
-    body is inlined there and its firmware branch pruned before the code is typed. The variant
-    without firmware has no integer twin in it, not even the test of a row's L_FW: a float run's
-    sample is the code it was before the twins existed."""
+    A row with a firmware block runs its law's integer twin (:func:`firmware_mode`) only in a run
+    whose firmware switch cs[CS_FW] is on (set by :func:`start_controllers`): a float run tests
+    the switch once a sample, not each row's L_FW."""
+    if laws.ndim == 1:                     # open loop (see sampled_laws): the pump's band only
+        if t < (cs[CS_SAMPLE] + 1.0) * cs[CS_DT] - TOL:
+            return False
+        cs[CS_SAMPLE] += 1.0
+        if laws.size == 0:
+            return False
+        on = pump_band(y[int(laws[L_INPUT])], cs[CS_PUMP], laws[L_LOW], laws[L_HIGH])
+        if on != cs[CS_PUMP]:
+            cs[CS_PUMP] = on
+            return True
+        return False
     changed = apply_due(laws, t, u, cs)
     dt = cs[CS_DT]
     if t < (cs[CS_SAMPLE] + 1.0) * dt - TOL:
@@ -232,6 +230,7 @@ def _sample_table(firmware, laws, mp, t, y, u, cs):
     cs[CS_SAMPLE] += 1.0
     k = int(cs[CS_SAMPLE])
     ts = cs[CS_SAMPLE] * dt
+    firmware = cs[CS_FW] > 0.0
     valves = False
     for c in range(laws.shape[0]):
         kind = laws[c, L_KIND]
@@ -270,38 +269,6 @@ def _sample_table(firmware, laws, mp, t, y, u, cs):
     if valves and apply_due(laws, t, u, cs):       # commands without dead time act at once
         changed = True
     return changed
-
-
-@jit_step
-def _sample_float(laws, mp, t, y, u, cs):
-    """:func:`sample_controllers` without integer twins (cs[CS_FW] = 0)."""
-    if laws.ndim == 1:
-        return _sample_pump_band(laws, t, y, cs)
-    return _sample_table(False, laws, mp, t, y, u, cs)
-
-
-@jit_step
-def _sample_firmware(laws, mp, t, y, u, cs):
-    """:func:`sample_controllers` with each firmware row's integer twin (cs[CS_FW] = 1)."""
-    if laws.ndim == 1:
-        return _sample_pump_band(laws, t, y, cs)
-    return _sample_table(True, laws, mp, t, y, u, cs)
-
-
-@jit_inline
-def sample_controllers(laws, mp, t, y, u, cs):
-    """At a stop t: write the valve commands that have come due into u; if t is the next sample,
-    take it: evaluate every law on the state y and write or queue its commands (the pump's switch
-    cs[CS_PUMP] at once, valve commands one dead time later). ``mp`` is the model's muscle rows,
-    where a law that models the valves reads their ISO 6358 constants (the table holds none).
-    True if a command changed.
-
-    A run whose table has a firmware block (cs[CS_FW] = 1, set by :func:`start_controllers`)
-    samples with the body that runs a row's integer twin where it has one; any other with the
-    body without them (:func:`_sample_table`). The choice is inlined into the compiled callers."""
-    if cs[CS_FW] > 0.0:
-        return _sample_firmware(laws, mp, t, y, u, cs)
-    return _sample_float(laws, mp, t, y, u, cs)
 
 
 @jit

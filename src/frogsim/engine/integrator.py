@@ -238,10 +238,10 @@ def ds_size(ny):
 def _scratch_size(ny):
     """Entries of advance's scratch space for a state of ny entries: 22 stage vectors, the
     Rosenbrock matrix (ny x ny), the previous valve states (2n) and the right-hand side's aux
-    (2n + 1) and work (3n) vectors, n the muscles of a state of ny entries
+    (2n + 1) and work (4n) vectors, n the muscles of a state of ny entries
     (:func:`frogsim.circuit.layout.muscle_count`)."""
     n = muscle_count(ny)
-    return 22 * ny + ny * ny + 2 * n + 5 * n + 1
+    return 22 * ny + ny * ny + 2 * n + 6 * n + 1
 
 
 @jit_step
@@ -561,7 +561,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     o = 22 * ny + ny * ny
     u_prev = scratch[o:o + nu]
     aux = scratch[o + nu:o + nu + 2 * n + 1]
-    work = scratch[o + nu + 2 * n + 1:o + nu + 5 * n + 1]
+    work = scratch[o + nu + 2 * n + 1:o + nu + 6 * n + 1]
     nphys = physical_size(n)
     t = ds[D_T]
     h = ds[D_H]

@@ -191,7 +191,7 @@ class Result:
         V = np.empty((nt, n))
         Lm = np.empty((nt, n))
         dydt = np.empty(self.y.shape[1])
-        work = np.zeros(3 * n + 1)
+        work = np.zeros(4 * n + 1)
         args = (m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n)
         for k in range(nt):
             u = np.ascontiguousarray(self.u[k, :2 * n])

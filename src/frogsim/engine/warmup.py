@@ -44,7 +44,7 @@ def _one_muscle():
     n = 1
     ny = L.state_size(n)
     a = {"ny": ny, "y": np.ones(ny), "f": np.zeros(ny), "u": np.zeros(2 * n), "aux": np.zeros(2 * n + 1),
-         "work": np.zeros(3 * n), "atol": np.ones(ny), "stats": np.zeros(I.STATS_SIZE, np.int64),
+         "work": np.zeros(4 * n), "atol": np.ones(ny), "stats": np.zeros(I.STATS_SIZE, np.int64),
          "model": (np.ones(L.G_SIZE), np.zeros((n, L.M_SIZE)), np.zeros((n, 1)), np.ones((n, 1)),
                    np.zeros((n, 1)), np.ones(n, np.int64)),
          # an open-loop run's commands: (sched_t, sched_u, laws, ctrl_dt), laws the pump's row

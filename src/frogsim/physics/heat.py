@@ -50,17 +50,6 @@ def heat_pressure_rate(Q: float, V: float, k: float) -> float:
 
 
 @jit
-def heat_volume_rate(Q: float, p: float, k: float) -> float:
-    """The volume rate whose work term in Eq. (**) equals the wall heat's: (k - 1) Q / (k p)
-    [m^3/s], since (k - 1) Q = -k p dV/dt for dV/dt = -(k - 1) Q / (k p). A volume rate less this
-    carries the wall heat into a pressure rate written without it.
-
-    Args: Q heat flow into the air [W]; p pressure [Pa abs]; k heat capacity ratio [-].
-    """
-    return (k - 1.0) * Q / (k * p)
-
-
-@jit
 def muscle_wall_area(L: float, b0: float, n: float) -> float:
     """Inner wall area of the braided cylinder, A = pi D L with D = sqrt(b0^2 - L^2)/(n pi)  [m^2].
 
