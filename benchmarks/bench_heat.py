@@ -3,7 +3,8 @@ each with the parameter set "fan2017-heat" and with fan2017, in one run.
 
 Run:  python benchmarks/bench_heat.py [--rounds 5] [--instructions]
 
-Workloads (each in a fresh Python process, after one untimed call that loads the Numba cache):
+Workloads (each in a fresh Python process running this checkout's ``src``, after one untimed call
+that loads the Numba cache):
   engine  frogsim.simulate of bench_engine.py's cycle (one hip muscle, 2 s), 20 calls
   joint   frogsim.swim of bench_joint_control.py's closed-loop robot (12 muscles, 4 s), 1 call
 
@@ -75,7 +76,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.instructions and shutil.which("valgrind") is None:
         raise SystemExit("--instructions needs valgrind (apt-get install valgrind)")
-    env = dict(os.environ, PYTHONHASHSEED="0")
+    # this checkout's code, whatever frogsim the interpreter has installed
+    env = dict(os.environ, PYTHONHASHSEED="0", PYTHONPATH=str(HERE.parent / "src"))
     ok = True
     with tempfile.TemporaryDirectory() as tmp:
         for name in CALLS:
