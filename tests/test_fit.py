@@ -221,3 +221,34 @@ def test_spec_options_are_checked(rig_dir):
         load_fit_spec(spec(rig_dir, ["exact.csv"], BOUNDS, profile=["valves.charge.dead_time"]))
     with pytest.raises(frogsim.ScenarioError, match="parameters.valves.charge.sonic_conductance.start.*must lie within"):
         load_fit_spec(spec(rig_dir, ["exact.csv"], {C_PATH: {**BOUNDS[C_PATH], "start": "2 L/(s*bar)"}}))
+
+
+# --- temperature signals in a spec ----------------------------------------------------------------
+
+def _temperature_trace(folder, name="temp.csv"):
+    import pandas as pd
+    t = np.arange(0, 0.501, 0.01)
+    pd.DataFrame({"time [s]": t, "hip pressure [bar gauge]": np.full(t.size, 1.0),
+                  "source temperature [degC]": np.full(t.size, 20.0)}).to_csv(folder / name, index=False)
+    return name
+
+
+def test_a_temperature_signal_needs_its_own_noise(rig_dir):
+    from frogsim.errors import ScenarioError
+    fit_rig = rig_dir
+    name = _temperature_trace(fit_rig)
+    params = {"valves.charge.sonic_conductance": {"min": "0.1 L/(s*bar)", "max": "1 L/(s*bar)"}}
+    # the top-level noise is a pressure: it is never applied to a temperature
+    with pytest.raises(ScenarioError) as exc:
+        load_fit_spec(spec(fit_rig, [name], params, noise="0.02 bar"))
+    msg = str(exc.value)
+    assert "\n" not in msg and "signals.source temperature.noise" in msg and "noise of its own" in msg, msg
+    # a pressure unit, or degC (a temperature, not a difference) as a temperature's noise
+    for bad in ("0.02 bar", "1 degC"):
+        with pytest.raises(ScenarioError, match="signals.source temperature.noise.*temperature difference"):
+            load_fit_spec(spec(fit_rig, [name], params, noise="0.02 bar",
+                               signals={"source temperature": {"noise": bad}}))
+    s = load_fit_spec(spec(fit_rig, [name], params, noise="0.02 bar",
+                           signals={"source temperature": {"noise": "500 mK"}}))
+    assert s.noise["source temperature"] == pytest.approx(0.5) and s.noise["hip pressure"] == pytest.approx(2e3)
+    np.testing.assert_allclose(s.experiments[0].trace.signals["source temperature"], 293.15)

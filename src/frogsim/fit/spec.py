@@ -21,6 +21,9 @@
     noise = "0.03 bar"
     weight = 1.0
 
+    [signals."source temperature"]     # a temperature signal: its own noise is required
+    noise = "1 K"                      # a difference: K or mK (delta_degC), never degC
+
     [[force_tables]]                   # optional: fit the muscle force law (docs/fitting.md)
     table = "dmsp20.csv"               # pressure [bar gauge], contraction [%], force [N]
     muscle = "hip"                     # the muscle type whose braid the table was measured on
@@ -45,7 +48,7 @@ from frogsim.errors import MISSING, UNKNOWN, ScenarioError
 import numpy as np
 
 from frogsim.fit.force import PREFIX, ForceModel, ForceTable, base_law, law_meta, read_force_table
-from frogsim.fit.traces import Trace, model_signals, read_trace
+from frogsim.fit.traces import Trace, model_signals, read_trace, signal_kind
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.fields import check_bounds, shown, unknown_key_error
 from frogsim.scenario.load import load_scenario, read_toml
@@ -288,7 +291,7 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
                 err = unknown_key_error(f"signals.{s}", key, SIGNAL_KEYS)
                 raise ScenarioError(_where(fname, err.field), UNKNOWN, err.allowed)
         if "noise" in spec:
-            noise[s] = to_si(spec["noise"], "pressure", _where(fname, f"signals.{s}.noise"))
+            noise[s] = _noise(spec["noise"], signal_kind(s), _where(fname, f"signals.{s}.noise"))
             if not noise[s] > 0:
                 raise ScenarioError(_where(fname, f"signals.{s}.noise"), spec["noise"], "must be > 0")
         if "weight" in spec:
@@ -301,6 +304,10 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
     given = (all(s in noise for s in signals) or default_noise is not None or not signals) and \
         all(f.noise_given for f in force_tables)
     for s in signals:
+        if signal_kind(s) == "temperature" and s not in noise:
+            raise ScenarioError(_where(fname, f"signals.{s}.noise"), MISSING,
+                                f'a temperature signal needs a noise of its own: [signals."{s}"] noise = "1 K" '
+                                "(the top-level noise is a pressure); or leave the column out with ignore_columns")
         noise.setdefault(s, default_noise if default_noise is not None else DEFAULT_NOISE_PA)
         weights.setdefault(s, 1.0)
 
@@ -334,6 +341,18 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
                    noise=noise, weights=weights, noise_given=given, starts=starts_n, seed=seed,
                    confidence=float(conf), interval=interval, max_evaluations=max_eval,
                    diff_step=float(step), threads=thr, force_tables=tuple(force_tables), profile=tuple(prof))
+
+
+def _noise(raw, kind: str, where: str) -> float:
+    """A signal's noise (standard deviation) in SI: a pressure [Pa], or a temperature difference
+    [K] for a temperature signal (degC is a temperature, 273.15 K from zero: refused here)."""
+    if kind != "temperature":
+        return to_si(raw, "pressure", where)
+    try:
+        return to_si(raw, "temperature", where)
+    except ScenarioError:
+        raise ScenarioError(where, raw, 'expected a temperature difference such as "1 K" or "500 mK" '
+                                        "(degC is an offset unit: write K)") from None
 
 
 def _current(scenario: Scenario, path: str) -> float:
