@@ -287,3 +287,27 @@ def test_a_parameter_set_extends_only_a_shipped_one(tmp_path):
     (tmp_path / "mine.toml").write_text('[meta]\nextends = "fan2099"\n')
     with pytest.raises(ScenarioError, match="meta.extends"):
         load_parameter_set("mine.toml", str(tmp_path))
+
+
+def test_a_source_started_away_from_ambient_relaxes_closed_with_its_time_constant():
+    # source.initial_temperature: the source's air starts at 250 K (wall and ambient 293.15 K), the
+    # valves held shut; a closed rigid volume relaxes with tau = m c_v/(h A), m = p0 V/(R T0) from
+    # the stated start, its pressure p = m R T/V; the exhaust, not given one, starts at ambient
+    h_s, A_s, T0 = 10.0, 0.05, 250.0
+    d = heat(one_muscle_scenario(steps((0.0, "hold"),), 6.0, solver={"rtol": 1e-10}, output_interval="20 ms",
+                                 source={"volume": "0.5 L", "initial_temperature": f"{T0!r} K"}),
+             h_source=h_s, h_exhaust=10.0, source_area=A_s)
+    res = run(d)
+    p0 = P_SOURCE0
+    m = p0 * 5e-4 / (R_AIR * T0)
+    tau = m * CV / (h_s * A_s)
+    T_closed = T_AMB + (T0 - T_AMB) * np.exp(-res.t / tau)
+    np.testing.assert_allclose(res.temperature("source"), T_closed, rtol=1e-6)
+    np.testing.assert_allclose(res.source_pressure, m * R_AIR * T_closed / 5e-4, rtol=1e-6)
+    assert res.temperature("source")[-1] - T0 > 0.4 * (T_AMB - T0)          # the run saw it relax
+    np.testing.assert_allclose(res.temperature("exhaust"), T_AMB, rtol=1e-9)  # at ambient, stays there
+    # and the setting is checked as every temperature is: absolute, above 0 K
+    from frogsim.errors import ScenarioError
+    d["source"]["initial_temperature"] = "-5 K"
+    with pytest.raises(ScenarioError, match="source.initial_temperature"):
+        frogsim.load_scenario(d)

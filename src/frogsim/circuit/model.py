@@ -374,7 +374,8 @@ def _schedule_part(programs: tuple, rate: float, charge_dead: float, discharge_d
 
 @functools.lru_cache(maxsize=_CACHE)
 def _state_part(air, source, exhaust, muscle_p0: tuple, volumes: tuple, rtol: float):
-    """Initial state y0 (every volume at ambient temperature) and the absolute tolerances."""
+    """Initial state y0 (every volume at ambient temperature, the source and the exhaust at their
+    initial_temperature when one is given) and the absolute tolerances."""
     R, T_amb, patm = air.gas_constant, air.ambient_temperature, air.atmospheric_pressure_abs
     n = len(volumes)
     y0 = np.zeros(L.state_size(n))
@@ -390,9 +391,11 @@ def _state_part(air, source, exhaust, muscle_p0: tuple, volumes: tuple, rtol: fl
         scale[L.vented_index(i, n)] = scale_m
     ps0 = patm + source.initial_pressure_gauge
     pe0 = patm + exhaust.initial_pressure_gauge
-    y0[L.Y_MS] = ps0 * source.volume / (R * T_amb)
+    Ts0 = T_amb if source.initial_temperature is None else source.initial_temperature
+    Te0 = T_amb if exhaust.initial_temperature is None else exhaust.initial_temperature
+    y0[L.Y_MS] = ps0 * source.volume / (R * Ts0)
     y0[L.Y_PS] = ps0
-    y0[L.Y_ME] = pe0 * exhaust.volume / (R * T_amb)
+    y0[L.Y_ME] = pe0 * exhaust.volume / (R * Te0)
     y0[L.Y_PE] = pe0
     scale[L.Y_MS] = patm * source.volume / (R * T_amb)
     scale[L.Y_PS] = patm
