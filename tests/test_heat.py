@@ -311,3 +311,25 @@ def test_a_source_started_away_from_ambient_relaxes_closed_with_its_time_constan
     d["source"]["initial_temperature"] = "-5 K"
     with pytest.raises(ScenarioError, match="source.initial_temperature"):
         frogsim.load_scenario(d)
+
+
+def test_the_batched_runners_pass_heat_as_the_single_run_does():
+    # a batch of variants (frogsim.engine.batch: sweeps, warm-up, direct run_models calls) runs the
+    # model's parts without assembling a model: each point's heat switch must come with them. Points
+    # with heat only in the source, only in the muscle, and none, against one-by-one runs
+    from frogsim.engine.batch import ModelBatch, build_models, run_models, run_outputs
+    sc = frogsim.load_scenario(one_muscle_scenario(steps((0.0, "charge"), (0.3, "hold")), 1.0, output_interval="10 ms"))
+    hs, hm = "source.heat_transfer_coefficient", "muscle_types.hip.heat_transfer_coefficient"
+    points = [{hs: 10.0, hm: 0.0}, {hs: 0.0, hm: 20.0}, {hs: 0.0, hm: 0.0}]
+    single = [frogsim.simulate(sc.replace(p)) for p in points]
+    batch = build_models(sc, points)
+    assert isinstance(batch, ModelBatch)          # the points set the same paths: one batch
+    for r, s in zip(run_models(batch), single):
+        np.testing.assert_array_equal(r.y, s.y)
+    (rows, out), = run_outputs(batch, columns=((L.Y_PS, L.pressure_index(0)), ()))[0]
+    for j, s in zip(rows, single):
+        np.testing.assert_array_equal(out.state(L.Y_PS)[j], s.source_pressure)
+        np.testing.assert_array_equal(out.state(L.pressure_index(0))[j], s.muscle_pressure("m0"))
+    # and heat did change the runs: the held hip sags with h in the muscle, the source with h in it
+    assert single[1].muscle_pressure("m0")[-1] < single[2].muscle_pressure("m0")[-1] - 1e4
+    assert single[0].source_pressure[-1] > single[2].source_pressure[-1] + 100.0   # 137 Pa: 4 L, 10 W/(m^2 K)

@@ -192,8 +192,18 @@ def _motion_stage(sc):
     return names, motion, mp
 
 
-def _globals_stage(sc):
-    return _globals_part(sc.air, sc.source, sc.exhaust, sc.pump, sc.supply, sc.valves)
+def _globals_stage(sc, motion):
+    """The globals g with the heat switch G_HEAT: 1 when some wall passes heat, the source's, the
+    exhaust's or a muscle's (its row of mp, in the motion part), else 0. Set here, in the part,
+    so that every runner sees it: the batched ones run the parts without assembling a model."""
+    g = _globals_part(sc.air, sc.source, sc.exhaust, sc.pump, sc.supply, sc.valves)
+    mp = motion[2]
+    # every h >= 0, so some h > 0 when the largest is: a Python max over a few rows costs a
+    # quarter of NumPy's compare and any
+    if max(g[L.G_H_S], g[L.G_H_E], *mp[:, L.M_H].tolist()) > 0.0:
+        g = g.copy()                  # the cached array is never written (its G_HEAT stays 0)
+        g[L.G_HEAT] = 1.0
+    return g
 
 
 def _volumes_stage(sc, motion):
@@ -238,7 +248,7 @@ def _output_stage(sc):
 PARTS = (
     ("motion", ("muscles", "muscle_types", "controller", "valves", "base_dir"), (), _motion_stage),
     ("volumes", (), ("motion",), _volumes_stage),
-    ("g", ("air", "source", "exhaust", "pump", "supply", "valves"), (), _globals_stage),
+    ("g", ("air", "source", "exhaust", "pump", "supply", "valves"), ("motion",), _globals_stage),
     # with [firmware] a law's integer tables also read the run's length, the source's and the
     # exhaust's pressures (frogsim.control.fixed)
     ("laws", ("valves", "controllers", "controller", "joints", "firmware", "duration", "source", "pump", "exhaust"),
@@ -256,9 +266,6 @@ def assemble(scenario: Scenario, parts: dict) -> PneumaticModel:
     laws, sched_u = parts["laws"], parts["sched_u"]
     y0, atol = parts["state"]
     g = parts["g"].copy()
-    # (g's part does not see the muscles; every h >= 0, so some h > 0 when the largest is: a
-    # Python max over a few rows costs a quarter of NumPy's compare and any)
-    g[L.G_HEAT] = 1.0 if max(g[L.G_H_S], g[L.G_H_E], *mp[:, L.M_H].tolist()) > 0.0 else 0.0
     return PneumaticModel(scenario=scenario, names=list(names), circuit=Circuit(g, mp.copy()),
                           motion=Motion(mot_t.copy(), mot_L.copy(), mot_d.copy(), mot_n.copy()),
                           schedule=Schedule(sched_t.copy(), sched_u.copy(), u0.copy(), [o.copy() for o in opens]),
