@@ -31,6 +31,9 @@ from frogsim.scenario.units import SI_UNITS, display_factor
 from frogsim.sweep.spec import dumps_toml
 
 PARAMETER_FILE = "fitted-parameters.toml"
+#: a trace of at most this many samples also has them drawn as markers (the grid's points are
+#: interpolated between them)
+SAMPLE_MARKERS = 200
 
 
 def _display(x: float, meta: dict, digits: int = 6) -> str:
@@ -123,7 +126,13 @@ def draw_experiment(res: FitResult, k: int, path: str) -> None:
         d = c["signals"][s]
         shown, diff, unit, runit = _shown_signal(s, patm)
         ax, axr = axes[2 * i, 0], axes[2 * i + 1, 0]
-        ax.plot(t, shown(d["measured"]), ".", ms=2, color="0.55", label="measured")
+        sparse = e.trace.time.size <= SAMPLE_MARKERS
+        ax.plot(t, shown(d["measured"]), ".", ms=2, color="0.55",
+                label="measured, interpolated onto the model's grid" if sparse else "measured")
+        if sparse:                                        # its own samples as well
+            inside = e.trace.time <= t[-1]
+            ax.plot(e.trace.time[inside], shown(e.trace.signals[s][inside]), "o", ms=4, mfc="none",
+                    color="k", label="measured, the trace's samples")
         ax.plot(t, shown(d["before"]), "--", color="tab:blue", lw=1.2, label="model, start values")
         ax.plot(t, shown(d["after"]), "-", color="tab:red", lw=1.4, label="model, fitted")
         ax.set_ylabel(f"{s} [{unit}]")
