@@ -234,7 +234,10 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
         "residual_variance": res.residual_variance,
         "residual_variance_meaning": ("reduced chi-square: mean squared residual in units of the stated noise"
                                       if spec.noise_given else
-                                      "mean squared residual in units of 1 kPa (no noise was stated)"),
+                                      "mean squared residual in units of 1 kPa (no noise was stated)"
+                                      if not any(signal_kind(x) == "temperature" for x in spec.noise) else
+                                      "mean squared residual in units of each signal's stated noise, 1 kPa "
+                                      "for a pressure without one (no noise was stated for it)"),
         "condition_number": res.condition_number,
         "correlation": {"paths": res.paths, "matrix": res.correlation.tolist()},
         "warnings": list(res.warnings),

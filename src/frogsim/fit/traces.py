@@ -16,9 +16,9 @@ gauge or abs: K, or an offset unit such as degC (20 degC is 293.15 K); a differe
 measured somewhere the model has none) are named in the experiment's ``ignore_columns``; the other
 columns frogsim simulate writes (volumes, flows, valve states) are left out without being named;
 any other column the model has no signal for is refused, so that a misspelt signal is never
-silently dropped. A temperature column is a signal: the fit spec must give it a noise of its own
-(:mod:`frogsim.fit.spec`), so a simulate folder's ``timeseries.csv`` is a trace once its
-temperature columns are either given a noise or named in ``ignore_columns``. The file is read by
+silently dropped. A temperature column is read as a signal; the fit spec fits it only when it has
+a noise of its own, and otherwise leaves it out with a note (:mod:`frogsim.fit.spec`), so a
+simulate folder's ``timeseries.csv`` is a trace as it is. The file is read by
 :func:`frogsim.scenario.tables.read_table` (headers in any spelling frogsim wrote, every row as
 many fields as the header).
 
