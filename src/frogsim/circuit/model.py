@@ -167,8 +167,9 @@ def build_model(scenario: Scenario) -> PneumaticModel:
     it declares (it reads them through a :class:`frogsim.scenario.view.Settings`, which refuses
     any other) and of earlier parts, and cached on them (frozen dataclasses hash by value): the
     motions, valve schedule and muscle rows (the muscles with their types and programs, the
-    controller rate, the valves), the globals ``g`` (air, chambers, pump, supply, valves), the
-    sampled laws, the initial state (chambers, muscles, tolerance) and the output grid. A variant
+    controller rate, the valves), the globals ``g`` (air, chambers, pump, supply, valves, and the
+    heat switch from the muscle rows), the sampled laws, the initial state (chambers, muscles,
+    tolerance) and the output grid. A variant
     that changes one setting rebuilds only the parts that read it, a batch of variants builds each
     distinct part once (:mod:`frogsim.engine.batch`), and the model equals a fresh build bit for
     bit. :func:`assemble` copies every array, so a model never shares arrays with another.
