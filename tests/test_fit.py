@@ -221,3 +221,59 @@ def test_spec_options_are_checked(rig_dir):
         load_fit_spec(spec(rig_dir, ["exact.csv"], BOUNDS, profile=["valves.charge.dead_time"]))
     with pytest.raises(frogsim.ScenarioError, match="parameters.valves.charge.sonic_conductance.start.*must lie within"):
         load_fit_spec(spec(rig_dir, ["exact.csv"], {C_PATH: {**BOUNDS[C_PATH], "start": "2 L/(s*bar)"}}))
+
+
+# --- temperature signals in a spec ----------------------------------------------------------------
+
+def _temperature_trace(folder, name="temp.csv"):
+    import pandas as pd
+    t = np.arange(0, 0.501, 0.01)
+    pd.DataFrame({"time [s]": t, "hip pressure [bar gauge]": np.full(t.size, 1.0),
+                  "source temperature [degC]": np.full(t.size, 20.0)}).to_csv(folder / name, index=False)
+    return name
+
+
+def test_a_temperature_signal_needs_its_own_noise(rig_dir):
+    from frogsim.errors import ScenarioError
+    fit_rig = rig_dir
+    name = _temperature_trace(fit_rig)
+    params = {"valves.charge.sonic_conductance": {"min": "0.1 L/(s*bar)", "max": "1 L/(s*bar)"}}
+    # the top-level noise is a pressure: it is never applied to a temperature, which is left out
+    # (as the other frogsim outputs the fit does not use) and the notes say so
+    s = load_fit_spec(spec(fit_rig, [name], params, noise="0.02 bar"))
+    tr = s.experiments[0].trace
+    assert list(tr.signals) == ["hip pressure"] and tr.ignored == ("source temperature [degC]",)
+    assert len(s.notes) == 1 and "'source temperature [degC]' left out" in s.notes[0] and "\n" not in s.notes[0]
+    # a trace with only temperatures, none given a noise: nothing to fit, refused in one line
+    import pandas as pd
+    t = np.arange(0, 0.501, 0.01)
+    pd.DataFrame({"time [s]": t, "source temperature [K]": np.full(t.size, 293.0)}).to_csv(fit_rig / "onlyT.csv",
+                                                                                          index=False)
+    with pytest.raises(ScenarioError) as exc:
+        load_fit_spec(spec(fit_rig, ["onlyT.csv"], params, noise="0.02 bar"))
+    msg = str(exc.value)
+    assert "\n" not in msg and "onlyT.csv" in msg and "no signal to fit" in msg and "noise" in msg, msg
+    # a pressure unit, or degC (a temperature, not a difference) as a temperature's noise
+    for bad in ("0.02 bar", "1 degC"):
+        with pytest.raises(ScenarioError, match="signals.source temperature.noise.*temperature difference"):
+            load_fit_spec(spec(fit_rig, [name], params, noise="0.02 bar",
+                               signals={"source temperature": {"noise": bad}}))
+    s = load_fit_spec(spec(fit_rig, [name], params, noise="0.02 bar",
+                           signals={"source temperature": {"noise": "500 mK"}}))
+    assert s.noise["source temperature"] == pytest.approx(0.5) and s.noise["hip pressure"] == pytest.approx(2e3)
+    assert s.notes == ()
+    np.testing.assert_allclose(s.experiments[0].trace.signals["source temperature"], 293.15)
+
+
+def test_a_setting_the_base_leaves_unset_needs_a_start(rig_dir):
+    # source.initial_temperature and exhaust.wall_area (fan2017 sets none) have no value: no start to take
+    from frogsim.errors import ScenarioError
+    name = _temperature_trace(rig_dir, "p.csv")
+    for path, lo, hi in (("source.initial_temperature", "250 K", "300 K"), ("exhaust.wall_area", "0.1 m^2", "1 m^2")):
+        with pytest.raises(ScenarioError) as exc:
+            load_fit_spec(spec(rig_dir, [name], {path: {"min": lo, "max": hi}}, noise="0.02 bar"))
+        msg = str(exc.value)
+        assert "\n" not in msg and f"parameters.{path}.start" in msg and "needs a start value" in msg, msg
+    s = load_fit_spec(spec(rig_dir, [name], {"source.initial_temperature": {"min": "250 K", "max": "300 K",
+                                                                             "start": "280 K"}}, noise="0.02 bar"))
+    assert s.parameters[0].start == pytest.approx(280.0)

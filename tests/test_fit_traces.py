@@ -108,3 +108,47 @@ def test_parquet_needs_pyarrow(tmp_path, rig):
     assert "hip pressure" in from_parquet.signals
     for name in from_csv.signals:                 # the same numbers whichever file format
         assert np.array_equal(np.asarray(from_parquet.signals[name]), np.asarray(from_csv.signals[name])), name
+
+
+# --- temperature signals ---------------------------------------------------------------------------
+
+def test_temperatures_become_kelvin_and_degc_is_an_offset(tmp_path, rig):
+    # 20 degC is 293.15 K (the kelvin's definition: T/K = t/degC + 273.15), not 20 K; 68 degF is
+    # the same temperature (t/degF = 1.8 t/degC + 32)
+    t = _times()
+    path = _csv(tmp_path / "t.csv", {"time [s]": t, "hip pressure [bar gauge]": np.full(t.size, 2.0),
+                                      "source temperature [degC]": np.full(t.size, 20.0),
+                                      "hip temperature [K]": np.full(t.size, 300.0),
+                                      "exhaust temperature [degF]": np.full(t.size, 68.0)})
+    tr = read_trace(path, rig)
+    np.testing.assert_allclose(tr.signals["source temperature"], 293.15, rtol=1e-14)
+    np.testing.assert_allclose(tr.signals["hip temperature"], 300.0, rtol=1e-14)
+    np.testing.assert_allclose(tr.signals["exhaust temperature"], 293.15, rtol=1e-12)
+    np.testing.assert_allclose(tr.signals["hip pressure"], 2e5 + P_ATM)     # pressures as before
+
+
+@pytest.mark.parametrize("unit, expect", [
+    ("K abs", "takes no gauge or abs"),
+    ("degC gauge", "takes no gauge or abs"),
+    ("delta_degC", "temperature difference"),
+    ("bar", "not a temperature unit"),
+    ("kelvinn", "not a temperature unit"),
+])
+def test_bad_temperature_units_are_refused_in_one_line(tmp_path, rig, unit, expect):
+    path = _csv(tmp_path / "badT.csv", {"time [s]": [0, 0.1, 0.2, 0.5], "hip pressure [bar gauge]": [1, 2, 3, 4],
+                                        f"source temperature [{unit}]": [290, 291, 292, 293]})
+    with pytest.raises(ScenarioError) as exc:
+        read_trace(path, rig)
+    msg = str(exc.value)
+    assert "\n" not in msg and "badT.csv" in msg and f"'source temperature [{unit}]'" in msg and expect in msg, msg
+
+
+def test_simulated_temperature_is_the_results(rig):
+    from frogsim.fit.traces import model_signals, signal_kind, simulated
+    res = frogsim.simulate(rig)
+    assert "source temperature" in model_signals(rig) and "hip temperature" in model_signals(rig)
+    assert signal_kind("hip temperature") == "temperature" and signal_kind("hip pressure") == "pressure"
+    # T = p V/(m R) of the source, from the state itself (ideal gas), not through Result.temperature
+    V = rig.source.volume
+    T = res.source_pressure * V / (res.y[:, 0] * rig.air.gas_constant)
+    np.testing.assert_allclose(simulated(res, "source temperature"), T, rtol=1e-12)

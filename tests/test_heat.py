@@ -279,3 +279,49 @@ def test_a_parameter_set_extends_only_a_shipped_one(tmp_path):
     (tmp_path / "mine.toml").write_text('[meta]\nextends = "fan2099"\n')
     with pytest.raises(ScenarioError, match="meta.extends"):
         load_parameter_set("mine.toml", str(tmp_path))
+
+
+def test_a_source_started_away_from_ambient_relaxes_closed_with_its_time_constant():
+    # source.initial_temperature: the source's air starts at 250 K (wall and ambient 293.15 K), the
+    # valves held shut; a closed rigid volume relaxes with tau = m c_v/(h A), m = p0 V/(R T0) from
+    # the stated start, its pressure p = m R T/V; the exhaust, not given one, starts at ambient
+    h_s, A_s, T0 = 10.0, 0.05, 250.0
+    d = heat(one_muscle_scenario(steps((0.0, "hold"),), 6.0, solver={"rtol": 1e-10}, output_interval="20 ms",
+                                 source={"volume": "0.5 L", "initial_temperature": f"{T0!r} K"}),
+             h_source=h_s, h_exhaust=10.0, source_area=A_s)
+    res = run(d)
+    p0 = P_SOURCE0
+    m = p0 * 5e-4 / (R_AIR * T0)
+    tau = m * CV / (h_s * A_s)
+    T_closed = T_AMB + (T0 - T_AMB) * np.exp(-res.t / tau)
+    np.testing.assert_allclose(res.temperature("source"), T_closed, rtol=1e-6)
+    np.testing.assert_allclose(res.source_pressure, m * R_AIR * T_closed / 5e-4, rtol=1e-6)
+    assert res.temperature("source")[-1] - T0 > 0.4 * (T_AMB - T0)          # the run saw it relax
+    np.testing.assert_allclose(res.temperature("exhaust"), T_AMB, rtol=1e-9)  # at ambient, stays there
+    # and the setting is checked as every temperature is: absolute, above 0 K
+    from frogsim.errors import ScenarioError
+    d["source"]["initial_temperature"] = "-5 K"
+    with pytest.raises(ScenarioError, match="source.initial_temperature"):
+        frogsim.load_scenario(d)
+
+
+def test_the_batched_runners_pass_heat_as_the_single_run_does():
+    # a batch of variants (frogsim.engine.batch: sweeps, warm-up, direct run_models calls) runs the
+    # model's parts without assembling a model: each point's heat switch must come with them. Points
+    # with heat only in the source, only in the muscle, and none, against one-by-one runs
+    from frogsim.engine.batch import ModelBatch, build_models, run_models, run_outputs
+    sc = frogsim.load_scenario(one_muscle_scenario(steps((0.0, "charge"), (0.3, "hold")), 1.0, output_interval="10 ms"))
+    hs, hm = "source.heat_transfer_coefficient", "muscle_types.hip.heat_transfer_coefficient"
+    points = [{hs: 10.0, hm: 0.0}, {hs: 0.0, hm: 20.0}, {hs: 0.0, hm: 0.0}]
+    single = [frogsim.simulate(sc.replace(p)) for p in points]
+    batch = build_models(sc, points)
+    assert isinstance(batch, ModelBatch)          # the points set the same paths: one batch
+    for r, s in zip(run_models(batch), single):
+        np.testing.assert_array_equal(r.y, s.y)
+    (rows, out), = run_outputs(batch, columns=((L.Y_PS, L.pressure_index(0)), ()))[0]
+    for j, s in zip(rows, single):
+        np.testing.assert_array_equal(out.state(L.Y_PS)[j], s.source_pressure)
+        np.testing.assert_array_equal(out.state(L.pressure_index(0))[j], s.muscle_pressure("m0"))
+    # and heat did change the runs: the held hip sags with h in the muscle, the source with h in it
+    assert single[1].muscle_pressure("m0")[-1] < single[2].muscle_pressure("m0")[-1] - 1e4
+    assert single[0].source_pressure[-1] > single[2].source_pressure[-1] + 100.0   # 137 Pa: 4 L, 10 W/(m^2 K)

@@ -167,8 +167,9 @@ def build_model(scenario: Scenario) -> PneumaticModel:
     it declares (it reads them through a :class:`frogsim.scenario.view.Settings`, which refuses
     any other) and of earlier parts, and cached on them (frozen dataclasses hash by value): the
     motions, valve schedule and muscle rows (the muscles with their types and programs, the
-    controller rate, the valves), the globals ``g`` (air, chambers, pump, supply, valves), the
-    sampled laws, the initial state (chambers, muscles, tolerance) and the output grid. A variant
+    controller rate, the valves), the globals ``g`` (air, chambers, pump, supply, valves, and the
+    heat switch from the muscle rows), the sampled laws, the initial state (chambers, muscles,
+    tolerance) and the output grid. A variant
     that changes one setting rebuilds only the parts that read it, a batch of variants builds each
     distinct part once (:mod:`frogsim.engine.batch`), and the model equals a fresh build bit for
     bit. :func:`assemble` copies every array, so a model never shares arrays with another.
@@ -192,8 +193,18 @@ def _motion_stage(sc):
     return names, motion, mp
 
 
-def _globals_stage(sc):
-    return _globals_part(sc.air, sc.source, sc.exhaust, sc.pump, sc.supply, sc.valves)
+def _globals_stage(sc, motion):
+    """The globals g with the heat switch G_HEAT: 1 when some wall passes heat, the source's, the
+    exhaust's or a muscle's (its row of mp, in the motion part), else 0. Set here, in the part,
+    so that every runner sees it: the batched ones run the parts without assembling a model."""
+    g = _globals_part(sc.air, sc.source, sc.exhaust, sc.pump, sc.supply, sc.valves)
+    mp = motion[2]
+    # every h >= 0, so some h > 0 when the largest is: a Python max over a few rows costs a
+    # quarter of NumPy's compare and any
+    if max(g[L.G_H_S], g[L.G_H_E], *mp[:, L.M_H].tolist()) > 0.0:
+        g = g.copy()                  # the cached array is never written (its G_HEAT stays 0)
+        g[L.G_HEAT] = 1.0
+    return g
 
 
 def _volumes_stage(sc, motion):
@@ -238,7 +249,7 @@ def _output_stage(sc):
 PARTS = (
     ("motion", ("muscles", "muscle_types", "controller", "valves", "base_dir"), (), _motion_stage),
     ("volumes", (), ("motion",), _volumes_stage),
-    ("g", ("air", "source", "exhaust", "pump", "supply", "valves"), (), _globals_stage),
+    ("g", ("air", "source", "exhaust", "pump", "supply", "valves"), ("motion",), _globals_stage),
     # with [firmware] a law's integer tables also read the run's length, the source's and the
     # exhaust's pressures (frogsim.control.fixed)
     ("laws", ("valves", "controllers", "controller", "joints", "firmware", "duration", "source", "pump", "exhaust"),
@@ -256,9 +267,6 @@ def assemble(scenario: Scenario, parts: dict) -> PneumaticModel:
     laws, sched_u = parts["laws"], parts["sched_u"]
     y0, atol = parts["state"]
     g = parts["g"].copy()
-    # (g's part does not see the muscles; every h >= 0, so some h > 0 when the largest is: a
-    # Python max over a few rows costs a quarter of NumPy's compare and any)
-    g[L.G_HEAT] = 1.0 if max(g[L.G_H_S], g[L.G_H_E], *mp[:, L.M_H].tolist()) > 0.0 else 0.0
     return PneumaticModel(scenario=scenario, names=list(names), circuit=Circuit(g, mp.copy()),
                           motion=Motion(mot_t.copy(), mot_L.copy(), mot_d.copy(), mot_n.copy()),
                           schedule=Schedule(sched_t.copy(), sched_u.copy(), u0.copy(), [o.copy() for o in opens]),
@@ -374,7 +382,8 @@ def _schedule_part(programs: tuple, rate: float, charge_dead: float, discharge_d
 
 @functools.lru_cache(maxsize=_CACHE)
 def _state_part(air, source, exhaust, muscle_p0: tuple, volumes: tuple, rtol: float):
-    """Initial state y0 (every volume at ambient temperature) and the absolute tolerances."""
+    """Initial state y0 (every volume at ambient temperature, the source and the exhaust at their
+    initial_temperature when one is given) and the absolute tolerances."""
     R, T_amb, patm = air.gas_constant, air.ambient_temperature, air.atmospheric_pressure_abs
     n = len(volumes)
     y0 = np.zeros(L.state_size(n))
@@ -390,9 +399,11 @@ def _state_part(air, source, exhaust, muscle_p0: tuple, volumes: tuple, rtol: fl
         scale[L.vented_index(i, n)] = scale_m
     ps0 = patm + source.initial_pressure_gauge
     pe0 = patm + exhaust.initial_pressure_gauge
-    y0[L.Y_MS] = ps0 * source.volume / (R * T_amb)
+    Ts0 = T_amb if source.initial_temperature is None else source.initial_temperature
+    Te0 = T_amb if exhaust.initial_temperature is None else exhaust.initial_temperature
+    y0[L.Y_MS] = ps0 * source.volume / (R * Ts0)
     y0[L.Y_PS] = ps0
-    y0[L.Y_ME] = pe0 * exhaust.volume / (R * T_amb)
+    y0[L.Y_ME] = pe0 * exhaust.volume / (R * Te0)
     y0[L.Y_PE] = pe0
     scale[L.Y_MS] = patm * source.volume / (R * T_amb)
     scale[L.Y_PS] = patm

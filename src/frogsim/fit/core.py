@@ -263,6 +263,7 @@ def fit_spec(spec: FitSpec, progress: bool = False) -> FitResult:
     res = _uncertainty(spec, ev, theta, f, J)
     res.update(_bound_and_start_warnings(spec, ev, theta, starts, best, res["warnings"]))
     res["warnings"] += _residual_warnings(spec, ev, after_runs, res["residual_variance"])
+    res["warnings"] += list(spec.notes)
     curves, rms_after, rms_before = [], {}, {}
     for e, (t, rows, _), rb, ra in zip(spec.experiments, ev.blocks, before_runs, after_runs):
         c = {"name": e.name, "t": t, "signals": {}}

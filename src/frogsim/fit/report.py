@@ -5,6 +5,7 @@
                             95 % CI ..."``; usable as ``parameters = "fitted-parameters.toml"``
 ``fit-<k>-<name>.png``      per experiment and signal: measured and simulated (at the start and
                             fitted values) against time, and the residuals after the fit
+                            (pressures in bar gauge, temperatures in K)
 ``force-<k>-<name>.png``    per force table: measured force and the law (start and fitted values)
                             against contraction, one colour per pressure, and the residuals
 ``report.html``             one page: parameters, intervals, correlations, warnings, the figures
@@ -24,11 +25,15 @@ import numpy as np
 from frogsim._files import atomic_write, out_folder, write_figure, write_json
 from frogsim._plotting import figure, save
 from frogsim.fit.core import FitResult
+from frogsim.fit.traces import signal_kind
 from frogsim.scenario.load import PARAM_SECTIONS, load_parameter_set
 from frogsim.scenario.units import SI_UNITS, display_factor
 from frogsim.sweep.spec import dumps_toml
 
 PARAMETER_FILE = "fitted-parameters.toml"
+#: a trace of at most this many samples also has them drawn as markers (the grid's points are
+#: interpolated between them)
+SAMPLE_MARKERS = 200
 
 
 def _display(x: float, meta: dict, digits: int = 6) -> str:
@@ -102,6 +107,14 @@ def _bar_gauge(p: np.ndarray, patm: float) -> np.ndarray:
     return (p - patm) / 1e5
 
 
+def _shown_signal(signal: str, patm: float) -> tuple:
+    """(values in display units, residuals in display units, axis unit, residual unit) of a signal:
+    pressures in bar gauge (residuals in bar), temperatures in K."""
+    if signal_kind(signal) == "temperature":
+        return (lambda x: x), (lambda x: x), "K", "K"
+    return (lambda p: _bar_gauge(p, patm)), (lambda d: d / 1e5), "bar gauge", "bar"
+
+
 def draw_experiment(res: FitResult, k: int, path: str) -> None:
     c = res.curves[k]
     e = res.spec.experiments[k]
@@ -111,18 +124,25 @@ def draw_experiment(res: FitResult, k: int, path: str) -> None:
     t = c["t"]
     for i, s in enumerate(sigs):
         d = c["signals"][s]
+        shown, diff, unit, runit = _shown_signal(s, patm)
         ax, axr = axes[2 * i, 0], axes[2 * i + 1, 0]
-        ax.plot(t, _bar_gauge(d["measured"], patm), ".", ms=2, color="0.55", label="measured")
-        ax.plot(t, _bar_gauge(d["before"], patm), "--", color="tab:blue", lw=1.2, label="model, start values")
-        ax.plot(t, _bar_gauge(d["after"], patm), "-", color="tab:red", lw=1.4, label="model, fitted")
-        ax.set_ylabel(f"{s} [bar gauge]")
+        sparse = e.trace.time.size <= SAMPLE_MARKERS
+        ax.plot(t, shown(d["measured"]), ".", ms=2, color="0.55",
+                label="measured, interpolated onto the model's grid" if sparse else "measured")
+        if sparse:                                        # its own samples as well
+            inside = e.trace.time <= t[-1]
+            ax.plot(e.trace.time[inside], shown(e.trace.signals[s][inside]), "o", ms=4, mfc="none",
+                    color="k", label="measured, the trace's samples")
+        ax.plot(t, shown(d["before"]), "--", color="tab:blue", lw=1.2, label="model, start values")
+        ax.plot(t, shown(d["after"]), "-", color="tab:red", lw=1.4, label="model, fitted")
+        ax.set_ylabel(f"{s} [{unit}]")
         ax.legend(fontsize=8, loc="best")
         ax.set_title(f"{e.name}: {s}", fontsize=10)
-        axr.plot(t, (d["after"] - d["measured"]) / 1e5, ".", ms=2, color="tab:red", label="fitted - measured")
+        axr.plot(t, diff(d["after"] - d["measured"]), ".", ms=2, color="tab:red", label="fitted - measured")
         axr.axhline(0.0, color="k", lw=0.8)
-        noise = res.spec.noise[s] / 1e5
+        noise = diff(res.spec.noise[s])
         axr.axhspan(-2 * noise, 2 * noise, color="tab:green", alpha=0.1, lw=0, label="+-2 x stated noise")
-        axr.set_ylabel("residual [bar]")
+        axr.set_ylabel(f"residual [{runit}]")
         axr.legend(fontsize=8, loc="best")
     axes[-1, 0].set_xlabel("time [s]")
     save(fig, path, source_note=f"trace {e.trace.name}; scenario {e.scenario.name}")
@@ -198,10 +218,7 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
         exps.append({"name": e.name, "trace": e.trace.path, "overrides_si": e.overrides,
                      "trace_samples": int(e.trace.time.size), "trace_median_step_s": e.trace.median_step,
                      "model_points": int(c["t"].size),
-                     "signals": {s: {"column": e.trace.columns[s], "noise_Pa": spec.noise[s], "weight": spec.weights[s],
-                                     "rms_residual_start_Pa": res.rms_residual_before[(e.name, s)],
-                                     "rms_residual_fitted_Pa": res.rms_residual[(e.name, s)]}
-                                 for s in c["signals"]}})
+                     "signals": {s: _signal_summary(res, e, s) for s in c["signals"]}})
     forces = []
     for ft, c in zip(spec.force_tables, res.force_curves):
         forces.append({"name": ft.name, "table": ft.table.path, "muscle_type": ft.model.muscle_type,
@@ -217,7 +234,10 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
         "residual_variance": res.residual_variance,
         "residual_variance_meaning": ("reduced chi-square: mean squared residual in units of the stated noise"
                                       if spec.noise_given else
-                                      "mean squared residual in units of 1 kPa (no noise was stated)"),
+                                      "mean squared residual in units of 1 kPa (no noise was stated)"
+                                      if not any(signal_kind(x) == "temperature" for x in spec.noise) else
+                                      "mean squared residual in units of each signal's stated noise, 1 kPa "
+                                      "for a pressure without one (no noise was stated for it)"),
         "condition_number": res.condition_number,
         "correlation": {"paths": res.paths, "matrix": res.correlation.tolist()},
         "warnings": list(res.warnings),
@@ -229,6 +249,15 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
         "model_runs": res.model_runs, "wall_s": res.wall_s,
         "not_in_parameter_file": left_out,
     }
+
+
+def _signal_summary(res: FitResult, e, s: str) -> dict:
+    """A signal's column, noise, weight and rms residuals, the SI unit in each key (Pa for a
+    pressure, K for a temperature)."""
+    u = "K" if signal_kind(s) == "temperature" else "Pa"
+    return {"column": e.trace.columns[s], f"noise_{u}": res.spec.noise[s], "weight": res.spec.weights[s],
+            f"rms_residual_start_{u}": res.rms_residual_before[(e.name, s)],
+            f"rms_residual_fitted_{u}": res.rms_residual[(e.name, s)]}
 
 
 def _x(res: FitResult, theta) -> list:

@@ -21,6 +21,9 @@
     noise = "0.03 bar"
     weight = 1.0
 
+    [signals."source temperature"]     # a temperature is fitted only with a noise of its own
+    noise = "1 K"                      # a difference: K or mK (delta_degC), never degC
+
     [[force_tables]]                   # optional: fit the muscle force law (docs/fitting.md)
     table = "dmsp20.csv"               # pressure [bar gauge], contraction [%], force [N]
     muscle = "hip"                     # the muscle type whose braid the table was measured on
@@ -36,6 +39,7 @@ refusal is a one-line :class:`frogsim.ScenarioError` naming the file and the fie
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from dataclasses import dataclass
@@ -45,7 +49,7 @@ from frogsim.errors import MISSING, UNKNOWN, ScenarioError
 import numpy as np
 
 from frogsim.fit.force import PREFIX, ForceModel, ForceTable, base_law, law_meta, read_force_table
-from frogsim.fit.traces import Trace, model_signals, read_trace
+from frogsim.fit.traces import Trace, model_signals, read_trace, signal_kind
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.fields import check_bounds, shown, unknown_key_error
 from frogsim.scenario.load import load_scenario, read_toml
@@ -116,6 +120,7 @@ class FitSpec:
     threads: int | None = None
     force_tables: tuple = ()
     profile: tuple = ()        # parameter paths whose profile interval is computed as well
+    notes: tuple = ()          # said with the fit's warnings: temperature columns left out
 
 
 def _where(fname: str, key: str) -> str:
@@ -218,6 +223,9 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
             x0 = float(getattr(base_law(base), p[len(PREFIX):]))
         else:
             x0 = _current(base, p)
+            if x0 is None:            # an optional setting the base leaves unset (wall_area, ...)
+                raise ScenarioError(f"{where}.start", MISSING, "required: the base scenario does not set "
+                                                               "this setting, so the fit needs a start value")
         if not lo <= x0 <= hi:
             raise ScenarioError(f"{where}.start", spec.get("start", shown(x0, meta)),
                                 f"must lie within min and max ({spec['min']} .. {spec['max']})")
@@ -236,7 +244,7 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
     if not isinstance(exps_raw, list) or (not exps_raw and "force_tables" not in raw):
         raise ScenarioError(_where(fname, "experiments"), exps_raw if exps_raw is not None else MISSING,
                             "expected one or more [[experiments]] with a trace (or [[force_tables]])")
-    experiments, names = [], set()
+    experiments, names, notes = [], set(), []
     for k, e in enumerate(exps_raw):
         where = _where(fname, f"experiments[{k}]")
         if not isinstance(e, dict):
@@ -258,7 +266,8 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
         ignore = e.get("ignore_columns", [])
         if not isinstance(ignore, list) or not all(isinstance(c, str) for c in ignore):
             raise ScenarioError(f"{where}.ignore_columns", ignore, "expected a list of column headers")
-        trace = read_trace(base_dir / e["trace"], scenario, ignore)
+        trace = _without_unnoised_temperatures(read_trace(base_dir / e["trace"], scenario, ignore),
+                                               raw.get("signals"), notes)
         name = e.get("name", trace.name)
         if not isinstance(name, str) or name in names:
             raise ScenarioError(f"{where}.name", name, "expected a name used by no other experiment")
@@ -288,7 +297,7 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
                 err = unknown_key_error(f"signals.{s}", key, SIGNAL_KEYS)
                 raise ScenarioError(_where(fname, err.field), UNKNOWN, err.allowed)
         if "noise" in spec:
-            noise[s] = to_si(spec["noise"], "pressure", _where(fname, f"signals.{s}.noise"))
+            noise[s] = _noise(spec["noise"], signal_kind(s), _where(fname, f"signals.{s}.noise"))
             if not noise[s] > 0:
                 raise ScenarioError(_where(fname, f"signals.{s}.noise"), spec["noise"], "must be > 0")
         if "weight" in spec:
@@ -333,14 +342,51 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
     return FitSpec(path=str(path), base=base, experiments=tuple(experiments), parameters=tuple(parameters),
                    noise=noise, weights=weights, noise_given=given, starts=starts_n, seed=seed,
                    confidence=float(conf), interval=interval, max_evaluations=max_eval,
-                   diff_step=float(step), threads=thr, force_tables=tuple(force_tables), profile=tuple(prof))
+                   diff_step=float(step), threads=thr, force_tables=tuple(force_tables), profile=tuple(prof),
+                   notes=tuple(notes))
 
 
-def _current(scenario: Scenario, path: str) -> float:
+def _without_unnoised_temperatures(trace: Trace, signals_raw, notes: list) -> Trace:
+    """The trace without its temperature signals that have no noise of their own in the spec's
+    [signals] (the top-level noise is a pressure, never applied to a temperature): those columns are
+    left out, as the other frogsim outputs the fit does not use (so a simulate folder's
+    timeseries.csv stays a trace as it is), and a note says so. A trace left with no signal is
+    refused."""
+    given = signals_raw if isinstance(signals_raw, dict) else {}
+    drop = [s for s in trace.signals if signal_kind(s) == "temperature"
+            and not (isinstance(given.get(s), dict) and "noise" in given[s])]
+    if not drop:
+        return trace
+    keep = {s: v for s, v in trace.signals.items() if s not in drop}
+    cols = [trace.columns[s] for s in drop]
+    if not keep:
+        raise ScenarioError(f"trace {trace.name!r}", UNKNOWN,
+                            f"no signal to fit: its temperature column(s) {', '.join(map(repr, cols))} need a noise "
+                            f'of their own, e.g. [signals."{drop[0]}"] noise = "1 K" (the top-level noise is a pressure)')
+    notes.append(f"{trace.name}: temperature column(s) {', '.join(map(repr, cols))} left out: a temperature is fitted "
+                 f'only with a noise of its own, e.g. [signals."{drop[0]}"] noise = "1 K"')
+    return dataclasses.replace(trace, signals=keep, columns={s: c for s, c in trace.columns.items() if s in keep},
+                               ignored=trace.ignored + tuple(cols))
+
+
+def _noise(raw, kind: str, where: str) -> float:
+    """A signal's noise (standard deviation) in SI: a pressure [Pa], or a temperature difference
+    [K] for a temperature signal (degC is a temperature, 273.15 K from zero: refused here)."""
+    if kind != "temperature":
+        return to_si(raw, "pressure", where)
+    try:
+        return to_si(raw, "temperature", where)
+    except ScenarioError:
+        raise ScenarioError(where, raw, 'expected a temperature difference such as "1 K" or "500 mK" '
+                                        "(degC is an offset unit: write K)") from None
+
+
+def _current(scenario: Scenario, path: str) -> float | None:
+    """The base scenario's value of a setting [SI]; None for an optional setting it leaves unset."""
     node = scenario
     for key in path.split("."):
         node = node[key] if isinstance(node, dict) else getattr(node, key)
-    return float(node)
+    return None if node is None else float(node)
 
 
 def _force_tables(raw: dict, base: Scenario, base_dir: Path, fname: str, names: set) -> list:

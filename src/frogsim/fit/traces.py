@@ -6,13 +6,19 @@ and its unit in brackets::
     time [s], hip_left pressure [bar gauge], source pressure [kPa abs]
 
 Signals are the ones the pneumatic model computes: ``<muscle> pressure``, ``source pressure`` and
-``exhaust pressure``. A pressure unit must say whether it is ``gauge`` or ``abs`` (``absolute``);
-gauge values are made absolute with the scenario's atmospheric pressure. Every unit goes through
-frogsim's own unit parser (:mod:`frogsim.scenario.units`). Columns the fit is not to use (a joint
-angle, a temperature) are named in the experiment's ``ignore_columns``; the other columns frogsim
-simulate writes (temperatures, volumes, flows, valve states) are left out without being named, so
-a simulate folder's ``timeseries.csv`` is a trace as it is; any other column the model has no
-signal for is refused, so that a misspelt signal is never silently dropped. The file is read by
+``exhaust pressure``, and the air temperatures ``<muscle> temperature``, ``source temperature``
+and ``exhaust temperature`` (the model's T = p V/(m R), :meth:`frogsim.Result.temperature`). A
+pressure unit must say whether it is ``gauge`` or ``abs`` (``absolute``); gauge values are made
+absolute with the scenario's atmospheric pressure. A temperature unit is a temperature, never
+gauge or abs: K, or an offset unit such as degC (20 degC is 293.15 K); a difference unit
+(delta_degC) is refused. Every unit goes through frogsim's own unit parser
+(:mod:`frogsim.scenario.units`). Columns the fit is not to use (a joint angle, a temperature
+measured somewhere the model has none) are named in the experiment's ``ignore_columns``; the other
+columns frogsim simulate writes (volumes, flows, valve states) are left out without being named;
+any other column the model has no signal for is refused, so that a misspelt signal is never
+silently dropped. A temperature column is read as a signal; the fit spec fits it only when it has
+a noise of its own, and otherwise leaves it out with a note (:mod:`frogsim.fit.spec`), so a
+simulate folder's ``timeseries.csv`` is a trace as it is. The file is read by
 :func:`frogsim.scenario.tables.read_table` (headers in any spelling frogsim wrote, every row as
 many fields as the header).
 
@@ -29,7 +35,7 @@ from frogsim.errors import UNKNOWN, ScenarioError
 from frogsim.scenario.files import read_text
 from frogsim.scenario.motion import output_times
 from frogsim.scenario.tables import model_columns, read_table, split_header
-from frogsim.scenario.units import parse_quantity
+from frogsim.scenario.units import TemperatureDifference, parse_quantity, temperature_scale_offset
 
 #: a sampling step larger than this many times the median step is a gap
 GAP_FACTOR = 5.0
@@ -46,7 +52,7 @@ class Trace:
     """One measured trace in SI.
 
     ``time`` [s], strictly increasing without gaps; ``signals``: signal name -> values (pressures in
-    Pa absolute); ``columns``: signal name -> its header as written; ``ignored``: headers left out.
+    Pa absolute, temperatures in K); ``columns``: signal name -> its header as written; ``ignored``: headers left out.
     """
     path: str
     time: np.ndarray
@@ -64,19 +70,31 @@ class Trace:
         return {s: np.interp(t, self.time, v) for s, v in self.signals.items()}
 
 
+TEMPERATURE = " temperature"
+
+
 def model_signals(scenario) -> list[str]:
-    """The signals a scenario's pneumatic run computes (what a trace may hold)."""
-    return [f"{m} pressure" for m in scenario.muscles] + ["source pressure", "exhaust pressure"]
+    """The signals a scenario's pneumatic run computes (what a trace may hold): the pressures,
+    then the air temperatures."""
+    volumes = list(scenario.muscles) + ["source", "exhaust"]
+    return [f"{m} pressure" for m in volumes] + [f"{m}{TEMPERATURE}" for m in volumes]
+
+
+def signal_kind(signal: str) -> str:
+    """The unit kind of a signal: "temperature" [K] or "pressure" [Pa absolute]."""
+    return "temperature" if signal.endswith(TEMPERATURE) else "pressure"
 
 
 def simulated(result, signal: str) -> np.ndarray:
-    """A signal of a :class:`frogsim.Result` in SI (pressures in Pa absolute)."""
+    """A signal of a :class:`frogsim.Result` in SI (pressures in Pa absolute, temperatures in K)."""
     if signal == "source pressure":
         return result.source_pressure
     if signal == "exhaust pressure":
         return result.exhaust_pressure
     if signal.endswith(" pressure"):
         return result.muscle_pressure(signal[: -len(" pressure")])
+    if signal.endswith(TEMPERATURE):
+        return result.temperature(signal[: -len(TEMPERATURE)])
     raise KeyError(signal)
 
 
@@ -135,6 +153,20 @@ def _pressure_unit(fname: str, col: str, unit: str, patm: float) -> tuple[float,
     return scale, (patm if words[-1].lower() in _GAUGE else 0.0)
 
 
+def _temperature_unit(fname: str, col: str, unit: str) -> tuple[float, float]:
+    """(scale, offset) turning the column's numbers into K."""
+    words = unit.replace("(", " ").replace(")", " ").split()
+    if words and words[-1].lower() in _GAUGE + _ABS:
+        raise _col_error(fname, col, f"temperature unit [{unit}] takes no gauge or abs: write [K] or [degC]")
+    try:
+        return temperature_scale_offset(unit)
+    except TemperatureDifference:
+        raise _col_error(fname, col, f"unit [{unit}] is a temperature difference: a temperature column "
+                                     "is written in [K] or [degC]") from None
+    except Exception:  # pint raises several error types for bad text or dimensions
+        raise _col_error(fname, col, f"unit [{unit}] is not a temperature unit such as K or degC") from None
+
+
 def _read_table(path: Path, what: str = "trace"):
     import pandas as pd
     fname = path.name
@@ -158,7 +190,8 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
     """Read and check a trace for a scenario (see module docstring); values in SI.
 
     Refused, each with a one-line ScenarioError naming file and column: a header without a unit, a
-    unit of the wrong kind, a pressure neither gauge nor abs, a column for a signal the model does
+    unit of the wrong kind, a pressure neither gauge nor abs, a temperature with gauge or abs or in
+    a difference unit, a column for a signal the model does
     not have (all such columns listed), no time column, non-numeric or missing values (NaN), time
     not strictly increasing, a gap (a step more than 5 times the median step), a trace that does not
     cover the scenario's run from 0 to its duration, a trace running on past
@@ -197,7 +230,9 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
             continue
         if name in cols:
             raise _col_error(fname, col, f"signal {name!r} appears twice")
-        if name.endswith(" pressure"):
+        if signal_kind(name) == "temperature":
+            cols[name] = (col, *_temperature_unit(fname, col, unit))
+        else:
             cols[name] = (col, *_pressure_unit(fname, col, unit, patm))
     if unknown:
         raise ScenarioError(f"trace {fname!r}", UNKNOWN,

@@ -54,7 +54,8 @@ class Air:
 class Chamber:
     """A rigid air chamber (the source tanks or the exhaust space inside the hull).
 
-    Its air exchanges heat with the wall (at the ambient temperature) by Newton's law,
+    Its air starts at ``initial_temperature`` (the ambient temperature when not given) and
+    exchanges heat with the wall (at the ambient temperature) by Newton's law,
     Q = h A (T_wall - T) (:mod:`frogsim.physics.heat`); h = 0 keeps it adiabatic (the paper's
     model). A is ``wall_area``, or when that is not given the inner wall of one closed cylinder of
     the chamber's volume and ``length_over_diameter``.
@@ -68,6 +69,9 @@ class Chamber:
                                        doc="inner wall area (none: a cylinder of length_over_diameter)")
     length_over_diameter: float = quantity("dimensionless", gt=0.0, le=100.0, default=1.0,
                                            doc="the cylinder's shape when wall_area is not given")
+    initial_temperature: float | None = quantity("temperature", gt=0.0, display="K", default=None,
+                                                 doc="the air's temperature at t = 0 (none: the ambient "
+                                                     "temperature), e.g. a run started mid-way")
 
     @property
     def inner_wall_area(self) -> float:

@@ -156,3 +156,26 @@ def to_si(value, kind: str, field: str) -> float:
 def display_factor(unit: str, kind: str) -> float:
     """Size of one display unit in SI ("bar", "pressure" -> 1e5); "" -> 1."""
     return parse_quantity(f"1 {unit}", kind) if unit else 1.0
+
+
+class TemperatureDifference(ValueError):
+    """A temperature-difference unit (delta_degC, delta_degF) where a temperature is meant."""
+
+
+@functools.lru_cache(maxsize=256)
+def temperature_scale_offset(unit: str) -> tuple[float, float]:
+    """(scale, offset) with T [K] = scale * x + offset for a reading x in ``unit``.
+
+    degC and degF are offset units: 20 degC is 293.15 K, not 20 K (scale 1, offset 273.15; degF
+    scale 5/9, offset 255.372). A difference unit (delta_degC, delta_degF) is refused with
+    :class:`TemperatureDifference`; any other unit that is not a temperature, with ValueError
+    (or pint's own error)."""
+    ureg = registry()
+    u = ureg.Unit(unit)
+    if any(name.startswith("delta_") for name in u._units):
+        raise TemperatureDifference(unit)
+    offset = float(ureg.Quantity(0.0, u).to("K").magnitude)
+    scale = float(ureg.Quantity(1.0, u).to("K").magnitude) - offset
+    if not scale > 0:
+        raise ValueError(unit)
+    return scale, offset
