@@ -181,9 +181,10 @@ class Result:
         """(flows (time, 2n+1) [kg/s], volumes (time, n) [m^3], lengths (time, n) [m]).
 
         Calls the engine's compiled right-hand side at each output point from Python (a few ms
-        per thousand points), which avoids compiling a second copy of it.
+        per thousand points), which avoids compiling a second copy of it; the volumes and lengths
+        are the ones it leaves in its scratch ``work`` (:mod:`frogsim.circuit.rhs`).
         """
-        from frogsim.circuit.rhs import motion_length, muscle_volume_state, rhs
+        from frogsim.circuit.rhs import rhs
         m = self.model
         n = self.n
         nt = self.t.size
@@ -197,10 +198,8 @@ class Result:
             u = np.ascontiguousarray(self.u[k, :2 * n])
             rhs(float(self.t[k]), np.ascontiguousarray(self.y[k]), u, float(self.u[k, 2 * n]),
                 *args, dydt, flows[k], work)
-            for i in range(n):
-                V[k, i] = muscle_volume_state(float(self.t[k]), i, m.mp, m.mot_t, m.mot_L, m.mot_d,
-                                              m.mot_n)[0]
-                Lm[k, i] = motion_length(float(self.t[k]), i, m.mot_t, m.mot_L, m.mot_d, m.mot_n)[0]
+            V[k] = work[n:2 * n]
+            Lm[k] = work[3 * n:4 * n]
         return flows, V, Lm
 
     @property
