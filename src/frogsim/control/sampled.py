@@ -27,8 +27,8 @@ evaluates the right-hand side again) and :func:`apply_due` (the queued commands 
 the coupled engine also :func:`observe_joints`, the Python drivers :func:`command_from_python`,
 the results :func:`switch_counts`.
 
-A kind's law is dispatched in :func:`sample_controllers`, one branch per kind (the one place a new kind is listed besides its module; Numba compiles calls to
-functions it can name). A law
+A kind's law is dispatched in :func:`sample_controllers`, one branch per kind (the one place a
+new kind is listed besides its module; Numba compiles calls to functions it can name). A law
 returns a mode; :func:`command_valves` turns it into valve commands due one dead time later,
 kept with their due times in ``cs``; :func:`next_control_time` returns the earliest of the next
 sample and the due times, and :func:`apply_due` writes a command into u when its time has come.

@@ -12,8 +12,8 @@ arithmetic on ADC counts, run by the model with ``[firmware]``), ``C_NAME`` and 
 (the same law in C for the board) and the writer of its parameters and tables
 (:mod:`frogsim.control.fixed`, :mod:`frogsim.control.firmware`). Every module of this
 package is imported here, which registers its settings; the compiled dispatch of
-:func:`frogsim.control.sampled.sample_controllers` lists the
-kinds that have a law, one branch each (Numba compiles calls to functions it can name, and caches them by their source files).
+:func:`frogsim.control.sampled.sample_controllers` lists the kinds that have a law, one branch
+each (Numba compiles calls to functions it can name, and caches them by their source files).
 """
 import importlib
 import pkgutil
