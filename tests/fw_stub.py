@@ -11,6 +11,7 @@ BANG_BANG_C = """
 /* bang-bang on channel 0: charge below LOW counts, vent above HIGH, hold between */
 #define FS_LOW %(low)d
 #define FS_HIGH %(high)d
+uint32_t frogsim_faults(void) { return 0; }
 void frogsim_sample(uint32_t k, const uint16_t *adc, int8_t *modes) {
     (void)k;
     int32_t c = (int32_t)adc[0];

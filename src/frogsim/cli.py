@@ -413,19 +413,16 @@ def cmd_sil(args) -> int:
             _write_simulate(out, run.result, {"sil": s})
         folder.finish()
         load = s["cpu_load_percent"]
-        _progress(f"mismatched samples {s['mismatched_samples']} of {s['samples']}, CPU load mean "
-                  f"{load['mean']:.1f} % max {load['max']:.1f} %, overruns {s['overruns']}; wrote "
+        _progress(f"mismatched samples {s['mismatched_samples']} of {s['firmware_samples']}, interrupt load mean "
+                  f"{load['mean']:.1f} % max {load['max']:.1f} %, chip awake {s['awake_percent']:.1f} %, "
+                  f"{s['effective_rate_hz']:.1f} Hz effective, overruns {s['overruns']}, log records "
+                  f"{s['log_records']['received']} of {s['log_records']['made']} received; wrote "
                   f"{out / 'summary.json'}, {out / 'serial.csv'}, {out / 'timeseries.csv'}")
-        if s["overruns"]:
-            _warn(f"the firmware overran its {1e3 / plan.rate:g} ms period at {s['overruns']} of {s['samples']} "
-                  f"samples (CPU load up to {load['max']:.0f} %): on the board those samples come late; "
-                  "lower controller.rate or control fewer muscles")
+        for text in s["warnings"]:
+            _warn(text)
         if s.get("adc_read_differs_samples"):
-            _warn(f"at {s['adc_read_differs_samples']} samples the firmware read other counts than the plant "
-                  f"gave it (the emulation's fault, not the firmware's); the first: {s['first_adc_difference']}")
-        if s["mismatched_samples"]:
-            _warn(f"the firmware's valve commands differ from the model's at {s['mismatched_samples']} "
-                  f"samples; the first: {s['first_mismatch']}")
+            _warn(f"at {s['adc_read_differs_samples']} on-time samples the firmware read other counts than the "
+                  "plant gave it (the emulation's fault, not the firmware's)")
         return 0
     return _finishing(folder, work)
 

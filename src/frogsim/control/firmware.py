@@ -194,7 +194,8 @@ def c_source(name: str, laws: list) -> str:
            "#ifndef FS_TABLE\n#define FS_TABLE\n#endif\n",
            "#ifndef FS_READ16\n#define FS_READ16(p) (*(p))\n#endif\n",
            "#ifndef FS_READ32\n#define FS_READ32(p) (*(p))\n#endif\n\n",
-           "void frogsim_sample(uint32_t k, const uint16_t *adc, int8_t *modes);\nvoid frogsim_reset(void);\n",
+           "void frogsim_sample(uint32_t k, const uint16_t *adc, int8_t *modes);\nvoid frogsim_reset(void);\n"
+           "uint32_t frogsim_faults(void);\n",
            "".join(f"int8_t {mod.C_NAME}(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P, "
                    "const int32_t *T);\n" for mod in TWINS), "\n", fixed.C_COMMON, "\n"]
     out += [mod.c_source() + "\n" for mod in used]
@@ -204,6 +205,8 @@ def c_source(name: str, laws: list) -> str:
         if tables[j] == f"fs_T{j}":
             out.append(fixed.c_array(f"fs_T{j}", law.T, True))
         out.append(f"static int32_t fs_M{j}[{FW_MEM}];\n")
+    out.append("\nstatic uint32_t fs_fault_bits;   /* bit i: channel i in fault at the last sample */\n"
+               "uint32_t frogsim_faults(void) { return fs_fault_bits; }\n")
     out.append("\nvoid frogsim_reset(void) {\n    uint8_t i;\n")
     for j in range(len(laws)):
         out.append(f"    for (i = 0; i < {FW_MEM}; i++) fs_M{j}[i] = 0;\n")

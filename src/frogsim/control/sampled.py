@@ -364,17 +364,29 @@ _MODES = {"charge": MODE_CHARGE, "hold": MODE_HOLD, "vent": MODE_VENT,
           1: MODE_CHARGE, 0: MODE_HOLD, -1: MODE_VENT}
 
 
-def command_from_python(laws, rows: dict, cs, cmds: dict, t_k: float, u, t_now: float) -> None:
+def command_from_python(laws, rows: dict, cs, cmds, t_k: float, u, t_now: float) -> None:
     """A Python controller function's commands at sample t_k, {muscle: "charge" | "hold" | "vent"
     (or +1, 0, -1)}, checked and queued like a compiled law's (:func:`command_valves`; ``rows``:
-    muscle -> its law row); commands without dead time act at once (written into u at t_now)."""
+    muscle -> its law row); commands without dead time act at once (written into u at t_now).
+
+    ``cmds`` may also be a list of (t, muscle, mode) in time order with t_k <= t: commands issued
+    between samples, each queued at its own time (software in the loop: the firmware's pin writes
+    at the cycle it made them, :mod:`frogsim.export.sil`)."""
     from frogsim.errors import SimulationError
-    for name, mode in (cmds or {}).items():
+    timed = cmds if isinstance(cmds, list) else [(t_k, n, m) for n, m in (cmds or {}).items()]
+    for t, name, mode in timed:
         if name not in rows:
             raise SimulationError(f"controller function: muscle {name!r} is not free for closed-loop "
                                   f"control (free: {', '.join(rows) or 'none'})")
         if mode not in _MODES:
             raise SimulationError(f"controller function: mode {mode!r} for {name!r} must be "
                                   "'charge', 'hold' or 'vent'")
-        command_valves(laws, rows[name], cs, _MODES[mode], t_k)
+        if not t >= t_k - TOL:
+            raise SimulationError(f"controller function: a command for {name!r} at t = {t!r} s, before the "
+                                  f"sample ({t_k:g} s) that issues it")
+        b = int(CS_SIZE + rows[name] * cs[CS_BLOCK])
+        if max(cs[b + B_QC_N], cs[b + B_QD_N]) >= cs[CS_Q] - 1:
+            raise SimulationError(f"controller function: more valve commands for {name!r} within one dead time "
+                                  f"than its queue holds ({int(cs[CS_Q])}) at t = {t:g} s")
+        command_valves(laws, rows[name], cs, _MODES[mode], max(float(t), t_k))
     apply_due(laws, t_now, u, cs)

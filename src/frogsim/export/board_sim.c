@@ -21,6 +21,7 @@
 #include <simavr/avr_adc.h>
 #include <simavr/avr_ioport.h>
 #include <simavr/avr_uart.h>
+#include <simavr/sim_interrupts.h>
 
 #define MAX_WATCH 64
 #define ADC_INPUTS 16
@@ -47,6 +48,8 @@ struct board_t {
     avr_adc_t *adc;
     /* board_run_until_pin: stop when watch `stop_index` changes to `stop_value` */
     int stop_index, stop_value, stop_hit;
+    /* cycles the core spent asleep (SLEEP instruction until the next interrupt woke it) */
+    uint64_t sleep_cycles;
 };
 
 static void pin_changed(struct avr_irq_t *irq, uint32_t value, void *param) {
@@ -181,11 +184,41 @@ int board_set_pin(board_t *b, char port, int bit, int value) {
     return 0;
 }
 
+/* Watch interrupt vector `vector` (the datasheet's vector number, 1 = INT0; TIMER1_COMPA is 17 on
+ * the ATmega2560): its flag being raised (the hardware event, e.g. Timer1's compare match) is
+ * queued as an event of value 1 under `index`, its being taken by the CPU as value 0. A raise
+ * while the flag is still set is no new event (the hardware sets the flag once: the later
+ * event is lost, as on the chip). */
+int board_watch_vector(board_t *b, int vector, int index) {
+    if (b->n_watch >= MAX_WATCH) return -1;
+    avr_irq_t *irq = avr_get_interrupt_irq(b->avr, (uint8_t)vector);
+    if (!irq) return -2;
+    watch_t *w = &b->watch[b->n_watch++];
+    w->b = b;
+    w->index = index;
+    w->last = 0;
+    avr_irq_register_notify(irq + AVR_INT_IRQ_PENDING, pin_changed, w);
+    return 0;
+}
+
+/* One step of the core; the cycles it slept in it are added to sleep_cycles. */
+static int step(board_t *b) {
+    if (b->avr->state == cpu_Sleeping) {
+        uint64_t c0 = b->avr->cycle;
+        int st = avr_run(b->avr);
+        b->sleep_cycles += b->avr->cycle - c0;
+        return st;
+    }
+    return avr_run(b->avr);
+}
+
+uint64_t board_sleep_cycles(board_t *b) { return b->sleep_cycles; }
+
 /* Run the core until its cycle counter reaches `cycle`. Returns 0, or -1 if the firmware
  * stopped (returned from main with interrupts off, or crashed). */
 int board_run_until(board_t *b, uint64_t cycle) {
     while (b->avr->cycle < cycle) {
-        int st = avr_run(b->avr);
+        int st = step(b);
         if (st == cpu_Done || st == cpu_Crashed)
             return -1;
     }
@@ -200,7 +233,7 @@ int board_run_until_pin(board_t *b, int index, int value, uint64_t max_cycle) {
     b->stop_value = value;
     b->stop_hit = 0;
     while (!b->stop_hit && b->avr->cycle < max_cycle) {
-        int st = avr_run(b->avr);
+        int st = step(b);
         if (st == cpu_Done || st == cpu_Crashed) {
             b->stop_index = -1;
             return -1;

@@ -91,6 +91,9 @@ def _lib():
         lib.board_open.argtypes = [ctypes.c_char_p, ctypes.c_uint32, ctypes.c_uint32]
         lib.board_close.argtypes = [vp]
         lib.board_watch.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
+        lib.board_watch_vector.argtypes = [vp, ctypes.c_int, ctypes.c_int]
+        lib.board_sleep_cycles.restype = u64
+        lib.board_sleep_cycles.argtypes = [vp]
         lib.board_set_adc_mv.argtypes = [vp, ctypes.c_int, ctypes.c_uint32]
         lib.board_set_pin.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
         lib.board_run_until.argtypes = [vp, u64]
@@ -179,6 +182,21 @@ class EmulatedBoard:
             raise FrogsimError(f"pin {pin.number}: cannot watch port {pin.port} bit {pin.bit}")
         self.watched.append(pin)
         return index
+
+    def watch_vector(self, vector: int) -> int:
+        """Record interrupt vector ``vector`` (the datasheet's number: TIMER1_COMPA is 17 on the
+        ATmega2560) among :meth:`events`: value 1 at the cycle its flag is raised (the hardware
+        event: a compare match), 0 when the CPU takes it. Returns its index in :meth:`events`."""
+        index = len(self.watched)
+        if self._lib.board_watch_vector(self._h, int(vector), index) != 0:
+            raise FrogsimError(f"interrupt vector {vector}: cannot watch it")
+        self.watched.append(None)
+        return index
+
+    @property
+    def sleep_cycles(self) -> int:
+        """CPU cycles the core has spent asleep so far (after SLEEP, until an interrupt woke it)."""
+        return int(self._lib.board_sleep_cycles(self._h))
 
     def set_analog(self, channel: int, millivolts: int) -> None:
         """The voltage at analog input A<channel> [mV, whole: simavr's unit], held until changed."""

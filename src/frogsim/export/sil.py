@@ -39,8 +39,10 @@ from frogsim.scenario.motion import command_time
 MODE_OF_STATE = {"charge": 1, "vent": -1, "hold": 0}
 #: CPU cycles the board may take to reach its first sample (setup, the serial header) [cycles]
 START_CYCLES = 40 * board.F_CPU // 10
-#: cycles run after the last sample, so that the log lines queued by then are sent
-DRAIN_PERIODS = 40
+#: the longest the serial log may take, after the run, to send the records queued by its end [s]
+DRAIN_S = 2.0
+#: Timer1's compare-match A interrupt: vector 17 of the ATmega2560 (datasheet Table 14-1)
+TIMER1_COMPA_VECTOR = 17
 
 
 def program_mode(steps, t: float, rate: float) -> int:
@@ -54,96 +56,206 @@ def program_mode(steps, t: float, rate: float) -> int:
     return MODE_OF_STATE[state]
 
 
-@dataclass
 class BoardRun:
-    """The firmware on the emulated board, one sample at a time (see the module docstring)."""
-    rec: dict
-    elf: object
-    high: list = field(default_factory=list)       # busy pin high time of each sample [cycles]
-    serial: bytearray = field(default_factory=bytearray)
-    both_open: int = 0
+    """The firmware on the emulated board, one controller period (a frame) at a time.
 
-    def __post_init__(self):
-        self.board = EmulatedBoard(self.elf, self.rec["f_cpu_hz"], 5.0)
-        pins = board.pin_map()
-        self.busy = self.board.watch(pins[self.rec["busy_pin"]])
-        self.valve_index = [(self.board.watch(pins[c]), self.board.watch(pins[d])) for c, d in self.rec["valve_pins"]]
-        self.level = np.zeros(len(self.board.watched), np.int32)
-        self.shift = 10 - int(self.rec["adc"]["bits"])
-        self.inputs = [int(ch["analog_input"]) for ch in self.rec["channels"]]
-        self.period = int(self.rec["period_cycles"])
-        self.mv = [-1] * len(self.inputs)          # the voltages set, changed only when they change
+    The board's clock and the plant's are tied at sample 0: cycle ``s0``, the cycle of Timer1's
+    first compare match (the hardware event, not the interrupt's entry), is plant time 0, and
+    sample k's period is the cycles [s0 + k P, s0 + (k + 1) P). :meth:`frame` sets the analog
+    inputs from the plant's state at t_k and runs the AVR to the end of that period, whatever the
+    firmware does in it: an interrupt that ends late ends in a later frame, a compare match the
+    firmware could not take is lost as on the chip. Every valve pin change is returned with its
+    own cycle, so the plant receives it at the time the firmware wrote it (plus the valve's dead
+    time), not on the nominal grid.
+
+    Per execution j of the control interrupt (the busy pin's rise and fall): its start and end
+    cycles, the valve modes at its end (its decision), the counts it read (``fs_adc`` in the
+    emulated RAM, read at its end), the cycle of its last valve write."""
+
+    def __init__(self, rec: dict, elf):
         from frogsim.export.emulator import symbol_address
-        self.overrun_address = symbol_address(self.elf, "fs_overruns")
-        self.adc_address = symbol_address(self.elf, "fs_adc") if self.inputs else None
-        self.adc_differs = 0             # samples whose counts the firmware read are not those fed
-        self.first_adc_difference = None
+        self.rec, self.elf = rec, elf
+        self.board = EmulatedBoard(elf, rec["f_cpu_hz"], 5.0)
+        pins = board.pin_map()
+        self.busy = self.board.watch(pins[rec["busy_pin"]])
+        self.valve_index = [(self.board.watch(pins[c]), self.board.watch(pins[d])) for c, d in rec["valve_pins"]]
+        self.tick = self.board.watch_vector(TIMER1_COMPA_VECTOR)
+        self.owner = {}
+        for j, (ic, idis) in enumerate(self.valve_index):
+            self.owner[ic] = j
+            self.owner[idis] = j
+        self.level = np.zeros(len(self.board.watched), np.int32)
+        self.shift = 10 - int(rec["adc"]["bits"])
+        self.inputs = [int(ch["analog_input"]) for ch in rec["channels"]]
+        self.period = int(rec["period_cycles"])
+        self.mv = [-1] * len(self.inputs)          # the voltages set, changed only when they change
+        self.overrun_address = symbol_address(elf, "fs_overruns")
+        self.dropped_address = symbol_address(elf, "fs_dropped")
+        self.k_address = symbol_address(elf, "fs_k")
+        self.adc_address = symbol_address(elf, "fs_adc") if self.inputs else None
+        self.modes_now = np.zeros(len(self.valve_index), np.int8)
         self.ev_c = np.empty(256, np.uint64)
         self.ev_i = np.empty(256, np.int32)
         self.ev_v = np.empty(256, np.int32)
-        self.k = 0
+        self.s0 = None
+        self.frames = 0
         self.rise = None
+        self.last_edge = None
+        self.ticks = []            # cycles of Timer1's compare matches (flag raised)
+        self.starts, self.ends = [], []     # busy pin rise and fall of each execution
+        self.decisions = []        # the muscles' modes at each execution's end
+        self.counts_read = []      # the counts each execution read
+        self.write_cycle = []      # cycle of each execution's last valve change (-1: none)
+        self.both_open = 0
+        self.fed = []              # the counts fed in each frame
         self.avr_s = 0.0
 
-    def sample(self, counts) -> np.ndarray:
-        """Sample k: the channels read ``counts``; returns the modes of the muscles (plan order)."""
-        t0 = time.perf_counter()
+    # -- the run ---------------------------------------------------------------------------------
+    def _drain(self, out) -> None:
+        """Process the queued pin events in order; valve mode changes go to ``out``."""
         b = self.board
+        while True:
+            n = b.events_into(self.ev_c, self.ev_i, self.ev_v)
+            for c, i, v in zip(self.ev_c[:n].tolist(), self.ev_i[:n].tolist(), self.ev_v[:n].tolist()):
+                self.level[i] = v
+                if i == self.busy:
+                    if v:
+                        self.rise = c
+                    elif self.rise is not None:
+                        self.starts.append(self.rise)
+                        self.ends.append(c)
+                        self.decisions.append(self.modes_now.copy())
+                        self.write_cycle.append(self.last_edge if self.last_edge is not None
+                                                and self.last_edge >= self.rise else -1)
+                        self.rise = None
+                elif i == self.tick:
+                    if v:
+                        self.ticks.append(c)
+                else:
+                    j = self.owner[i]
+                    ic, idis = self.valve_index[j]
+                    ch, dis = self.level[ic], self.level[idis]
+                    if ch and dis:
+                        self.both_open += 1
+                    mode = 1 if ch and not dis else (-1 if dis and not ch else 0)
+                    if mode != self.modes_now[j]:
+                        self.modes_now[j] = mode
+                        self.last_edge = c
+                        if out is not None:
+                            out.append((c, j, mode))
+            if n < self.ev_c.size:
+                break
+
+    def begin(self) -> None:
+        """Run the board's setup until its first control interrupt has begun (the busy pin's first
+        rise): sample 0's start, plant time 0, is Timer1's compare match just before it (the
+        flag's last raise: before setup starts Timer1 in CTC mode, the Arduino core's PWM mode
+        raises it too, without the interrupt enabled). The analog inputs are set by
+        :meth:`frame` before the interrupt starts its first conversion."""
+        b = self.board
+        if not b.run_until_pin(self.busy, 1, b.cycle + START_CYCLES):
+            raise SimulationError(f"firmware {self.rec['name']!r}: its control interrupt never ran within "
+                                  f"{START_CYCLES} AVR cycles of the start (its timer never started)")
+        self._drain(None)
+        before = [c for c in self.ticks if c <= self.rise]
+        if not before:
+            raise SimulationError(f"firmware {self.rec['name']!r}: its control interrupt ran without a Timer1 "
+                                  "compare match (not frogsim's runtime?)")
+        self.s0 = before[-1]
+        self.ticks = [self.s0]
+        self.sleep0 = b.sleep_cycles
+
+    def frame(self, counts) -> list:
+        """Sample k's period: the channels read ``counts`` (held for the period, as the plant's
+        state at t_k), the AVR runs to the period's end. Returns the valve mode changes in it,
+        [(cycle, muscle index, mode)], in order."""
+        t0 = time.perf_counter()
+        if self.s0 is None:
+            self.begin()
+        b = self.board
+        counts = np.asarray(counts, np.int64)
+        self.fed.append(counts.copy())
         for j, (a, c) in enumerate(zip(self.inputs, counts.tolist())):
             mv = millivolts_for_count(c << self.shift)
             if mv != self.mv[j]:
                 b.set_analog(a, mv)
                 self.mv[j] = mv
-        wait = START_CYCLES if self.k == 0 else 50 * self.period
-        if not b.run_until_pin(self.busy, 0, b.cycle + wait):
-            raise SimulationError(f"firmware {self.rec['name']!r}: sample {self.k} did not end within {wait} AVR "
-                                  "cycles (its interrupt never ran or never ended)")
+        end = self.s0 + (self.frames + 1) * self.period
+        out = []
         while True:
-            n = b.events_into(self.ev_c, self.ev_i, self.ev_v)
-            for cc, ii, vv in zip(self.ev_c[:n].tolist(), self.ev_i[:n].tolist(), self.ev_v[:n].tolist()):
-                self.level[ii] = vv
-                if ii == self.busy:
-                    if vv:
-                        self.rise = cc
-                    elif self.rise is not None:
-                        self.high.append(cc - self.rise)
-                        self.rise = None
-            if n < self.ev_c.size:
+            hit = b.run_until_pin(self.busy, 0, end)
+            self._drain(out)
+            if not hit:
                 break
-        if self.inputs:
-            read = np.frombuffer(b.read_ram(self.adc_address, 2 * len(self.inputs)), "<u2")
-            if not np.array_equal(read, counts):
-                self.adc_differs += 1
-                if self.first_adc_difference is None:
-                    self.first_adc_difference = {"sample": self.k, "fed": counts.tolist(), "read": read.tolist()}
-        modes = np.zeros(len(self.valve_index), np.int8)
-        for j, (ic, idis) in enumerate(self.valve_index):
-            ch, dis = self.level[ic], self.level[idis]
-            if ch and dis:
-                self.both_open += 1
-            modes[j] = 1 if ch and not dis else (-1 if dis and not ch else 0)
-        if self.k % 1000 == 999:
-            self.serial += b.serial()[0]
-        self.k += 1
+            if self.inputs:
+                self.counts_read.append(np.frombuffer(b.read_ram(self.adc_address, 2 * len(self.inputs)),
+                                                      "<u2").astype(np.int64))
+            else:
+                self.counts_read.append(np.zeros(0, np.int64))
+        self.frames += 1
         self.avr_s += time.perf_counter() - t0
-        return modes
+        return out
+
+    def cycle_time(self, cycle: int) -> float:
+        """Plant time [s] of an AVR cycle (sample 0's compare match is t = 0)."""
+        return (cycle - self.s0) / self.board.f_cpu
 
     def finish(self) -> None:
-        """Read the overrun counter, then run on long enough for the queued log lines to leave;
-        collect the serial bytes."""
+        """Read the firmware's counters at the run's end, then let it send the log records it
+        queued (at most DRAIN_S of emulated time); collect the serial bytes."""
         t0 = time.perf_counter()
-        self.overruns = int.from_bytes(self.board.read_ram(self.overrun_address, 2), "little")
-        self.board.run_until(self.board.cycle + DRAIN_PERIODS * self.period)
-        self.serial += self.board.serial()[0]
+        b = self.board
+        self.end_cycle = b.cycle
+        self.awake = 1.0 - (b.sleep_cycles - self.sleep0) / max(1, b.cycle - self.s0) if self.s0 is not None else None
+        self.overruns = int.from_bytes(b.read_ram(self.overrun_address, 2), "little")
+        self.dropped = int.from_bytes(b.read_ram(self.dropped_address, 2), "little")
+        self.executed = int.from_bytes(b.read_ram(self.k_address, 4), "little")
+        self.serial = bytearray(b.serial()[0])
+        every = int(self.rec["log_every"])
+        made = -(-self.executed // every)
+        limit = b.cycle + int(DRAIN_S * b.f_cpu)
+        while b.cycle < limit:
+            from frogsim.export.serial_log import parse_log
+            got = sum(1 for r in parse_log(bytes(self.serial), self.rec).records if r[0] < self.executed)
+            if got + self.dropped >= made:
+                break
+            b.run_until(min(limit, b.cycle + 20 * self.period))
+            self._drain(None)
+            self.serial += b.serial()[0]
         self.avr_s += time.perf_counter() - t0
-        if self.board.lost:
+        if b.lost:
             raise FrogsimError(f"firmware {self.rec['name']!r}: the emulated board's queues overflowed "
-                               f"({self.board.lost} events or bytes lost)")
-        self.board.close()
+                               f"({b.lost} events or bytes lost)")
+        b.close()
+
+    # -- what it measured --------------------------------------------------------------------------
+    def timing(self, executions: int | None = None) -> dict:
+        """The executions' timing against their nominal sample starts s0 + j P [cycles]: busy
+        time (the interrupt's work), response (start to end), valve write latency (start to the
+        last valve change it made), late (ended after the next sample's start)."""
+        n = len(self.ends) if executions is None else min(executions, len(self.ends))
+        P = self.period
+        start = self.s0 + P * np.arange(n)
+        ends = np.array(self.ends[:n], float)
+        busy = ends - np.array(self.starts[:n], float)
+        response = ends - start
+        writes = np.array(self.write_cycle[:n], float)
+        wrote = writes >= 0
+        latency = writes[wrote] - start[wrote]
+        us = 1e6 / self.board.f_cpu
+
+        def stat(x, scale):
+            return {"mean": float(x.mean()) * scale if x.size else None,
+                    "max": float(x.max()) * scale if x.size else None}
+        return {"executions": n, "busy": busy, "response": response,
+                "cpu_load_percent": stat(busy, 100.0 / P),
+                "response_us": stat(response, us),
+                "valve_write_latency_us": {**stat(latency, us), "samples_with_a_valve_change": int(wrote.sum())},
+                "samples_late": int((response > P).sum())}
 
     def load(self, samples: int) -> np.ndarray:
-        """The busy pin's high time of samples 0..samples-1 as a share of the period."""
-        return np.array(self.high[:samples], float) / self.period
+        """The busy pin's high time of executions 0..samples-1 as a share of the period."""
+        return (np.array(self.ends[:samples], float) - np.array(self.starts[:samples], float)) / self.period
 
 
 def interrupt_timing(rec: dict, elf, samples: int = 200, seed: int = 0) -> dict:
@@ -155,20 +267,26 @@ def interrupt_timing(rec: dict, elf, samples: int = 200, seed: int = 0) -> dict:
     conversions only; the laws' own arithmetic (a joint-angle law's 64-bit products take about a
     quarter of a 1 ms period) is measured here, on the machine code itself. Returns the period
     [cycles], the mean and largest share of it the interrupt took [%], the samples over the
-    period and the firmware's overrun counter."""
+    period, the firmware's overrun counter and the share of the time the chip was awake [%]."""
     run = BoardRun(rec, elf)
     rng = np.random.default_rng(seed)
     top = (1 << int(rec["adc"]["bits"])) - 1
     try:
         for _ in range(samples):
-            run.sample(rng.integers(0, top + 1, len(run.inputs)).astype(np.int64))
-        run.overruns = int.from_bytes(run.board.read_ram(run.overrun_address, 2), "little")
+            run.frame(rng.integers(0, top + 1, len(run.inputs)).astype(np.int64))
+        b = run.board
+        run.overruns = int.from_bytes(b.read_ram(run.overrun_address, 2), "little")
+        awake = 1.0 - (b.sleep_cycles - run.sleep0) / max(1, b.cycle - run.s0)
     finally:
         run.board.close()
-    load = run.load(samples) * 100.0
-    return {"samples": samples, "period_cycles": run.period, "mean_percent": float(load.mean()),
-            "max_percent": float(load.max()), "samples_over_period": int((load > 100.0).sum()),
-            "overruns": run.overruns}
+    timing = run.timing()
+    load = timing["busy"] / run.period * 100.0
+    return {"samples": samples, "executions": timing["executions"], "period_cycles": run.period,
+            "mean_percent": float(load.mean()) if load.size else None,
+            "max_percent": float(load.max()) if load.size else None,
+            "samples_over_period": int((load > 100.0).sum()) + max(0, samples - 1 - timing["executions"]),
+            "samples_late": timing["samples_late"], "overruns": run.overruns,
+            "awake_percent": 100.0 * awake}
 
 
 class Shadow:
@@ -232,7 +350,8 @@ class SilRun:
 
 
 class _Loop:
-    """The controller function the Python-controller drivers call at each sample."""
+    """The controller function the Python-controller drivers call at each sample: one frame of
+    the board per sample, its valve writes returned at their own times."""
 
     def __init__(self, rec, elf, plan, counts, shadow, model, progress, duration, robot):
         self.rec, self.plan, self.counts, self.shadow, self.model = rec, plan, counts, shadow, model
@@ -240,8 +359,18 @@ class _Loop:
         self.muscles = list(rec["muscles"])
         self.robot = robot
         self.joint_names, self.joint_qpos = robot if robot else ((), ())
+        # the integer twin of frogsim_sample on the counts the firmware read (a plan made by
+        # frogsim.control.firmware has it; a hand-written one is checked against the shadow)
+        self.twin_mem = None
+        if getattr(plan, "laws", None):
+            from frogsim.control.signals import FW_MEM
+            self.twin_mem = np.zeros((len(plan.laws), FW_MEM))
+        self.shadow_modes = []       # the compiled law on the plant's state, per sample
+        self.checked = 0
         self.mismatched = 0
         self.first_mismatch = None
+        self.off_model = 0
+        self.first_off_model = None
         self.progress = progress
         self.duration = duration
         self.wall0 = time.perf_counter()
@@ -255,44 +384,124 @@ class _Loop:
         if qpos is not None:
             angles = {n: float(qpos[self.joint_qpos[j]]) for j, n in enumerate(self.joint_names)}
         counts = self.counts(self.plan, self.model, y, angles)
-        modes = self.board.sample(np.asarray(counts, np.int64))
-        want = self.shadow.modes(self.k, y, qpos, qvel)
-        if not np.array_equal(modes, want):
-            self.mismatched += 1
-            if self.first_mismatch is None:
-                self.first_mismatch = {"sample": self.k, "time_s": float(t), "counts": [int(c) for c in counts],
-                                       "firmware": modes.tolist(), "model": want.tolist()}
+        changes = self.board.frame(np.asarray(counts, np.int64))
+        self.shadow_modes.append(self.shadow.modes(self.k, y, qpos, qvel))
+        self._check()
         self.k += 1
         now = time.perf_counter()
         if self.progress is not None and now - self.shown > 2.0:
             self.shown = now
             self.progress(f"      SIL at {t:.2f} s of {self.duration:g} s simulated "
                           f"({t / (now - self.wall0):.2f} x real time)")
-        return {m: int(x) for m, x in zip(self.muscles, modes)}
+        board_ = self.board
+        return [(max(float(t), board_.cycle_time(c)), self.muscles[j], int(m)) for c, j, m in changes]
+
+    def _check(self) -> None:
+        """Each execution that has ended: its decision against the integer twin on the counts it
+        read (mismatched), and against the compiled law on the plant at its own sample (the
+        on-time model: differs when the firmware read other counts, late)."""
+        from frogsim.control.firmware import firmware_modes
+        b = self.board
+        while self.checked < len(b.decisions):
+            j = self.checked
+            got = b.decisions[j]
+            if self.twin_mem is not None:
+                want = firmware_modes(self.plan, j, b.counts_read[j], self.twin_mem)
+            else:
+                want = self.shadow_modes[j] if j < len(self.shadow_modes) else got
+            if not np.array_equal(got, want):
+                self.mismatched += 1
+                if self.first_mismatch is None:
+                    self.first_mismatch = {"sample": j, "time_s": j / float(self.rec["rate_hz"]),
+                                           "counts_read": b.counts_read[j].tolist(),
+                                           "firmware": got.tolist(), "twin": np.asarray(want).tolist()}
+            if j < len(self.shadow_modes) and not np.array_equal(got, self.shadow_modes[j]):
+                self.off_model += 1
+                if self.first_off_model is None:
+                    self.first_off_model = {"sample": j, "counts_fed": b.fed[j].tolist(),
+                                            "counts_read": b.counts_read[j].tolist(),
+                                            "firmware": got.tolist(), "model": self.shadow_modes[j].tolist()}
+            self.checked += 1
 
     def summary(self, rec) -> dict:
         from frogsim.export.serial_log import parse_log
-        self.board.finish()
-        lines = parse_log(bytes(self.board.serial), rec)
-        last = [r for r in lines.records if r[0] < self.k]
-        load = self.board.load(self.k) * 100.0
-        return {
-            "samples": self.k,
+        b = self.board
+        self._check()
+        b.finish()
+        ran = b.frames                              # the plant's samples (periods run)
+        done = sum(1 for e in b.ends if e < b.s0 + ran * b.period) if b.s0 is not None else 0
+        timing = b.timing(done)
+        log = parse_log(bytes(b.serial), rec)
+        every = int(rec["log_every"])
+        made = -(-done // every)
+        received = sum(1 for r in log.records if r[0] < done)
+        dropped = max((r[-1] for r in log.records if r[0] < done), default=0)
+        unsent = max(0, made - received - dropped)
+        rate = float(rec["rate_hz"])
+        span = ran / rate
+        s = {
+            "samples": ran,
+            "firmware_samples": done,
+            "effective_rate_hz": done / span if span > 0 else None,
+            "samples_skipped": ran - done,
+            "samples_late": timing["samples_late"],
             "mismatched_samples": self.mismatched,
             **({"first_mismatch": self.first_mismatch} if self.first_mismatch else {}),
-            "cpu_load_percent": {"mean": float(load.mean()) if load.size else None,
-                                 "max": float(load.max()) if load.size else None},
-            "overruns": self.board.overruns,
-            "both_valves_open_samples": self.board.both_open,
-            "adc_read_differs_samples": self.board.adc_differs,
-            **({"first_adc_difference": self.board.first_adc_difference} if self.board.adc_differs else {}),
-            "log_lines": len(last),
-            "log_lines_dropped": lines.dropped,
+            "samples_off_the_on_time_model": self.off_model,
+            **({"first_off_the_on_time_model": self.first_off_model} if self.first_off_model else {}),
+            "cpu_load_percent": timing["cpu_load_percent"],
+            "response_us": timing["response_us"],
+            "valve_write_latency_us": timing["valve_write_latency_us"],
+            "awake_percent": 100.0 * b.awake if b.awake is not None else None,
+            "overruns": b.overruns,
+            "both_valves_open_samples": b.both_open,
+            "adc_read_differs_samples": self.adc_differs(timing["response"], b.period),
+            "log_records": {"made": made, "received": received, "dropped": dropped, "unsent": unsent,
+                            "lines_unreadable": log.bad},
+            "log_lines": received,
+            "log_lines_dropped": dropped,
             "flash_bytes": rec.get("flash_bytes"),
             "ram_bytes": rec.get("ram_bytes"),
-            "avr_wall_s": self.board.avr_s,
+            "avr_wall_s": b.avr_s,
             "log_csv": "serial.csv",
         }
+        s["warnings"] = warnings_of(s, rec)
+        return s
+
+    def adc_differs(self, response, period) -> int:
+        """On-time executions (ended within their own period) that read other counts than the
+        plant gave at their sample: a check of the emulation itself, 0 (a late execution reads a
+        later frame's counts, as on the board)."""
+        b = self.board
+        n = min(len(b.counts_read), len(b.fed), len(response))
+        return sum(1 for j in range(n) if response[j] <= period and not np.array_equal(b.counts_read[j], b.fed[j]))
+
+
+def warnings_of(s: dict, rec: dict) -> list:
+    """The SIL summary's findings a user must not miss, one line each (also printed on stderr)."""
+    out = []
+    period_ms = 1e3 / float(rec["rate_hz"])
+    if s["overruns"]:
+        out.append(f"the firmware overran its {period_ms:g} ms period {s['overruns']} times in {s['samples']} "
+                   f"samples (CPU load up to {s['cpu_load_percent']['max']:.0f} %): on the board those samples "
+                   "come late, and so they did here")
+    if s["samples_late"] or s["samples_skipped"]:
+        out.append(f"{s['samples_late']} samples ended after the next one was due and {s['samples_skipped']} "
+                   f"were never taken: the board ran at {s['effective_rate_hz']:.1f} Hz, not "
+                   f"{float(rec['rate_hz']):g} Hz (response up to {s['response_us']['max']:.0f} us)")
+    lr = s["log_records"]
+    if lr["dropped"]:
+        out.append(f"the serial log dropped {lr['dropped']} of {lr['made']} records (its ring was full: the "
+                   "board's idle time or the baud rate cannot carry it)")
+    if lr["unsent"]:
+        out.append(f"{lr['unsent']} of {lr['made']} log records were not sent {DRAIN_S:g} s after the run")
+    if s["mismatched_samples"]:
+        out.append(f"the firmware's valve commands differ from the integer twin's on the same counts at "
+                   f"{s['mismatched_samples']} samples; the first: {s.get('first_mismatch')}")
+    if s["both_valves_open_samples"]:
+        out.append(f"a muscle's charge and discharge valves were open together {s['both_valves_open_samples']} "
+                   "times")
+    return out
 
 
 def check_plan(rec: dict, plan) -> None:
@@ -304,9 +513,57 @@ def check_plan(rec: dict, plan) -> None:
                                                            "one before an edit: export and build it again")
 
 
-def run_pneumatic(model, rec: dict, elf, plan, counts, progress=None) -> SilRun:
-    """SIL of a pneumatic scenario (its built model ``model``) against the firmware ``elf``."""
-    from frogsim.engine.pneumatic import run_python_controller
+#: the per-controller metrics compared between the SIL run and the compiled runs
+COMPARED = ("tracking_error_rms_bar", "tracking_error_max_bar", "tracking_error_rms_deg", "tracking_error_max_deg",
+            "switchings_per_s", "air_used_L_std")
+
+
+def compare_runs(sil_metrics: dict, runs: dict) -> dict:
+    """{controller: {metric: {"sil": x, run name: y, ..., "sil_over_<run name>": x / y}}} for the
+    metrics of :data:`COMPARED` that each run reports (``runs``: {name: control metrics})."""
+    out = {}
+    for name, entry in sil_metrics.items():
+        row = {}
+        for key in COMPARED:
+            x = entry.get(key)
+            if not isinstance(x, (int, float)):
+                continue
+            cell = {"sil": float(x)}
+            for run, metrics in runs.items():
+                y = metrics.get(name, {}).get(key)
+                if isinstance(y, (int, float)):
+                    cell[run] = float(y)
+                    cell[f"sil_over_{run}"] = float(x) / float(y) if y else None
+            row[key] = cell
+        if row:
+            out[name] = row
+    return out
+
+
+def _compiled_block(result, compiled, float_run) -> dict:
+    """The "compiled" section: the SIL run's tracking against the compiled runs of the same
+    scenario: its integer twin (what an on-time board does) and its float laws (no [firmware])."""
+    return {"runs": {"compiled": "the scenario's compiled laws in firmware mode (the integer twin, on time)",
+                     "compiled_float": "the scenario's compiled float laws (without [firmware])"},
+            "controllers": compare_runs(result.control_metrics(), {"compiled": compiled.control_metrics(),
+                                                                   "compiled_float": float_run.control_metrics()})}
+
+
+def _finish_sil(loop, rec, wall: float, duration: float) -> dict:
+    sil = loop.summary(rec)
+    sil["wall_s"] = wall
+    sil["plant_wall_s"] = wall - sil["avr_wall_s"]
+    sil["real_time_factor"] = duration / wall if wall > 0 else None
+    return sil
+
+
+def run_pneumatic(model, rec: dict, elf, plan, counts, progress=None, compare: bool = True) -> SilRun:
+    """SIL of a pneumatic scenario (its built model ``model``) against the firmware ``elf``; with
+    ``compare`` the scenario's compiled runs too (the "compiled" block)."""
+    import dataclasses
+
+    from frogsim.circuit.model import build_model
+    from frogsim.engine.pneumatic import run_python_controller, simulate
     sc = model.scenario
     dt = 1.0 / sc.controller.rate
     shadow = Shadow(model.laws, model.mp, sc, rec["muscles"], dt, model.names)
@@ -315,18 +572,21 @@ def run_pneumatic(model, rec: dict, elf, plan, counts, progress=None) -> SilRun:
     result = run_python_controller(model, loop, every_muscle=True)
     wall = time.perf_counter() - t0
     result.python_law = None           # measured against the scenario's own setpoints, as compiled
-    sil = loop.summary(rec)
-    sil["wall_s"] = wall
-    sil["plant_wall_s"] = wall - sil["avr_wall_s"]
-    sil["real_time_factor"] = sc.duration / wall if wall > 0 else None
+    sil = _finish_sil(loop, rec, wall, sc.duration)
+    if compare:
+        sil["compiled"] = _compiled_block(result, simulate(model),
+                                          simulate(build_model(dataclasses.replace(sc, firmware=None))))
     return SilRun(result, sil, bytes(loop.board.serial))
 
 
-def run_robot(rs, rec: dict, elf, plan, counts, progress=None) -> SilRun:
-    """SIL of a robot scenario: the coupled engine (MuJoCo and the pneumatics) as the plant."""
+def run_robot(rs, rec: dict, elf, plan, counts, progress=None, compare: bool = True) -> SilRun:
+    """SIL of a robot scenario: the coupled engine (MuJoCo and the pneumatics) as the plant; with
+    ``compare`` the scenario's compiled runs too (the "compiled" block)."""
+    import dataclasses
+
     from frogsim.engine.coupled import build_coupled
     from frogsim.engine.coupled_python import run_coupled_python
-    from frogsim.engine.swim import SwimResult
+    from frogsim.engine.swim import SwimResult, swim
     cm = build_coupled(rs)
     a = cm.arrays
     dt = 1.0 / rs.pneumatic.controller.rate
@@ -338,9 +598,8 @@ def run_robot(rs, rec: dict, elf, plan, counts, progress=None) -> SilRun:
     shadow.copy_counters(a["cs"])
     result = SwimResult(rec=out["rec"], model=cm, stats=out["stats"], wall_s=out["wall_s"],
                         compile_s=out.get("compile_s", 0.0), python_law=None)
-    sil = loop.summary(rec)
-    wall = out["wall_s"]
-    sil["wall_s"] = wall
-    sil["plant_wall_s"] = wall - sil["avr_wall_s"]
-    sil["real_time_factor"] = rs.duration / wall if wall > 0 else None
+    sil = _finish_sil(loop, rec, out["wall_s"], rs.duration)
+    if compare:
+        floats = dataclasses.replace(rs, pneumatic=dataclasses.replace(rs.pneumatic, firmware=None))
+        sil["compiled"] = _compiled_block(result, swim(rs), swim(floats))
     return SilRun(result, sil, bytes(loop.board.serial))
