@@ -362,8 +362,9 @@ def read_plan_record(folder) -> dict:
     except (OSError, ValueError) as exc:
         raise ScenarioError("--firmware", str(folder), f"firmware.json is not readable JSON ({type(exc).__name__})") \
             from None
-    if not isinstance(rec, dict) or rec.get("format") != 1 or "channels" not in rec:
-        raise ScenarioError("--firmware", str(folder), "firmware.json is not a frogsim firmware plan (format 1)")
+    if not isinstance(rec, dict) or rec.get("format") not in (1, 2) or "channels" not in rec:
+        raise ScenarioError("--firmware", str(folder), "firmware.json is not a frogsim firmware plan (format 1 or 2): "
+                                                        "export the firmware again with this frogsim")
     return rec
 
 
