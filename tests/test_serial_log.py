@@ -314,7 +314,7 @@ def test_fault_bits_are_counted_per_channel(monkeypatch, fw, tmp_path, capsys):
     assert "2 of 3 records have a channel read in fault (hip pressure 2)" in capsys.readouterr().err
 
 
-def test_a_clean_capture_warns_of_nothing(monkeypatch, fw, tmp_path, capsys):
+def test_a_clean_capture_warns_only_that_the_idle_timeout_stopped_it(monkeypatch, fw, tmp_path, capsys):
     data = HEADER + lines((0, 200, 1, 0, 0, 0), (10, 201, 0, 0, 0, 0))
     out = tmp_path / "log"
     assert run_log(monkeypatch, data, out, "--firmware", str(fw), "--duration", "60", idle="0.3") == 0
