@@ -427,30 +427,52 @@ def cmd_sil(args) -> int:
     return _finishing(folder, work)
 
 
+def _seconds(flag: str, value) -> None:
+    """ScenarioError unless ``value`` (a flag's float, or None: not given) is a finite time > 0."""
+    import math
+
+    from frogsim.errors import ScenarioError
+    if value is not None and not (math.isfinite(value) and value > 0):
+        raise ScenarioError(flag, value, "must be a finite time in seconds > 0")
+
+
 def cmd_log(args) -> int:
-    from frogsim.errors import ScenarioError, SimulationError
-    from frogsim.export.serial_log import first_lines, open_port, record_port, write_log_csv
+    from frogsim._files import write_json
+    from frogsim.errors import SimulationError
+    from frogsim.export.serial_log import (describe_empty, first_lines, log_summary, log_warnings, open_port,
+                                           record_port, spec_of, write_log_csv)
     from frogsim.export.sketch import read_plan_record
     out = out_folder(args.out)
+    _seconds("--duration", args.duration)
+    _seconds("--idle-timeout", args.idle_timeout)
     rec = read_plan_record(args.firmware) if args.firmware else None
-    if args.duration is not None and not args.duration > 0:
-        raise ScenarioError("--duration", args.duration, "must be a time in seconds > 0")
-    folder = _folder(args, "log", files=["serial.csv"])
+    if rec is not None:
+        spec_of(rec)                           # firmware.json that cannot check a record: refused now
+    folder = _folder(args, "log", files=["serial.csv", "summary.json"])
     link = open_port(args.port, rec)           # a port that cannot be opened: refused before any write
 
     def work():
         what = (f"{rec['baud']} baud ({rec['name']}: {', '.join(ch['signal'] for ch in rec['channels'])})" if rec
                 else "115200 baud (no --firmware: the channels from the board's header line, as raw counts)")
-        _progress(f"reading {args.port} at {what} " + (f"for {args.duration:g} s" if args.duration else
-                                                         "until Ctrl-C") + " ...")
-        log = record_port(args.port, rec, args.duration, progress=_progress, link=link)
+        until = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
+        _progress(f"reading {args.port} at {what} {until} (or {args.idle_timeout:g} s without a byte) ...")
+        log = record_port(args.port, rec, args.duration, progress=_progress, link=link,
+                          idle_timeout=args.idle_timeout)
         plan = rec or log.plan
-        if plan is None:
-            raise SimulationError(f"--port {args.port}: no frogsim header line came (the board sends it "
-                                  "when it starts): give --firmware DIR, or reset the board while logging")
+        if not log.records:                    # nothing to write: the run fails, no serial.csv
+            hint = ("" if plan is not None else ": the board sends its header line when it starts; give "
+                    "--firmware DIR, or reset the board while logging")
+            raise SimulationError(f"--port {args.port}: no valid record in the capture ({describe_empty(log)}){hint}")
         write_log_csv(out / "serial.csv", log, plan)
+        summary = {"port": args.port, "firmware": args.firmware, **log_summary(log, plan)}
+        write_json(out / "summary.json", {"log": summary})
         folder.finish()
-        _progress(f"{first_lines(log)}; wrote {out / 'serial.csv'}")
+        for msg in log_warnings(log, plan, checked_header=rec is not None):
+            _warn(msg)
+        s = summary
+        _progress(f"{first_lines(log)} (t = {s['first']['time_s']:g} .. {s['last']['time_s']:g} s), "
+                  f"{log.bytes_read} bytes in {log.capture_s:.1f} s, stopped by {log.stopped_by}; wrote "
+                  f"{out / 'serial.csv'}, {out / 'summary.json'}")
         return 0
     return _finishing(folder, work)
 
@@ -650,7 +672,8 @@ FLAGS = {
     "--build": "compile the sketch for the ATmega2560 (arduino-mk) into DIR/build and report flash and RAM",
     "--firmware": "a folder written by frogsim firmware (its firmware.json; for sil, built with --build)",
     "--port": "the board's serial port, e.g. /dev/ttyACM0",
-    "--duration": "seconds to record (default: until Ctrl-C)",
+    "--duration": "seconds to record, finite and > 0 (default: until Ctrl-C or the idle timeout)",
+    "--idle-timeout": "stop when no byte came from the port for this many seconds, finite and > 0",
 }
 
 
@@ -755,12 +778,14 @@ def build_parser() -> argparse.ArgumentParser:
     _flag(s, "--no-animation", action="store_true")
     _writes(s)
     s.set_defaults(func=cmd_sil)
-    s = sub.add_parser("log", help="record a board's serial log (pyserial) as serial.csv, a trace "
-                                   "frogsim fit reads")
+    s = sub.add_parser("log", help="record a board's serial log (pyserial): serial.csv (the records that "
+                                   "passed the checks, a trace frogsim fit reads), summary.json 'log' (lines "
+                                   "discarded by reason, overruns, drops, faults)")
     _flag(s, "--port", required=True, metavar="PORT")
     _flag(s, "--firmware", "none: the channels come from the board's header line, as raw counts",
           default=None, metavar="DIR")
     _flag(s, "--duration", type=float, default=None, metavar="S")
+    _flag(s, "--idle-timeout", "5", type=float, default=5.0, metavar="S")
     _writes(s)
     s.set_defaults(func=cmd_log)
     s = sub.add_parser("params", help="show a parameter set with the source of every value")

@@ -386,8 +386,9 @@ def read_plan_record(folder) -> dict:
         raise ScenarioError("--firmware", str(folder), f"firmware.json is not readable JSON ({type(exc).__name__})") \
             from None
     if not isinstance(rec, dict) or rec.get("format") != LOG_FORMAT_VERSION or "channels" not in rec:
-        raise ScenarioError("--firmware", str(folder), f"firmware.json is not a frogsim firmware plan of format {LOG_FORMAT_VERSION} "
-                                                        "(one of an older frogsim: export it again)")
+        raise ScenarioError("--firmware", str(folder), f"firmware.json is not a frogsim firmware plan of "
+                                                        f"format {LOG_FORMAT_VERSION}: export the firmware again "
+                                                        "with this frogsim")
     return rec
 
 
