@@ -400,8 +400,10 @@ def cmd_sil(args) -> int:
                   f"{sc.name!r} ({'the robot' if kind == 'robot' else 'the pneumatics'}), {sc.duration:g} s ...")
         runner = sil.run_robot if kind == "robot" else sil.run_pneumatic
         from frogsim.control.firmware import adc_counts
-        run = runner(sc if kind == "robot" else model, rec, elf, plan, adc_counts, progress=_progress)
+        run = runner(sc if kind == "robot" else model, rec, elf, plan, adc_counts, progress=_progress,
+                     timing=args.timing)
         s = run.sil
+        s["timing"] = args.timing
         _progress(f"      {s['samples']} samples in {s['wall_s']:.1f} s ({s['real_time_factor']:.2f} x real time; "
                   f"emulated AVR {s['avr_wall_s']:.1f} s, plant {s['plant_wall_s']:.1f} s)")
         write_log_csv(out / "serial.csv", parse_log(run.serial, rec), rec, last_sample=s["samples"] - 1)
@@ -657,6 +659,9 @@ FLAGS = {
     "--cycles": "gait cycles of each robot run",
     "--signal": "the signal of every input without its own RUN:SIGNAL, e.g. 'hip_left pressure'",
     "--no-animation": "skip the offscreen animation",
+    "--timing": "when the plant receives the firmware's valve writes: 'cycle', at the emulated cycle the "
+                "firmware set each pin (the board's truth, late samples included), or 'grid', each sample's "
+                "decision at the sample's own time as the compiled model has it (a check of the harness)",
     "--scheduler": "run the chunks on a Dask distributed scheduler, e.g. tcp://host:8786 (--workers: "
                    "threads per Dask task, default 1)",
     "--connect-timeout": "seconds to wait for the scheduler",
@@ -775,6 +780,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scenario", metavar="SCENARIO", help="the scenario the firmware was exported from")
     _flag(s, "--firmware", required=True, metavar="DIR")
     _flag(s, "--cycles", "the scenario's; as exported", type=int, default=None, metavar="N")
+    _flag(s, "--timing", "cycle", choices=("cycle", "grid"), default="cycle")
     _flag(s, "--no-animation", action="store_true")
     _writes(s)
     s.set_defaults(func=cmd_sil)

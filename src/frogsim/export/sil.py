@@ -284,7 +284,7 @@ def interrupt_timing(rec: dict, elf, samples: int = 200, seed: int = 0) -> dict:
     return {"samples": samples, "executions": timing["executions"], "period_cycles": run.period,
             "mean_percent": float(load.mean()) if load.size else None,
             "max_percent": float(load.max()) if load.size else None,
-            "samples_over_period": int((load > 100.0).sum()) + max(0, samples - 1 - timing["executions"]),
+            "samples_over_period": int((load > 100.0).sum()) + max(0, samples - timing["executions"]),
             "samples_late": timing["samples_late"], "overruns": run.overruns,
             "awake_percent": 100.0 * awake}
 
@@ -353,7 +353,10 @@ class _Loop:
     """The controller function the Python-controller drivers call at each sample: one frame of
     the board per sample, its valve writes returned at their own times."""
 
-    def __init__(self, rec, elf, plan, counts, shadow, model, progress, duration, robot):
+    def __init__(self, rec, elf, plan, counts, shadow, model, progress, duration, robot, timing="cycle"):
+        if timing not in ("cycle", "grid"):
+            raise ValueError(f"timing {timing!r}: 'cycle' or 'grid'")
+        self.timing = timing
         self.rec, self.plan, self.counts, self.shadow, self.model = rec, plan, counts, shadow, model
         self.board = BoardRun(rec, elf)
         self.muscles = list(rec["muscles"])
@@ -384,6 +387,7 @@ class _Loop:
         if qpos is not None:
             angles = {n: float(qpos[self.joint_qpos[j]]) for j, n in enumerate(self.joint_names)}
         counts = self.counts(self.plan, self.model, y, angles)
+        before = len(self.board.decisions)
         changes = self.board.frame(np.asarray(counts, np.int64))
         self.shadow_modes.append(self.shadow.modes(self.k, y, qpos, qvel))
         self._check()
@@ -394,6 +398,10 @@ class _Loop:
             self.progress(f"      SIL at {t:.2f} s of {self.duration:g} s simulated "
                           f"({t / (now - self.wall0):.2f} x real time)")
         board_ = self.board
+        if self.timing == "grid":         # the last decision ended in this period, at the sample
+            if len(board_.decisions) == before:
+                return {}
+            return {m: int(x) for m, x in zip(self.muscles, board_.decisions[-1])}
         return [(max(float(t), board_.cycle_time(c)), self.muscles[j], int(m)) for c, j, m in changes]
 
     def _check(self) -> None:
@@ -457,7 +465,8 @@ class _Loop:
             "both_valves_open_samples": b.both_open,
             "adc_read_differs_samples": self.adc_differs(timing["response"], b.period),
             "log_records": {"made": made, "received": received, "dropped": dropped, "unsent": unsent,
-                            "lines_unreadable": log.bad},
+                            # the stream is cut where the emulation stops: its last line may be partial
+                            "lines_unreadable": log.bad - log.discarded.get("partial_last_line", 0)},
             "log_lines": received,
             "log_lines_dropped": dropped,
             "flash_bytes": rec.get("flash_bytes"),
@@ -557,9 +566,15 @@ def _finish_sil(loop, rec, wall: float, duration: float) -> dict:
     return sil
 
 
-def run_pneumatic(model, rec: dict, elf, plan, counts, progress=None, compare: bool = True) -> SilRun:
+def run_pneumatic(model, rec: dict, elf, plan, counts, progress=None, compare: bool = True,
+                  timing: str = "cycle") -> SilRun:
     """SIL of a pneumatic scenario (its built model ``model``) against the firmware ``elf``; with
-    ``compare`` the scenario's compiled runs too (the "compiled" block)."""
+    ``compare`` the scenario's compiled runs too (the "compiled" block).
+
+    ``timing``: "cycle" (what `frogsim sil` runs) gives the plant each valve write at the cycle
+    the firmware made it; "grid" gives it each sample's decision at the sample's own time, as the
+    compiled model does (a check of the harness and the plant: an on-time firmware's SIL run is
+    then the compiled run, to the solver's tolerance; the board's timing is measured the same)."""
     import dataclasses
 
     from frogsim.circuit.model import build_model
@@ -567,7 +582,7 @@ def run_pneumatic(model, rec: dict, elf, plan, counts, progress=None, compare: b
     sc = model.scenario
     dt = 1.0 / sc.controller.rate
     shadow = Shadow(model.laws, model.mp, sc, rec["muscles"], dt, model.names)
-    loop = _Loop(rec, elf, plan, counts, shadow, model, progress, sc.duration, None)
+    loop = _Loop(rec, elf, plan, counts, shadow, model, progress, sc.duration, None, timing)
     t0 = time.perf_counter()
     result = run_python_controller(model, loop, every_muscle=True)
     wall = time.perf_counter() - t0
@@ -579,9 +594,11 @@ def run_pneumatic(model, rec: dict, elf, plan, counts, progress=None, compare: b
     return SilRun(result, sil, bytes(loop.board.serial))
 
 
-def run_robot(rs, rec: dict, elf, plan, counts, progress=None, compare: bool = True) -> SilRun:
+def run_robot(rs, rec: dict, elf, plan, counts, progress=None, compare: bool = True,
+              timing: str = "cycle") -> SilRun:
     """SIL of a robot scenario: the coupled engine (MuJoCo and the pneumatics) as the plant; with
-    ``compare`` the scenario's compiled runs too (the "compiled" block)."""
+    ``compare`` the scenario's compiled runs too (the "compiled" block); ``timing`` as
+    :func:`run_pneumatic` takes it."""
     import dataclasses
 
     from frogsim.engine.coupled import build_coupled
@@ -593,7 +610,7 @@ def run_robot(rs, rec: dict, elf, plan, counts, progress=None, compare: bool = T
     shadow = Shadow(a["laws"].copy(), a["mp"], cm.pneumatic.scenario, rec["muscles"], dt, list(cm.muscle_names),
                     joints=(a["leg_qpos"], a["leg_dof"]))
     loop = _Loop(rec, elf, plan, counts, shadow, cm.pneumatic, progress, rs.duration,
-                 (list(cm.joint_names), a["leg_qpos"]))
+                 (list(cm.joint_names), a["leg_qpos"]), timing)
     out = run_coupled_python(cm, loop, every_muscle=True)
     shadow.copy_counters(a["cs"])
     result = SwimResult(rec=out["rec"], model=cm, stats=out["stats"], wall_s=out["wall_s"],
