@@ -74,6 +74,13 @@ def angle_volts(fw) -> tuple:
     return a.low_voltage, (a.high_voltage - a.low_voltage) / (a.high_angle - a.low_angle), a.low_angle
 
 
+def angle_line(sc) -> tuple:
+    """(line (v0 [V], k [V/rad], q0 [rad]), full): how the firmware's angle count is made from a
+    joint angle, in the form of an ADC line (count = floor((v0 + k (angle - q0)) full / V_REF)):
+    the angle sensor's line and the run's ADC resolution."""
+    return angle_volts(sc.firmware), adc_full(sc)
+
+
 def real_count(line: tuple, fw, q, full: int = 2**ADC_BITS):
     """The count as a real number (before truncation) of reading q on the sensor line."""
     v0, k, q0 = line

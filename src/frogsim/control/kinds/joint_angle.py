@@ -107,12 +107,13 @@ class JointAngleSettings(SensedLoop):
         sc = ctx.sc
         fw = sc.firmware
         full = fixed.adc_full(sc)
-        pline, aline = fixed.pressure_volts(fw), fixed.angle_volts(fw)
+        pline = fixed.pressure_volts(fw)
+        aline, afull = fixed.angle_line(sc)
         per_pa = fixed.q4_per_unit(pline, fw, full)
-        per_rad = fixed.q4_per_unit(aline, fw, full)
+        per_rad = fixed.q4_per_unit(aline, fw, afull)
         dt = 1.0 / sc.controller.rate
         sp, dsp = fixed.setpoint_series(row, sc, 0.0)
-        sp_q, dsp_q = fixed.trimmed(fixed.q4(aline, fw, sp, full),
+        sp_q, dsp_q = fixed.trimmed(fixed.q4(aline, fw, sp, afull),
                                     np.clip(np.floor(dsp * dt * per_rad * 256.0 + 0.5), -2**24, 2**24)
                                     .astype(np.int64))
         ratio = per_pa / per_rad * fixed.Q16            # Pa/rad gain -> pressure Q4 per angle Q4, Q16
