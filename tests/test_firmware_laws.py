@@ -338,7 +338,7 @@ def test_more_analog_signals_than_inputs_are_refused_with_the_count():
     d = pneumatic({n: {"kind": "bang-bang", "muscle": n, "setpoint": "1 bar"} for n in names}, muscles=names,
                   firmware={"valve_pins": {n: [2 + 2 * i, 3 + 2 * i] for i, n in enumerate(names[:8])}})
     _refused(d, r"firmware = '17 analog signals \(17 pressures, 0 angles\)': the Mega 2560 has 16 analog inputs "
-                r"\(A0-A15\): the other way in is quadrature encoders")
+                r"\(A0-A15\): read the joint angles from quadrature encoders")
 
 
 def test_sampling_that_does_not_fit_the_period_is_refused_with_the_arithmetic():

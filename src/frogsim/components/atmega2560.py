@@ -45,6 +45,9 @@ ADC_FULL_RESOLUTION_HZ = 200e3  # ADC clock at or below which the 10-bit result 
 ADC_MAX_CLOCK_HZ = 1e6        # highest recommended ADC clock; 8 bits expected there
 #: external interrupt pins of the Mega 2560 (INT4, INT5, INT3, INT2, INT1, INT0)
 INTERRUPT_PINS = (2, 3, 18, 19, 20, 21)
+#: digital pin -> its external interrupt INTn (datasheet Table 13-5 and the Mega's pin map:
+#: D21 = PD0 = INT0, D20 = PD1 = INT1, D19 = PD2 = INT2, D18 = PD3 = INT3, D2 = PE4 = INT4, D3 = PE5 = INT5)
+EXTERNAL_INTERRUPT = {21: 0, 20: 1, 19: 2, 18: 3, 2: 4, 3: 5}
 
 def conversion_time(prescaler: int, f_cpu: float = F_CPU, first: bool = False) -> float:
     """Time of one single-ended conversion [s]: 13 ADC clock cycles (25 for the first after the

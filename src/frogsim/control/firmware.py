@@ -49,15 +49,22 @@ TWINS = (program, bang_bang, pwm, sliding_mode, joint_angle)
 
 @dataclass(frozen=True)
 class Channel:
-    """One analog input the firmware converts. SI value of a count c: ``offset + c *
-    unit_per_count`` (Pa gauge or rad; the offset includes half a count: the value is the middle
-    of the readings that give c)."""
+    """One signal the firmware reads: an analog input it converts, or a quadrature encoder it
+    counts. SI value of a count c: ``offset + c * unit_per_count`` (Pa gauge or rad; the offset
+    includes half a count: the value is the middle of the readings that give c)."""
     signal: str             # "hip pressure", "hip_left angle"
     quantity: str           # "pressure" | "angle"
     name: str               # the muscle or the joint
-    analog_input: int       # 0..15 (A0..A15)
+    analog_input: int       # 0..15 (A0..A15); -1 for an encoder
     unit_per_count: float
     offset: float
+    pins: tuple = ()        # an encoder's (A, B) digital pins
+    start_count: int = 0    # an encoder's count at power-up (the joint at angle 0)
+    full: int = 0           # counts span 0..full - 1 (2^bits of the ADC, 65536 for an encoder)
+
+    @property
+    def encoder(self) -> bool:
+        return bool(self.pins)
 
 
 @dataclass(frozen=True)
@@ -135,15 +142,17 @@ def firmware_plan(model) -> FirmwarePlan:
                                                      "(`[firmware]` alone takes the defaults)")
     layout = firmware_layout(sc)
     rate = sc.controller.rate
-    plan_adc = chip.plan_adc(len(layout.signals), 1.0 / rate)
+    plan_adc = chip.plan_adc(sum(1 for s in layout.signals if not s.encoder), 1.0 / rate)
     full = 2 ** plan_adc.bits
-    pline, aline = fixed.pressure_volts(fw), fixed.angle_volts(fw)
+    pline = fixed.pressure_volts(fw)
+    aline, afull = fixed.angle_line(sc)
     channels = []
     for s in layout.signals:
-        line = pline if s.quantity == "pressure" else aline
-        v0, k, q0 = line
-        upc = fw.vref / full / k
-        channels.append(Channel(s.label, s.quantity, s.name, s.analog_input, upc, q0 + (0.5 * fw.vref / full - v0) / k))
+        (v0, k, q0), f = (pline, full) if s.quantity == "pressure" else (aline, afull)
+        upc = fw.vref / f / k
+        start = adc_count(v0, k, q0, float(f), fw.vref, 0.0) if s.encoder else 0
+        channels.append(Channel(s.label, s.quantity, s.name, s.analog_input, upc, q0 + (0.5 * fw.vref / f - v0) / k,
+                                tuple(s.pins), start, f))
     index = {(ch.quantity, ch.name): j for j, ch in enumerate(channels)}
     rows = {}
     laws = pm.laws
@@ -248,12 +257,13 @@ def adc_counts(plan: FirmwarePlan, model, y, qpos=None) -> np.ndarray:
     sc = pm.scenario
     fw = sc.firmware
     full = float(2 ** plan.adc.bits)
+    aline, afull = fixed.angle_line(sc)
     patm = float(pm.laws[0, L_PATM]) if pm.laws.ndim == 2 and pm.laws.shape[0] else None
     if patm is None or patm == 0.0:
         from frogsim.circuit.layout import G_PATM
         patm = float(pm.g[G_PATM])
     pv0, pk, pq0 = fixed.pressure_volts(fw)
-    av0, ak, aq0 = fixed.angle_volts(fw)
+    av0, ak, aq0 = aline
     joints = list(sc.joints)
     out = np.zeros(len(plan.channels), np.uint16)
     for j, ch in enumerate(plan.channels):
@@ -264,7 +274,7 @@ def adc_counts(plan: FirmwarePlan, model, y, qpos=None) -> np.ndarray:
             if qpos is None:
                 raise FrogsimError(f"channel {ch.signal!r}: the joint angles (qpos) are needed")
             th = qpos[ch.name] if isinstance(qpos, dict) else qpos[joints.index(ch.name)]
-            out[j] = adc_count(av0, ak, aq0, full, fw.vref, float(th))
+            out[j] = adc_count(av0, ak, aq0, float(afull), fw.vref, float(th))
     return out
 
 

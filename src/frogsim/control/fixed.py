@@ -39,9 +39,9 @@ import numpy as np
 
 from frogsim.components import atmega2560 as chip
 from frogsim.control.signals import setpoint
-from frogsim.control.table import (L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0, L_ADC_V0,
+from frogsim.control.table import (L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0, L_ADC_V0,
                                    L_ADC_VREF, L_FW, L_SP_KIND, SP_CONSTANT)
-from frogsim.scenario.firmware import sensed_signals
+from frogsim.scenario.firmware import ENCODER_ZERO, sensed_signals
 
 Q4 = 16                 # sixteenths of a count
 Q16 = 65536             # gains
@@ -74,11 +74,23 @@ def angle_volts(fw) -> tuple:
     return a.low_voltage, (a.high_voltage - a.low_voltage) / (a.high_angle - a.low_angle), a.low_angle
 
 
+#: an encoder count's range: the firmware's uint16 counter
+ENCODER_FULL = 65536
+
+
 def angle_line(sc) -> tuple:
     """(line (v0 [V], k [V/rad], q0 [rad]), full): how the firmware's angle count is made from a
-    joint angle, in the form of an ADC line (count = floor((v0 + k (angle - q0)) full / V_REF)):
-    the angle sensor's line and the run's ADC resolution."""
-    return angle_volts(sc.firmware), adc_full(sc)
+    joint angle, in the form of an ADC line (count = floor((v0 + k (angle - q0)) full / V_REF),
+    clipped to 0..full - 1): the potentiometer's line and the run's ADC resolution, or for
+    quadrature encoders (``[firmware] angle_encoder``) the line that gives
+    count = floor(angle cpr / 2 pi) + 32768 on the 16-bit counter (v0 = 0, q0 the angle of count 0,
+    k cpr / (2 pi) V_REF / full)."""
+    fw = sc.firmware
+    enc = fw.angle_encoder
+    if enc is None:
+        return angle_volts(fw), adc_full(sc)
+    cpr = float(enc.counts_per_revolution)
+    return (0.0, cpr / (2.0 * math.pi) * fw.vref / ENCODER_FULL, -ENCODER_ZERO * 2.0 * math.pi / cpr), ENCODER_FULL
 
 
 def real_count(line: tuple, fw, q, full: int = 2**ADC_BITS):
@@ -98,11 +110,12 @@ def q4_per_unit(line: tuple, fw, full: int = 2**ADC_BITS) -> float:
     return Q4 * line[1] * full / fw.vref
 
 
-def adc_columns(row: np.ndarray, fw, full: int = 2**ADC_BITS) -> None:
+def adc_columns(row: np.ndarray, sc) -> None:
     """Write the sensors' transfer functions into a valve row (columns L_ADC_*, L_AADC_*)."""
+    fw = sc.firmware
     row[L_ADC_V0], row[L_ADC_K], row[L_ADC_Q0] = pressure_volts(fw)
-    row[L_AADC_V0], row[L_AADC_K], row[L_AADC_Q0] = angle_volts(fw)
-    row[L_ADC_FULL] = full
+    (row[L_AADC_V0], row[L_AADC_K], row[L_AADC_Q0]), row[L_AADC_FULL] = angle_line(sc)
+    row[L_ADC_FULL] = adc_full(sc)
     row[L_ADC_VREF] = fw.vref
 
 
@@ -132,7 +145,15 @@ def block(row: np.ndarray) -> tuple:
 def adc_full(sc) -> int:
     """2^bits of the run's conversions: 10 bits, or 8 where the controller period needs the faster
     ADC clock (:func:`frogsim.components.atmega2560.plan_adc`, the resolution it costs)."""
-    return 2 ** chip.plan_adc(len(sensed_signals(sc)), 1.0 / sc.controller.rate).bits
+    return 2 ** chip.plan_adc(analog_signals(sc), 1.0 / sc.controller.rate).bits
+
+
+def analog_signals(sc) -> int:
+    """How many of the signals the firmware reads go through the ADC (all but encoder angles)."""
+    wanted = sensed_signals(sc)
+    if sc.firmware.angle_encoder is None:
+        return len(wanted)
+    return sum(1 for q, _ in wanted if q != "angle")
 
 
 def setpoint_series(row: np.ndarray, sc, offset: float) -> tuple:
@@ -174,7 +195,7 @@ def firmware_row(row: np.ndarray, sc, P, T) -> np.ndarray:
     """A valve row in firmware mode: its sensors' transfer functions written and its firmware
     block (P, T) appended."""
     row = row.copy()
-    adc_columns(row, sc.firmware, adc_full(sc))
+    adc_columns(row, sc)
     return with_block(row, list(P) or [0], T if len(T) else [0])
 
 

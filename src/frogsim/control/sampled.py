@@ -48,9 +48,9 @@ from frogsim.control.signals import (  # noqa: F401  (the memory layout and sign
     B_TARGET, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_FW, CS_PUMP, CS_Q, CS_SAMPLE, CS_SIZE, MODE_CHARGE,
     MODE_HOLD, MODE_VENT, TOL, B_FW0, FW_MEM, adc_count, pump_band, sense, sense_joint, sensor_noise, setpoint)
 from frogsim.control.table import (  # noqa: F401  (the table's layout, re-exported)
-    KIND_EXTERNAL, KIND_PUMP_BAND, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0, L_ADC_V0,
-    L_ADC_VREF, L_DEAD_C, L_DEAD_D, L_FW, L_HIGH, L_INPUT, L_JOINT1, L_KIND, L_LOW, L_MUSCLE, L_PATM, L_SIZE,
-    laws_table)
+    KIND_EXTERNAL, KIND_PUMP_BAND, L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0,
+    L_ADC_V0, L_ADC_VREF, L_DEAD_C, L_DEAD_D, L_FW, L_HIGH, L_INPUT, L_JOINT1, L_KIND, L_LOW, L_MUSCLE, L_PATM,
+    L_SIZE, laws_table)
 
 
 def sampled_laws(g):
@@ -294,8 +294,9 @@ def firmware_mode(laws, c, cs, b, y, k, ts):
     cs[b + B_SENSED] = patm + count_value(laws[c, L_ADC_V0], laws[c, L_ADC_K], laws[c, L_ADC_Q0], full, vref, cp)
     ca = 0
     if laws[c, L_JOINT1] > 0.0:
-        ca = adc_count(laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], full, vref, cs[b + B_ANGLE])
-        cs[b + B_A_SENSED] = count_value(laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], full, vref,
+        afull = laws[c, L_AADC_FULL]
+        ca = adc_count(laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], afull, vref, cs[b + B_ANGLE])
+        cs[b + B_A_SENSED] = count_value(laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], afull, vref,
                                          ca)
     sp, _ = setpoint(laws, c, ts)
     cs[b + B_SP] = sp
@@ -369,9 +370,10 @@ def command_from_python(laws, rows: dict, cs, cmds, t_k: float, u, t_now: float)
     (or +1, 0, -1)}, checked and queued like a compiled law's (:func:`command_valves`; ``rows``:
     muscle -> its law row); commands without dead time act at once (written into u at t_now).
 
-    ``cmds`` may also be a list of (t, muscle, mode) in time order with t_k <= t: commands issued
-    between samples, each queued at its own time (software in the loop: the firmware's pin writes
-    at the cycle it made them, :mod:`frogsim.export.sil`)."""
+    ``cmds`` may also be a list of (t, muscle, mode) in time order: commands issued between
+    samples, each queued at its own time t, which may lie before t_k by less than the valves' dead
+    time (software in the loop: the firmware's pin writes at the cycle it made them, its plant a
+    period ahead with encoders, :mod:`frogsim.export.sil`)."""
     from frogsim.errors import SimulationError
     timed = cmds if isinstance(cmds, list) else [(t_k, n, m) for n, m in (cmds or {}).items()]
     for t, name, mode in timed:
@@ -381,12 +383,14 @@ def command_from_python(laws, rows: dict, cs, cmds, t_k: float, u, t_now: float)
         if mode not in _MODES:
             raise SimulationError(f"controller function: mode {mode!r} for {name!r} must be "
                                   "'charge', 'hold' or 'vent'")
-        if not t >= t_k - TOL:
-            raise SimulationError(f"controller function: a command for {name!r} at t = {t!r} s, before the "
-                                  f"sample ({t_k:g} s) that issues it")
+        c = rows[name]
+        if not t + min(laws[c, L_DEAD_C], laws[c, L_DEAD_D]) >= t_now - TOL:
+            raise SimulationError(f"controller function: a command for {name!r} issued at t = {t!r} s would act "
+                                  f"before now ({t_now:g} s): a command may be issued before the sample only "
+                                  "by less than the valves' dead time")
         b = int(CS_SIZE + rows[name] * cs[CS_BLOCK])
         if max(cs[b + B_QC_N], cs[b + B_QD_N]) >= cs[CS_Q] - 1:
             raise SimulationError(f"controller function: more valve commands for {name!r} within one dead time "
                                   f"than its queue holds ({int(cs[CS_Q])}) at t = {t:g} s")
-        command_valves(laws, rows[name], cs, _MODES[mode], max(float(t), t_k))
+        command_valves(laws, c, cs, _MODES[mode], float(t))
     apply_due(laws, t_now, u, cs)

@@ -100,7 +100,8 @@ L_ADC_VREF = 49  # the ADC's reference [V]
 L_AADC_V0 = 50   # angle sensor: volts at L_AADC_Q0 [V]
 L_AADC_K = 51    # ... volts per rad [V/rad]
 L_AADC_Q0 = 52   # ... its low angle [rad]
-L_SIZE = 53
+L_AADC_FULL = 53  # ... the angle count's 2^bits (the ADC's, or 65536 for a quadrature encoder's counter)
+L_SIZE = 54
 L_SP0 = L_SIZE   # knots (t_j, p_j) from here on; the firmware block after them
 
 

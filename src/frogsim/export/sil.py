@@ -86,13 +86,22 @@ class BoardRun:
             self.owner[idis] = j
         self.level = np.zeros(len(self.board.watched), np.int32)
         self.shift = 10 - int(rec["adc"]["bits"])
-        self.inputs = [int(ch["analog_input"]) for ch in rec["channels"]]
+        chans = rec["channels"]
+        self.analog = [i for i, ch in enumerate(chans) if "analog_input" in ch]
+        self.inputs = [int(chans[i]["analog_input"]) for i in self.analog]
+        # quadrature encoders: (channel index, A pin, B pin); their counts as fed so far
+        self.encoders = [(i, pins[int(ch["pins"][0])], pins[int(ch["pins"][1])]) for i, ch in enumerate(chans)
+                         if "pins" in ch]
+        self.enc_count = [int(chans[i]["start_count"]) for i, _, _ in self.encoders]
+        for (i, a, bpin), c in zip(self.encoders, self.enc_count):
+            self.board.set_pin(a, c & 1)          # A's level is the count's parity (see frame)
+            self.board.set_pin(bpin, c & 1)
         self.period = int(rec["period_cycles"])
         self.mv = [-1] * len(self.inputs)          # the voltages set, changed only when they change
         self.overrun_address = symbol_address(elf, "fs_overruns")
         self.dropped_address = symbol_address(elf, "fs_dropped")
         self.k_address = symbol_address(elf, "fs_k")
-        self.adc_address = symbol_address(elf, "fs_adc") if self.inputs else None
+        self.adc_address = symbol_address(elf, "fs_adc") if chans else None
         self.modes_now = np.zeros(len(self.valve_index), np.int8)
         self.ev_c = np.empty(256, np.uint64)
         self.ev_i = np.empty(256, np.int32)
@@ -165,35 +174,68 @@ class BoardRun:
         self.ticks = [self.s0]
         self.sleep0 = b.sleep_cycles
 
-    def frame(self, counts) -> list:
-        """Sample k's period: the channels read ``counts`` (held for the period, as the plant's
-        state at t_k), the AVR runs to the period's end. Returns the valve mode changes in it,
-        [(cycle, muscle index, mode)], in order."""
+    def frame(self, counts, encoder_counts=None) -> list:
+        """Sample k's period: the analog channels read ``counts`` (the plant's state at t_k, held
+        for the period: the converter samples it then), the AVR runs to the period's end. The
+        quadrature encoders move from the counts they have to ``encoder_counts`` (one per encoder,
+        the plant's at t_k+1; None: they stay): each count is an edge of A, B set before it to
+        give the direction, the edges spread evenly over the period. Returns the valve mode
+        changes in it, [(cycle, muscle index, mode)], in order."""
         t0 = time.perf_counter()
         if self.s0 is None:
             self.begin()
         b = self.board
         counts = np.asarray(counts, np.int64)
         self.fed.append(counts.copy())
-        for j, (a, c) in enumerate(zip(self.inputs, counts.tolist())):
+        for j, (a, c) in enumerate(zip(self.inputs, counts[self.analog].tolist())):
             mv = millivolts_for_count(c << self.shift)
             if mv != self.mv[j]:
                 b.set_analog(a, mv)
                 self.mv[j] = mv
-        end = self.s0 + (self.frames + 1) * self.period
+        start = self.s0 + self.frames * self.period
+        end = start + self.period
+        edges = self._edges(encoder_counts, start) if encoder_counts is not None else []
         out = []
-        while True:
-            hit = b.run_until_pin(self.busy, 0, end)
-            self._drain(out)
-            if not hit:
-                break
-            if self.inputs:
-                self.counts_read.append(np.frombuffer(b.read_ram(self.adc_address, 2 * len(self.inputs)),
-                                                      "<u2").astype(np.int64))
-            else:
-                self.counts_read.append(np.zeros(0, np.int64))
+        for cycle, pins in edges + [(end, None)]:
+            while True:
+                hit = b.run_until_pin(self.busy, 0, cycle)
+                self._drain(out)
+                if not hit:
+                    break
+                self.counts_read.append(np.frombuffer(b.read_ram(self.adc_address, 2 * len(self.fed[0])),
+                                                      "<u2").astype(np.int64) if self.adc_address is not None
+                                        else np.zeros(0, np.int64))
+            if pins is not None:
+                for pin, level in pins:
+                    b.set_pin(pin, level)
         self.frames += 1
         self.avr_s += time.perf_counter() - t0
+        return out
+
+    #: fewest CPU cycles between two edges of one encoder: the edge interrupt must have counted
+    #: the last one (about 40 cycles with its entry and exit), or the chip would lose it too
+    MIN_EDGE_CYCLES = 80
+
+    def _edges(self, targets, start: int) -> list:
+        """[(cycle, ((pin, level), ...))]: the encoders' edges in this period, in time order."""
+        out = []
+        for e, ((i, a, bpin), target) in enumerate(zip(self.encoders, targets)):
+            c, n = self.enc_count[e], int(target) - self.enc_count[e]
+            if n == 0:
+                continue
+            step = self.period / (abs(n) + 1)
+            if step < self.MIN_EDGE_CYCLES:
+                raise SimulationError(f"encoder of {self.rec['channels'][i]['signal']!r}: {abs(n)} counts in one "
+                                      f"controller period ({step:.0f} CPU cycles apart): faster than the firmware "
+                                      "counts them; use fewer counts per revolution")
+            d = 1 if n > 0 else -1
+            for m in range(abs(n)):
+                c += d
+                level = c & 1
+                # B first (A == B after the edge counts up, A != B down), then A's edge
+                out.append((start + int(round((m + 1) * step)), ((bpin, level if d > 0 else 1 - level), (a, level))))
+            self.enc_count[e] = c
+        out.sort(key=lambda x: x[0])
         return out
 
     def cycle_time(self, cycle: int) -> float:
@@ -369,6 +411,7 @@ class _Loop:
             from frogsim.control.signals import FW_MEM
             self.twin_mem = np.zeros((len(plan.laws), FW_MEM))
         self.shadow_modes = []       # the compiled law on the plant's state, per sample
+        self.pending = None          # with encoders: the counts of the sample whose period runs next
         self.checked = 0
         self.mismatched = 0
         self.first_mismatch = None
@@ -386,10 +429,28 @@ class _Loop:
         angles = None
         if qpos is not None:
             angles = {n: float(qpos[self.joint_qpos[j]]) for j, n in enumerate(self.joint_names)}
-        counts = self.counts(self.plan, self.model, y, angles)
+        counts = np.asarray(self.counts(self.plan, self.model, y, angles), np.int64)
         before = len(self.board.decisions)
-        changes = self.board.frame(np.asarray(counts, np.int64))
         self.shadow_modes.append(self.shadow.modes(self.k, y, qpos, qvel))
+        b = self.board
+        if b.encoders:
+            # the plant runs a period ahead: period k - 1 is run now that the joints' angles at
+            # t_k are known, its encoder edges spread over it; its valve writes, made before
+            # t_k, act a dead time later, after t_k (run_* checks the dead time covers a period)
+            enc = [int(counts[i]) for i, _, _ in b.encoders]
+            if self.pending is None:
+                for (i, _, _), c0, c in zip(b.encoders, b.enc_count, enc):
+                    if c != c0:
+                        raise SimulationError(f"the joint of {self.rec['channels'][i]['signal']!r} starts at encoder "
+                                              f"count {c}, not at the count the firmware starts from ({c0}, angle "
+                                              "0): the robot must start at its encoders' zero")
+                changes = []
+            else:
+                changes = b.frame(self.pending, enc)
+            self.pending = counts
+            t = (self.k - 1) / float(self.rec["rate_hz"]) if self.k else t
+        else:
+            changes = b.frame(counts)
         self._check()
         self.k += 1
         now = time.perf_counter()
@@ -401,7 +462,7 @@ class _Loop:
         if self.timing == "grid":         # the last decision ended in this period, at the sample
             if len(board_.decisions) == before:
                 return {}
-            return {m: int(x) for m, x in zip(self.muscles, board_.decisions[-1])}
+            return [(float(t), m, int(x)) for m, x in zip(self.muscles, board_.decisions[-1])]
         return [(max(float(t), board_.cycle_time(c)), self.muscles[j], int(m)) for c, j, m in changes]
 
     def _check(self) -> None:
@@ -607,6 +668,13 @@ def run_robot(rs, rec: dict, elf, plan, counts, progress=None, compare: bool = T
     cm = build_coupled(rs)
     a = cm.arrays
     dt = 1.0 / rs.pneumatic.controller.rate
+    if any("pins" in ch for ch in rec["channels"]):
+        v = rs.pneumatic.valves
+        dead = min(v.charge.dead_time, v.discharge.dead_time)
+        if dead < dt:
+            raise SimulationError(f"SIL with encoders runs the plant a controller period ahead of the board, "
+                                  f"which needs the valves' dead time ({dead * 1e3:g} ms) to be at least the "
+                                  f"period ({dt * 1e3:g} ms)")
     shadow = Shadow(a["laws"].copy(), a["mp"], cm.pneumatic.scenario, rec["muscles"], dt, list(cm.muscle_names),
                     joints=(a["leg_qpos"], a["leg_dof"]))
     loop = _Loop(rec, elf, plan, counts, shadow, cm.pneumatic, progress, rs.duration,

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from frogsim.errors import FrogsimError, ScenarioError
+from frogsim.components import atmega2560 as chip
 from frogsim.export import board
 
 LOG_FORMAT = "k,count_0,...,count_n-1,valvebits,faultbits,overruns,dropped"
@@ -68,9 +69,20 @@ def timer1_setting(period_cycles: int) -> tuple[int, int, int]:
 # -- the plan as data --------------------------------------------------------------------------------
 def _channel(ch, bits: int) -> dict:
     unit = "Pa gauge" if ch.quantity == "pressure" else "rad"
-    return {"signal": ch.signal, "quantity": ch.quantity, "name": ch.name, "analog_input": int(ch.analog_input),
-            "unit_per_count": float(ch.unit_per_count), "offset": float(ch.offset), "unit": unit,
-            "count_range": [0, 2 ** int(bits) - 1]}
+    out = {"signal": ch.signal, "quantity": ch.quantity, "name": ch.name}
+    if getattr(ch, "pins", ()):
+        out.update({"sensor": "quadrature encoder", "pin": int(ch.pins[0]), "pins": [int(p) for p in ch.pins],
+                    "start_count": int(ch.start_count), "count_range": [0, int(ch.full) - 1]})
+    else:
+        out.update({"sensor": "analog", "analog_input": int(ch.analog_input), "count_range": [0, 2 ** int(bits) - 1]})
+    out.update({"unit_per_count": float(ch.unit_per_count), "offset": float(ch.offset), "unit": unit})
+    return out
+
+
+def channel_token(ch) -> str:
+    """A channel in the log's header line: SIGNAL@A<input> (analog) or SIGNAL@D<A pin> (encoder)."""
+    pins = getattr(ch, "pins", ())
+    return f"{ch.signal}@D{int(pins[0])}" if pins else f"{ch.signal}@A{int(ch.analog_input)}"
 
 
 def plan_record(plan) -> dict:
@@ -142,14 +154,42 @@ def board_header(plan) -> str:
         f"#define FS_BUSY_PORT PORT{busy.port}",
         f"#define FS_BUSY_BIT {busy.bit}",
         "",
-        "/* analog inputs of the channels, in the order frogsim_sample reads them */",
-        "static const uint8_t fs_channel_input[FS_CHANNELS > 0 ? FS_CHANNELS : 1] = {"
-        + ", ".join(str(int(ch.analog_input)) for ch in plan.channels or []) + (" 0" if not n_ch else "") + "};",
-        "",
-        "/* channel signals: " + "; ".join(f"{k}: {ch.signal} (A{int(ch.analog_input)})"
-                                          for k, ch in enumerate(plan.channels)) + " */",
+        "/* the channels, in the order frogsim_sample reads them: analog inputs converted one after the",
+        "   other, quadrature encoders' counts as the encoder interrupts left them */",
         "",
     ]
+    encoders = [ch for ch in plan.channels if getattr(ch, "pins", ())]
+    lines.append(f"#define FS_ENCODERS {len(encoders)}")
+    lines.append('extern "C" { extern uint16_t fs_adc[]; }   /* the counts of the sample (the .ino) */')
+    lines.append("static uint16_t fs_convert(uint8_t input);   /* one conversion (the .ino) */")
+    lines.append("volatile uint16_t fs_enc[FS_ENCODERS > 0 ? FS_ENCODERS : 1];   /* encoder counts */")
+    read = ["static inline void fs_copy_encoders(void) {   /* interrupts off: the counts at the sample */"]
+    conv = ["static inline void fs_convert_channels(void) {"]
+    enc_setup = ["static inline void fs_encoders_setup(void) {"]
+    isrs = []
+    e = 0
+    for i, ch in enumerate(plan.channels):
+        if getattr(ch, "pins", ()):
+            a, b_ = _pin(int(ch.pins[0])), _pin(int(ch.pins[1]))
+            n = chip.EXTERNAL_INTERRUPT[a.number]
+            reg, bit = ("EICRA", 2 * n) if n < 4 else ("EICRB", 2 * (n - 4))
+            read.append(f"    fs_adc[{i}] = fs_enc[{e}];   /* {ch.signal}: encoder A D{a.number} (INT{n}), "
+                        f"B D{b_.number} */")
+            enc_setup += [f"    DDR{a.port} &= (uint8_t)~(1u << {a.bit}); DDR{b_.port} &= (uint8_t)~(1u << {b_.bit});",
+                          f"    fs_enc[{e}] = {int(ch.start_count)}u;   /* the count at angle 0, the start pose */",
+                          f"    {reg} = ({reg} & (uint8_t)~(3u << {bit})) | (uint8_t)(1u << {bit});   "
+                          f"/* INT{n} on any edge */",
+                          f"    EIFR = (uint8_t)(1u << {n});",
+                          f"    EIMSK |= (uint8_t)(1u << {n});"]
+            isrs += [f"/* {ch.signal}: every edge of A counts, B gives the direction (A == B after the edge: +1) */",
+                     f"ISR(INT{n}_vect) {{",
+                     f"    uint8_t a = (PIN{a.port} >> {a.bit}) & 1u, b = (PIN{b_.port} >> {b_.bit}) & 1u;",
+                     f"    if (a == b) fs_enc[{e}]++; else fs_enc[{e}]--;",
+                     "}"]
+            e += 1
+        else:
+            conv.append(f"    fs_adc[{i}] = fs_convert({int(ch.analog_input)});   /* {ch.signal} (A{int(ch.analog_input)}) */")
+    lines += read + ["}", ""] + conv + ["}", ""] + enc_setup + ["}", ""] + isrs + [""]
     setup = ["static inline void fs_valve_pins_output(void) {"]
     close = ["/* close first, then open: a muscle's two valves are never commanded open together */",
              "static inline void fs_write_valves(const int8_t *modes) {"]
@@ -229,8 +269,10 @@ static uint16_t fs_convert(uint8_t input) {{
 ISR(TIMER1_COMPA_vect) {{
     FS_BUSY_PORT |= (1 << FS_BUSY_BIT);
     uint32_t k = fs_k;
-    for (uint8_t i = 0; i < FS_CHANNELS; i++)
-        fs_adc[i] = fs_convert(fs_channel_input[i]);
+    fs_copy_encoders();                       /* interrupts are off: the encoders' counts at the sample */
+    TIMSK1 &= (uint8_t)~(1 << OCIE1A);        /* this interrupt does not nest in itself ... */
+    sei();                                    /* ... but encoder edges and the serial port are served during it */
+    fs_convert_channels();
     frogsim_sample(k, fs_adc, fs_modes);
     fs_write_valves(fs_modes);
     if (fs_log_count == 0) {{
@@ -254,6 +296,8 @@ ISR(TIMER1_COMPA_vect) {{
         }}
     }}
     if (++fs_log_count >= FS_LOG_EVERY) fs_log_count = 0;
+    cli();
+    TIMSK1 |= (1 << OCIE1A);
     fs_k = k + 1;
     /* the next period has begun already */
     if ((TIFR1 & (1 << OCF1A)) && fs_overruns != 0xFFFFu) fs_overruns++;
@@ -284,6 +328,7 @@ void setup() {{
     fs_valve_pins_output();
     for (uint8_t j = 0; j < FS_MUSCLES; j++) fs_modes[j] = 0;
     fs_write_valves(fs_modes);                /* every valve shut */
+    fs_encoders_setup();
     ADCSRA = (1 << ADEN) | FS_ADC_ADPS;
     Serial.begin(FS_BAUD);
     Serial.print(F("# frogsim " FS_NAME " rate={rate:g} channels={channels} muscles={muscles} "
@@ -353,7 +398,7 @@ def write_sketch(plan, out: Path, scenario_name: str = "") -> dict:
         "laws_c": folder / "frogsim_laws.c",
         "plan": Path(out) / "firmware.json",
     }
-    channels = ";".join(f"{ch.signal}@A{int(ch.analog_input)}" for ch in plan.channels)
+    channels = ";".join(channel_token(ch) for ch in plan.channels)
     record = plan_record(plan)
     texts = {
         "ino": INO.format(name=plan.name, scenario=scenario_name or plan.name, rate=float(plan.rate),

@@ -18,6 +18,8 @@ changes. Every setting has a default, so ``[firmware]`` alone works::
     valve_pins = { hip = [22, 23] }     # muscle -> [charge, discharge]; others from D22 up
     pressure_inputs = { hip = 0 }       # muscle -> analog input (0 = A0); others from A0 up
     angle_inputs = { hip_left = 4 }     # joint -> analog input; others after the pressures
+    angle_encoder = { counts_per_revolution = 2000 }   # joint angles from quadrature encoders
+    encoder_pins = { hip_left = [2, 46] }   # joint -> [A (an external-interrupt pin), B]
     busy_pin = 13                       # high while the controller's interrupt runs
     baud = 115200
     log_rate = "100 Hz"                 # serial log lines per second
@@ -76,6 +78,24 @@ class AnglePotentiometer:
 
 
 @dataclass(frozen=True)
+class AngleEncoder:
+    """Incremental quadrature encoders on the joints instead of potentiometers: channel A on one of
+    the Mega's external-interrupt pins (INT0..INT5: D21, D20, D19, D18, D2, D3), channel B on any
+    digital pin. The firmware counts every edge of A (both directions: "x2" decoding, B giving
+    the direction), so a count is half a cycle of A: ``counts_per_revolution`` counts per turn of
+    the joint (twice the encoder's lines per revolution, times any gear between joint and
+    encoder). The count at the joint's zero angle (the flexed stop, the robot's start pose:
+    power the board up with the legs there) is 32768, the middle of the uint16 counter:
+    count = floor(angle counts_per_revolution / 2 pi) + 32768."""
+    counts_per_revolution: int = integer(ge=16, le=32768, default=2000,
+                                         doc="counts per turn of the joint: 2 x the encoder's lines (x2 decoding)")
+
+
+#: the encoder count at a joint angle of 0 (the middle of the firmware's uint16 counter)
+ENCODER_ZERO = 32768
+
+
+@dataclass(frozen=True)
 class Firmware:
     """The ``[firmware]`` section (module docstring). ``valve_pins``, ``pressure_inputs`` and
     ``angle_inputs`` hold what the file wrote; :func:`firmware_layout` adds the defaults."""
@@ -84,6 +104,7 @@ class Firmware:
                            doc="the ADC's reference voltage (AVcc on the Mega 2560)")
     transducer: Transducer = field(default_factory=Transducer)
     angle_sensor: AnglePotentiometer = field(default_factory=AnglePotentiometer)
+    angle_encoder: AngleEncoder | None = None
     busy_pin: int = integer(ge=0, le=chip.DIGITAL_PINS - 1, default=13,
                             doc="digital pin high while the controller's interrupt runs")
     baud: int = integer(ge=300, le=2_000_000, default=115200, doc="serial log's baud rate")
@@ -94,6 +115,7 @@ class Firmware:
     valve_pins: tuple = field(default=(), metadata={"fixed": True})
     pressure_inputs: tuple = field(default=(), metadata={"fixed": True})
     angle_inputs: tuple = field(default=(), metadata={"fixed": True})
+    encoder_pins: tuple = field(default=(), metadata={"fixed": True})
 
     def pins(self) -> dict:
         """{muscle: (charge pin, discharge pin)} as written."""
@@ -110,14 +132,15 @@ class Firmware:
             raise ScenarioError(path, raw, "expected a table of firmware settings")
         raw = dict(raw)
         tables = {}
-        for key, what in (("valve_pins", "pin"), ("pressure_inputs", "input"), ("angle_inputs", "input")):
+        for key, what in (("valve_pins", "pin"), ("pressure_inputs", "input"), ("angle_inputs", "input"),
+                          ("encoder_pins", "pin")):
             tables[key] = tuple(_read_table(raw.pop(key, {}), f"{path}.{key}", what).items())
         name = unwrap(raw.pop("name", ""))
         if not isinstance(name, str):
             raise ScenarioError(f"{path}.name", name, "expected text: the sketch's name, a C identifier")
         fw = build(cls, raw, path)
         return cls(name=name, vref=fw.vref, transducer=fw.transducer, angle_sensor=fw.angle_sensor,
-                   busy_pin=fw.busy_pin, baud=fw.baud, log_rate=fw.log_rate, **tables)
+                   angle_encoder=fw.angle_encoder, busy_pin=fw.busy_pin, baud=fw.baud, log_rate=fw.log_rate, **tables)
 
 
 def _read_table(raw, path: str, what: str) -> dict:
@@ -130,10 +153,11 @@ def _read_table(raw, path: str, what: str) -> dict:
     for name, val in raw.items():
         here = f"{path}.{name}"
         val = unwrap(val)
-        if path.endswith("valve_pins"):
+        if path.endswith("valve_pins") or path.endswith("encoder_pins"):
             if (not isinstance(val, (list, tuple)) or len(val) != 2
                     or not all(isinstance(v, int) and not isinstance(v, bool) for v in val)):
-                raise ScenarioError(here, val, "expected [charge pin, discharge pin], two whole numbers")
+                what = "[charge pin, discharge pin]" if path.endswith("valve_pins") else "[A pin, B pin]"
+                raise ScenarioError(here, val, f"expected {what}, two whole numbers")
             out[str(name)] = (int(val[0]), int(val[1]))
         else:
             if not isinstance(val, int) or isinstance(val, bool):
@@ -143,11 +167,17 @@ def _read_table(raw, path: str, what: str) -> dict:
 
 
 class Signal(NamedTuple):
-    """One analog signal the firmware converts: quantity ("pressure" | "angle"), the muscle or
-    joint it belongs to, its analog input (0..15 = A0..A15)."""
+    """One signal the firmware reads: quantity ("pressure" | "angle"), the muscle or joint it
+    belongs to, its analog input (0..15 = A0..A15; -1 for an encoder) and an encoder's (A, B)
+    pins (empty for an analog signal)."""
     quantity: str
     name: str
     analog_input: int
+    pins: tuple = ()
+
+    @property
+    def encoder(self) -> bool:
+        return bool(self.pins)
 
     @property
     def label(self) -> str:
@@ -210,21 +240,41 @@ def firmware_layout(sc) -> Layout:
                                     "give the other muscles' pins in firmware.valve_pins")
             pins[m] = pair
     wanted = sensed_signals(sc)
+    encoders = fw.angle_encoder is not None
     given = {(q, n): ch for q in ("pressure", "angle") for n, ch in fw.inputs(q).items()}
     taken = set(given.values())
     nxt = (ch for ch in range(10**6) if ch not in taken)
-    signals = [Signal(q, n, given[(q, n)] if (q, n) in given else next(nxt)) for q, n in wanted]
+    enc_given = dict(fw.encoder_pins)
+    in_use = used | {p for pair in pins.values() for p in pair} | {p for pair in enc_given.values() for p in pair}
+    free_a = (p for p in chip.INTERRUPT_PINS if p not in in_use)
+    free_b = (p for p in range(LAST_VALVE_PIN, FIRST_VALVE_PIN - 1, -1) if p not in in_use)
+    signals = []
+    for q, n in wanted:
+        if q == "angle" and encoders:
+            pair = enc_given.get(n)
+            if pair is None:
+                pair = (next(free_a, None), next(free_b, None))
+                if None in pair:
+                    raise ScenarioError("firmware.encoder_pins", f"{sum(1 for qq, _ in wanted if qq == q)} encoders",
+                                        "the Mega 2560 has six external-interrupt pins (D2, D3, D18..D21) for "
+                                        "the encoders' A channels and too few free pins for B: give "
+                                        "firmware.encoder_pins")
+            signals.append(Signal(q, n, -1, tuple(pair)))
+        else:
+            signals.append(Signal(q, n, given[(q, n)] if (q, n) in given else next(nxt)))
     return Layout(sketch_name(sc), pins, signals)
 
 
-def log_line_bytes(n_signals: int, n_muscles: int, samples: int, bits: int = 10) -> int:
-    """The longest serial log line [bytes]: "k,count_0,...,count_n-1,valvebits,overruns\\n" with k
-    at most ``samples``, each count at most 2^bits - 1, valvebits at most 4^n_muscles - 1 and the
-    overrun counter at most 65535."""
+def log_line_bytes(n_signals: int, n_muscles: int, samples: int, bits: int = 10, n_encoders: int = 0) -> int:
+    """The longest serial log line [bytes]: "k,count_0,...,count_n-1,valvebits,faultbits,overruns,
+    dropped\\n" with k at most ``samples``, each ADC count at most 2^bits - 1 and each of the
+    ``n_encoders`` encoder counts (among the n_signals) at most 65535, valvebits at most
+    4^n_muscles - 1, faultbits at most 2^n_signals - 1, the two counters at most 65535."""
     digits = len(str(max(samples, 0)))
-    counts = n_signals * len(str(2 ** bits - 1))
+    counts = (n_signals - n_encoders) * len(str(2 ** bits - 1)) + n_encoders * 5
     valves = len(str(4 ** n_muscles - 1))
-    return digits + counts + valves + OVERRUN_DIGITS + (n_signals + 2) + 1
+    faults = len(str(2 ** n_signals - 1))
+    return digits + counts + valves + faults + 2 * OVERRUN_DIGITS + (n_signals + 4) + 1
 
 
 def check_firmware(sc) -> None:
@@ -254,6 +304,23 @@ def check_firmware(sc) -> None:
                                 "with [firmware] firmware.angle_sensor and the ADC are the angle sensor: "
                                 "leave these settings out")
     wanted = sensed_signals(sc)
+    encoders = fw.angle_encoder is not None
+    if fw.encoder_pins and not encoders:
+        raise ScenarioError(f"{path}.encoder_pins", dict(fw.encoder_pins),
+                            "needs firmware.angle_encoder (the encoders' counts per revolution)")
+    if encoders and fw.angle_inputs:
+        raise ScenarioError(f"{path}.angle_inputs", dict(fw.angle_inputs),
+                            "with firmware.angle_encoder the joint angles come from encoders, not analog inputs: "
+                            "give their pins in firmware.encoder_pins")
+    joints_read = [n for q, n in wanted if q == "angle"]
+    for n, pair in fw.encoder_pins:
+        where = f"{path}.encoder_pins.{n}"
+        if n not in joints_read:
+            raise ScenarioError(where, list(pair), f"must name a joint whose angle a controller reads "
+                                                   f"({', '.join(joints_read) or 'none here'})")
+        if pair[0] not in chip.EXTERNAL_INTERRUPT:
+            raise ScenarioError(where, list(pair), "the A channel must be on an external-interrupt pin: "
+                                                   f"{', '.join(map(str, chip.INTERRUPT_PINS))}")
     for key, q, what in (("pressure_inputs", "pressure", "muscle"), ("angle_inputs", "angle", "joint")):
         names = [n for qq, n in wanted if qq == q]
         for n, ch in fw.inputs(q).items():
@@ -265,14 +332,15 @@ def check_firmware(sc) -> None:
         if m not in sc.muscles:
             raise ScenarioError(f"{path}.valve_pins.{m}", list(pair),
                                 f"must name a muscle of this scenario ({', '.join(sc.muscles)})")
-    n_analog = len(wanted)
+    n_encoders = sum(1 for q, _ in wanted if q == "angle") if encoders else 0
+    n_analog = len(wanted) - n_encoders
     if n_analog > chip.ANALOG_INPUTS:
         n_p = sum(1 for q, _ in wanted if q == "pressure")
         raise ScenarioError(path, f"{n_analog} analog signals ({n_p} pressures, {n_analog - n_p} angles)",
-                            f"the Mega 2560 has {chip.ANALOG_INPUTS} analog inputs (A0-A15): the other way "
-                            "in is quadrature encoders for the angles on the interrupt pins "
-                            f"{', '.join(map(str, chip.INTERRUPT_PINS))} (not generated by frogsim yet); "
-                            "control fewer joints or muscles")
+                            f"the Mega 2560 has {chip.ANALOG_INPUTS} analog inputs (A0-A15): read the joint "
+                            "angles from quadrature encoders on the interrupt pins instead "
+                            "(firmware.angle_encoder = { counts_per_revolution = 2000 }), or control fewer "
+                            "joints or muscles")
     for key, q in (("pressure_inputs", "pressure"), ("angle_inputs", "angle")):
         for n, ch in fw.inputs(q).items():
             if not 0 <= ch < chip.ANALOG_INPUTS:
@@ -281,6 +349,8 @@ def check_firmware(sc) -> None:
     layout = firmware_layout(sc)
     owner = {}
     for s in layout.signals:
+        if s.encoder:
+            continue
         where = f"{path}.{s.quantity}_inputs.{s.name}"
         if s.analog_input in owner:
             raise ScenarioError(where, s.analog_input, f"analog input A{s.analog_input} is already "
@@ -294,7 +364,7 @@ def check_firmware(sc) -> None:
                             f"must divide the controller rate ({rate:g} Hz): a line every whole number of "
                             "samples")
     samples = command_sample(sc.duration, rate)      # the last sample's index (its digits in a log line)
-    line = log_line_bytes(n_analog, len(sc.muscles), samples)
+    line = log_line_bytes(len(wanted), len(sc.muscles), samples, n_encoders=n_encoders)
     if line * fw.log_rate > fw.baud / 10.0:
         raise ScenarioError(f"{path}.log_rate", f"{fw.log_rate:g} Hz",
                             f"lines of up to {line} bytes at {fw.log_rate:g} Hz need {line * fw.log_rate:.0f} "
@@ -330,7 +400,8 @@ def _check_pins(sc, layout: Layout, path: str) -> None:
     fw = sc.firmware
     owner = {p: "the serial port's (USART0, the USB link the log uses)" for p in chip.SERIAL_PINS}
     for s in layout.signals:
-        owner[chip.analog_pin(s.analog_input)] = f"analog input A{s.analog_input} ({s.label})"
+        if not s.encoder:
+            owner[chip.analog_pin(s.analog_input)] = f"analog input A{s.analog_input} ({s.label})"
 
     def take(pin, where, what):
         if not 0 <= pin < chip.DIGITAL_PINS:
@@ -345,3 +416,8 @@ def _check_pins(sc, layout: Layout, path: str) -> None:
         where = f"{path}.valve_pins.{m}"
         take(pc, where, f"{m}'s charge valve pin")
         take(pd, where, f"{m}'s discharge valve pin")
+    for s in layout.signals:
+        if s.encoder:
+            where = f"{path}.encoder_pins.{s.name}"
+            take(s.pins[0], where, f"{s.name}'s encoder A")
+            take(s.pins[1], where, f"{s.name}'s encoder B")
