@@ -332,8 +332,9 @@ def cmd_firmware(args) -> int:
         from frogsim.export.emulator import require
         for tool in ("make", "avr-gcc", "avr-size", "avr-objdump"):
             require(tool)
-    files = [f"{plan.name}/{plan.name}.ino", f"{plan.name}/frogsim_board.h", f"{plan.name}/frogsim_laws.h",
-             f"{plan.name}/frogsim_laws.c", "firmware.json"] + ([f"{plan.name}/Makefile", f"build/{plan.name}.elf", f"build/{plan.name}.hex"] if args.build else [])
+    files = [f"{plan.name}/{f}" for f in (f"{plan.name}.ino", "frogsim_board.h", "frogsim_laws.h", "frogsim_laws.c",
+                                          "Makefile", "README.md")] + ["firmware.json"] + \
+        ([f"build/{plan.name}.elf", f"build/{plan.name}.hex"] if args.build else [])
     folder = _folder(args, "firmware", files=files,
                      scenario=scenario_record(sc.name, scenario_inputs(pneumatic, args.scenario)))
 
