@@ -1,6 +1,7 @@
 """The exported firmware folder as something a user carries: its Makefile's paths are relative (a
 copy builds into its own build/ and leaves the original's alone), its README.md holds the wiring
-of the plan and the ways to build it."""
+of the plan and the ways to build it, and `--overwrite` removes what the earlier export wrote,
+subfolders included, but no file frogsim did not write."""
 from __future__ import annotations
 
 import json
@@ -109,3 +110,49 @@ def test_the_readme_names_the_pins_of_a_channel_read_through_pins():
     rows = {r[0]: r for r in _table(sketch.readme_text(rec))}
     assert rows["hip_left angle (channel 0)"][1] == "D2, D3"
     assert rows["index (channel 1)"][1] == "D18"
+
+
+def test_overwrite_removes_the_earlier_exports_sketch_and_build(built, tmp_path, capsys):
+    """Export A (hold-3bar, built), then `--overwrite` B (every-kind, not built) into the same
+    folder: nothing of A is left (its sketch folder, its build folder with the compiler's
+    objects), every file there is B's; a file someone else put into A's sketch folder stays,
+    with a warning."""
+    fw = tmp_path / "fw"
+    shutil.copytree(built, fw)
+    a = json.loads((fw / "firmware.json").read_text())["name"]
+    listed = {f["name"] for f in json.loads((fw / "manifest.json").read_text())["files"]}
+    objects = {p.relative_to(fw).as_posix() for p in (fw / "build").rglob("*") if p.is_file()}
+    assert objects <= listed and any(f.startswith("build/core/") for f in objects)   # the objects are listed
+    (fw / a / "notes.txt").write_text("mine")
+    assert main(["firmware", str(HERE / "every-kind.toml"), "--out", str(fw), "--overwrite", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "warning:" in err and f"{a}/notes.txt" in err
+    b = json.loads((fw / "firmware.json").read_text())["name"]
+    assert b != a
+    assert not (fw / "build").exists()
+    assert sorted(p.name for p in (fw / a).iterdir()) == ["notes.txt"]
+    assert (fw / a / "notes.txt").read_text() == "mine"
+    manifest = json.loads((fw / "manifest.json").read_text())
+    now = {p.relative_to(fw).as_posix() for p in fw.rglob("*") if p.is_file()}
+    assert now == {f["name"] for f in manifest["files"]} | {"manifest.json", f"{a}/notes.txt"}
+    assert all(not f.startswith(f"{a}/") or f == f"{a}/notes.txt" for f in now)
+
+
+def test_overwrite_never_deletes_outside_the_folder(tmp_path):
+    """A manifest naming files outside its folder (../x, an absolute path, through a symbolic
+    link) does not make --overwrite delete them."""
+    from frogsim.io.outputs import OutputFolder
+    out = tmp_path / "out"
+    out.mkdir()
+    outside = tmp_path / "precious.txt"
+    outside.write_text("keep")
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "elsewhere" / "f.txt").write_text("keep")
+    (out / "link").symlink_to(tmp_path / "elsewhere")
+    (out / "manifest.json").write_text(json.dumps({
+        "command": "firmware", "status": "complete",
+        "files": [{"name": "../precious.txt"}, {"name": str(outside)}, {"name": "link/f.txt"}]}))
+    folder = OutputFolder(out, "firmware", [], overwrite=True, files=["firmware.json"])
+    folder.check()
+    folder.begin()
+    assert outside.read_text() == "keep" and (tmp_path / "elsewhere" / "f.txt").read_text() == "keep"

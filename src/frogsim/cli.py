@@ -79,6 +79,10 @@ def _finishing(folder, work):
     or "failed"."""
     from frogsim.io.outputs import ended_status
     folder.begin()
+    if folder.left:
+        _warn(f"--overwrite left {len(folder.left)} file(s) in {folder.out} that the replaced run's manifest "
+              "does not list (frogsim did not write them): " + ", ".join(folder.left[:4])
+              + (", ..." if len(folder.left) > 4 else ""))
     try:
         result = work()
     except BaseException as exc:
@@ -335,7 +339,7 @@ def cmd_firmware(args) -> int:
     files = [f"{plan.name}/{f}" for f in (f"{plan.name}.ino", "frogsim_board.h", "frogsim_laws.h", "frogsim_laws.c",
                                           "Makefile", "README.md")] + ["firmware.json"] + \
         ([f"build/{plan.name}.elf", f"build/{plan.name}.hex"] if args.build else [])
-    folder = _folder(args, "firmware", files=files,
+    folder = _folder(args, "firmware", files=files, folders=["build"] if args.build else [],
                      scenario=scenario_record(sc.name, scenario_inputs(pneumatic, args.scenario)))
 
     def work():
