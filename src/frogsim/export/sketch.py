@@ -50,7 +50,7 @@ import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
-from frogsim.errors import FrogsimError, ScenarioError
+from frogsim.errors import FrogsimError, ScenarioError, shown_value
 from frogsim.export import board
 
 LOG_FORMAT = "k,count_0,...,count_n-1,valvebits,overruns"
@@ -449,9 +449,11 @@ def readme_text(rec: dict) -> str:
     return "\n".join(lines)
 
 
-def write_sketch(plan, out: Path, scenario_name: str = "") -> dict:
+def write_sketch(plan, out: Path, scenario_name: str = "", export: dict | None = None) -> dict:
     """Write the sketch folder (the sources, its Makefile and README.md) and firmware.json into
-    ``out`` (an output folder already checked); returns {file kind: path}."""
+    ``out`` (an output folder already checked); returns {file kind: path}. ``export``: what the
+    plan was made from (scenario name and file, gait cycles, the inputs' digests), kept in
+    firmware.json under "export" so that `frogsim sil` can say why a plan differs."""
     if not _c_identifier(plan.name):
         raise ScenarioError("firmware.name", plan.name, "must be a C identifier (letters, digits, _; "
                                                         "not starting with a digit)")
@@ -481,6 +483,8 @@ def write_sketch(plan, out: Path, scenario_name: str = "") -> dict:
     record = plan_record(plan)
     record["scenario"] = scenario_name
     record["sketch"] = f"{plan.name}/{plan.name}.ino"
+    if export is not None:
+        record["export"] = dict(export)
     files["makefile"], files["readme"] = folder / "Makefile", folder / "README.md"
     for key, text in (("makefile", makefile_text(plan.name)), ("readme", readme_text(record))):
         atomic_write(files[key], lambda tmp, text=text: Path(tmp).write_text(text))
@@ -488,8 +492,107 @@ def write_sketch(plan, out: Path, scenario_name: str = "") -> dict:
     return files
 
 
+#: the formats of firmware.json this frogsim reads
+PLAN_FORMATS = (1, 2)
+
+
+def _whole(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _finite(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _pin_number(v) -> bool:
+    return _whole(v) and 0 <= v < board.DIGITAL_PINS
+
+
+def _pins(v) -> bool:
+    return _pin_number(v) or (isinstance(v, list) and len(v) > 0 and all(_pin_number(p) for p in v))
+
+
+#: what SIL and `frogsim log` read from firmware.json: key -> (test, what it must be). Keys not
+#: named here are allowed (a later format adds its own: add them here with their test).
+PLAN_KEYS = {
+    "format": (lambda v: _whole(v) and v in PLAN_FORMATS, f"one of {', '.join(map(str, PLAN_FORMATS))}"),
+    "name": (lambda v: isinstance(v, str) and _c_identifier(v), "a C identifier"),
+    "f_cpu_hz": (lambda v: _whole(v) and v > 0, "a whole number of Hz > 0"),
+    "rate_hz": (lambda v: _finite(v) and v > 0, "a finite number of Hz > 0"),
+    "period_cycles": (lambda v: _whole(v) and v > 0, "a whole number of CPU cycles > 0"),
+    "muscles": (lambda v: isinstance(v, list) and all(isinstance(m, str) and m for m in v), "a list of names"),
+    "valve_pins": (lambda v: isinstance(v, list) and all(isinstance(p, list) and len(p) == 2
+                                                         and all(_pin_number(x) for x in p) for p in v),
+                   f"a list of [charge pin, discharge pin] pairs, pins 0..{board.DIGITAL_PINS - 1}"),
+    "channels": (lambda v: isinstance(v, list) and all(isinstance(c, dict) for c in v), "a list of tables"),
+    "adc": (lambda v: isinstance(v, dict), "a table"),
+    "busy_pin": (_pin_number, f"a digital pin 0..{board.DIGITAL_PINS - 1}"),
+    "baud": (lambda v: _whole(v) and v > 0, "a whole number > 0"),
+    "log_every": (lambda v: _whole(v) and v >= 1, "a whole number of samples >= 1"),
+    "plan_sha256": (lambda v: isinstance(v, str) and re.fullmatch(r"[0-9a-f]{64}", v) is not None,
+                    "64 hexadecimal digits"),
+}
+#: each channel's keys (and "analog_input" or "pin", below)
+CHANNEL_KEYS = {
+    "signal": (lambda v: isinstance(v, str) and v, "a name"),
+    "quantity": (lambda v: isinstance(v, str) and v, "a name"),
+    "name": (lambda v: isinstance(v, str) and v, "a name"),
+    "unit_per_count": (lambda v: _finite(v) and v != 0, "a finite number, not 0"),
+    "offset": (_finite, "a finite number"),
+    "unit": (lambda v: isinstance(v, str), "text"),
+}
+ADC_KEYS = {
+    "bits": (lambda v: _whole(v) and v in (8, 10), "8 or 10"),
+    "prescaler": (lambda v: _whole(v) and v in board.ADC_PRESCALERS,
+                  f"one of {', '.join(map(str, board.ADC_PRESCALERS))}"),
+}
+
+
+def validate_plan_record(rec, folder) -> None:
+    """ScenarioError in one line, naming --firmware, firmware.json and the key, unless ``rec`` has
+    every key SIL and `frogsim log` read with its type and range (:data:`PLAN_KEYS`,
+    :data:`CHANNEL_KEYS`, :data:`ADC_KEYS`; a channel has an analog input 0..15 or ``pin``, digital
+    pins; one valve pin pair per muscle). Other keys are allowed."""
+    where = str(folder)
+
+    def bad(key: str, why: str):
+        raise ScenarioError("--firmware", where, f"firmware.json's {key} {why}: not a firmware plan frogsim "
+                                                 "wrote; export it again (frogsim firmware SCENARIO --out DIR "
+                                                 "--build)")
+
+    def check(table: dict, keys: dict, prefix: str) -> None:
+        for key, (test, what) in keys.items():
+            if key not in table:
+                bad(prefix + key, "is missing")
+            if not test(table[key]):
+                bad(prefix + key, f"= {shown_value(table[key])} must be {what}")
+
+    if not isinstance(rec, dict):
+        raise ScenarioError("--firmware", where, "firmware.json is not a frogsim firmware plan (not a JSON "
+                                                 "table)")
+    check(rec, PLAN_KEYS, "")
+    if len(rec["valve_pins"]) != len(rec["muscles"]):
+        bad("valve_pins", f"has {len(rec['valve_pins'])} pairs for {len(rec['muscles'])} muscles: one pair "
+                          "per muscle")
+    check(rec["adc"], ADC_KEYS, "adc.")
+    for k, ch in enumerate(rec["channels"]):
+        check(ch, CHANNEL_KEYS, f"channels[{k}].")
+        if ch.get("analog_input") is not None:
+            ai = ch["analog_input"]
+            if not (_whole(ai) and 0 <= ai < board.ANALOG_INPUTS):
+                bad(f"channels[{k}].analog_input", f"= {shown_value(ai)} must be an analog input "
+                                                   f"0..{board.ANALOG_INPUTS - 1}")
+        elif "pin" in ch:
+            if not _pins(ch["pin"]):
+                bad(f"channels[{k}].pin", f"= {shown_value(ch['pin'])} must be a digital pin "
+                                          f"0..{board.DIGITAL_PINS - 1} or a list of them")
+        else:
+            bad(f"channels[{k}].analog_input", "is missing (nor has the channel a pin)")
+
+
 def read_plan_record(folder) -> dict:
-    """firmware.json of an exported firmware folder (ScenarioError if absent or unreadable)."""
+    """firmware.json of an exported firmware folder, checked (:func:`validate_plan_record`);
+    ScenarioError if absent, unreadable or not a plan frogsim wrote."""
     path = Path(folder) / "firmware.json"
     if not path.is_file():
         raise ScenarioError("--firmware", str(folder), "holds no firmware.json: export the firmware "
@@ -499,8 +602,7 @@ def read_plan_record(folder) -> dict:
     except (OSError, ValueError) as exc:
         raise ScenarioError("--firmware", str(folder), f"firmware.json is not readable JSON ({type(exc).__name__})") \
             from None
-    if not isinstance(rec, dict) or rec.get("format") != 1 or "channels" not in rec:
-        raise ScenarioError("--firmware", str(folder), "firmware.json is not a frogsim firmware plan (format 1)")
+    validate_plan_record(rec, folder)
     return rec
 
 
@@ -591,11 +693,29 @@ def build_sketch(out: Path, name: str, progress=None) -> Build:
                  architecture="avr6")
 
 
+#: the files in the sketch folder the build reads (arduino-mk's sources, the headers, the Makefile)
+BUILD_INPUTS = ("*.ino", "*.pde", "*.c", "*.cpp", "*.cc", "*.S", "*.h", "*.hpp", "Makefile")
+
+
 def find_elf(folder) -> Path:
-    """The built ELF of an exported firmware folder (ScenarioError if it was not built)."""
+    """The built ELF of an exported firmware folder, checked: ScenarioError if it was not built,
+    if a file the build reads in the sketch folder (:data:`BUILD_INPUTS`) is newer than it (the
+    ELF is not what the sources make: rebuild it), or if it is not an ATmega2560 ELF
+    (:func:`frogsim.export.emulator.check_avr_elf`)."""
+    from frogsim.export.emulator import check_avr_elf
     rec = read_plan_record(folder)
     elf = Path(folder) / "build" / f"{rec['name']}.elf"
     if not elf.is_file():
         raise ScenarioError("--firmware", str(folder), f"holds no build/{rec['name']}.elf: build it "
                                                         "(frogsim firmware SCENARIO --out DIR --build)")
+    built = elf.stat().st_mtime
+    sources = Path(folder) / rec["name"]
+    newer = sorted({p.name for pattern in BUILD_INPUTS for p in sources.glob(pattern)
+                    if p.is_file() and p.stat().st_mtime > built})
+    if newer:
+        shown = ", ".join(f"{sources.name}/{n}" for n in newer[:3]) + (", ..." if len(newer) > 3 else "")
+        raise ScenarioError("--firmware", str(folder), f"build/{elf.name} is older than its sketch's {shown}: "
+                                                       f"rebuild it (make -C {sources}, or frogsim firmware "
+                                                       "SCENARIO --out DIR --build)")
+    check_avr_elf(elf, folder)
     return elf
