@@ -3,7 +3,10 @@
 
 `frogsim sil` refuses a firmware folder whose ELF is older than its sources, an ELF simavr cannot
 run as the ATmega2560's (not an ELF, damaged, truncated, of another machine, of another AVR), a
-firmware.json frogsim did not write, and a plan of another scenario, naming the likely cause."""
+firmware.json frogsim did not write, and a plan of another scenario, naming the likely cause.
+`frogsim firmware` (and, for the scenario's own rules, `simulate`) refuses a controller rate
+Timer1 cannot make exactly, a sensor span so narrow that the fixed point overflows, and a setpoint
+or a band outside its sensor's range."""
 from __future__ import annotations
 
 import json
@@ -220,3 +223,101 @@ def test_sil_names_other_gait_cycles(tmp_path, capsys):
     assert json.loads((fw / "firmware.json").read_text())["export"]["cycles"] == 1
     code, err = _run(capsys, "sil", "swim", "--firmware", fw, "--out", tmp_path / "o")
     _refused(code, err, tmp_path / "o", "--firmware", "1 gait cycle(s)", "--cycles 1")
+
+
+# -- firmware (and simulate): the scenario --------------------------------------------------------------
+def _hold(**replace) -> str:
+    text = (SHIPPED / "hold-3bar.toml").read_text()
+    for old, new in replace.items():
+        assert old in text
+        text = text.replace(old, new)
+    return text
+
+
+def _robot(section: str) -> str:
+    return (HERE / "robot-every-kind.toml").read_text() + "\n[firmware]\n" + section + "\n"
+
+
+RATE = 'rate = "1 kHz"'
+LOG = 'log_rate = "100 Hz"'
+SPAN = 'high_pressure_gauge = "10 bar"'
+EXPORT_REFUSALS = {
+    # case: (scenario text, field, texts the message holds)
+    "3 kHz: 5333.33 cycles": (_hold(**{RATE: 'rate = "3 kHz"'}), "controller.rate",
+                              ["'3 kHz'", "5333.33", "2.5 kHz", "3.2 kHz"]),
+    "7 Hz": (_hold(**{RATE: 'rate = "7 Hz"', LOG: 'log_rate = "7 Hz"'}), "controller.rate",
+             ["'7 Hz'", "whole number of CPU cycles", "8 Hz"]),
+    "204.8 Hz: 78125 cycles, no prescaler": (_hold(**{RATE: 'rate = "204.8 Hz"', LOG: 'log_rate = "204.8 Hz"'}),
+                                             "controller.rate", ["78125", "Timer1", "200 Hz"]),
+    "a transducer span of 1e-9 bar": (_hold(**{SPAN: 'high_pressure_gauge = "1e-9 bar"'}),
+                                      "firmware.transducer.high_pressure_gauge", ["1e-09 bar", "overflows"]),
+    "an angle sensor span of 1e-9 deg": (_robot('angle_sensor = { low_angle = "0 deg", high_angle = "1e-9 deg" }'),
+                                         "firmware.angle_sensor.high_angle", ["1e-09 deg", "overflows"]),
+    "3 bar on a 0-2 bar transducer": (_hold(**{SPAN: 'high_pressure_gauge = "2 bar"'}), "controllers.hold.setpoint",
+                                      ["'3 bar'", "0..2 bar"]),
+    "the band past the transducer's top": (_hold(**{SPAN: 'high_pressure_gauge = "3.02 bar"'}),
+                                           "controllers.hold.band", ["'0.1 bar'", "2.95..3.05 bar"]),
+    "a sine reaching past the transducer": (
+        _hold(**{SPAN: 'high_pressure_gauge = "4 bar"', 'setpoint = { kind = "constant", value = "3 bar" }':
+                 'setpoint = { kind = "sine", mean = "3 bar", amplitude = "1.5 bar", frequency = "1 Hz" }'}),
+        "controllers.hold.setpoint", ["'4.5 bar (highest value)'", "0..4 bar"]),
+    "steps below the transducer's bottom": (
+        _hold(**{'low_pressure_gauge = "0 bar"': 'low_pressure_gauge = "1 bar"',
+                 'setpoint = { kind = "constant", value = "3 bar" }':
+                 'setpoint = { kind = "steps", steps = [ { at = "0 s", value = "3 bar" }, '
+                 '{ at = "1 s", value = "0.5 bar" } ] }'}),
+        "controllers.hold.setpoint", ["'0.5 bar (lowest value)'", "1..10 bar"]),
+    "an angle setpoint past the angle sensor": (_robot('angle_sensor = { high_angle = "20 deg" }'),
+                                                "controllers.hip.setpoint",
+                                                ["'25 deg (highest value)'", "-90..20 deg"]),
+    "a co-contraction past the transducer": (_robot('transducer = { high_pressure_gauge = "2 bar" }'),
+                                             "controllers.hip.co_contraction", ["'3 bar'", "0..2 bar"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(EXPORT_REFUSALS))
+def test_firmware_refuses_in_one_line_before_claiming_the_folder(tmp_path, capsys, case):
+    text, field, needles = EXPORT_REFUSALS[case]
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    code, err = _run(capsys, "firmware", path, "--out", tmp_path / "fw", "--build")
+    _refused(code, err, tmp_path / "fw", field, *needles)
+
+
+@pytest.mark.parametrize("case", ["a transducer span of 1e-9 bar", "3 kHz: 5333.33 cycles",
+                                  "3 bar on a 0-2 bar transducer"])
+def test_simulate_refuses_the_same_scenarios(tmp_path, capsys, case):
+    """The refusals are the scenario's rules: `simulate` of a scenario with [firmware] runs the
+    board's arithmetic (a span of 1e-9 bar stopped it with an OverflowError)."""
+    text, field, needles = EXPORT_REFUSALS[case]
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    code, err = _run(capsys, "simulate", path, "--out", tmp_path / "sim")
+    _refused(code, err, tmp_path / "sim", field, *needles)
+
+
+def test_a_sine_is_checked_over_the_run_only():
+    """A slow sine whose run ends before its peak: only the values the run reaches count (0.01 Hz
+    over 2 s reaches 3 + 1.5 sin(0.126) = 3.19 bar, within a 0-3.5 bar transducer)."""
+    from frogsim.scenario.firmware import setpoint_range
+    text = _hold(**{SPAN: 'high_pressure_gauge = "3.5 bar"', 'setpoint = { kind = "constant", value = "3 bar" }':
+                    'setpoint = { kind = "sine", mean = "3 bar", amplitude = "1.5 bar", frequency = "0.01 Hz" }',
+                    'band = "0.1 bar"': 'band = "0.02 bar"'})
+    sc = frogsim.load_scenario(__import__("tomllib").loads(text))
+    lo, hi = setpoint_range(sc.controllers["hold"].setpoint, sc.duration)
+    assert lo == pytest.approx(3e5) and hi == pytest.approx(3e5 + 1.5e5 * 0.12533, rel=1e-4)
+
+
+def test_the_plans_period_is_exact():
+    """16e6/rate exactly: a rate Timer1 cannot make raises (it was rounded: 3 kHz ran at
+    3000.19 Hz)."""
+    from frogsim.components import atmega2560 as chip
+    assert chip.period_cycles(1000.0) == 16000 and chip.period_cycles(3200.0) == 5000
+    assert chip.period_cycles(0.25) == 64_000_000                   # prescaler 1024, OCR1A 62499
+    for rate in (3000.0, 7.0, 204.8, 0.2):
+        with pytest.raises(ValueError):
+            chip.period_cycles(rate)
+    for rate in (2500.0, 2560.0, 3200.0, 5.0, 6.25, 8.0, 200.0, 250.0):
+        n = chip.period_cycles(rate)
+        p = chip.timer1_prescaler(n)
+        assert p is not None and 16e6 / (p * (n // p)) == rate
