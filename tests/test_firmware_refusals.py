@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import struct
 import subprocess
 from pathlib import Path
 
@@ -81,6 +82,36 @@ def _other_machine(good: bytes) -> bytes:
     return bytes(b)
 
 
+def _sections(b: bytes) -> list[tuple[int, tuple]]:
+    """(offset of the header, its ten fields) of each section."""
+    shoff, = struct.unpack_from("<I", b, 32)
+    shnum, = struct.unpack_from("<H", b, 48)
+    return [(shoff + 40 * k, struct.unpack_from("<10I", b, shoff + 40 * k)) for k in range(shnum)]
+
+
+def _section_name_outside(good: bytes) -> bytes:
+    """Section 1's name far past the name table (libsimavr crashed on it: a segmentation fault)."""
+    b = bytearray(good)
+    struct.pack_into("<I", b, _sections(good)[1][0], 0x7fffff)
+    return bytes(b)
+
+
+def _symbol_table_entries_of_size_0(good: bytes) -> bytes:
+    """libsimavr divides the symbol table's size by its entries' (a floating-point exception)."""
+    b = bytearray(good)
+    at = next(off for off, sh in _sections(good) if sh[1] == 2)
+    struct.pack_into("<I", b, at + 36, 0)
+    return bytes(b)
+
+
+def _symbol_name_outside(good: bytes) -> bytes:
+    """The last symbol's name far past its string table."""
+    b = bytearray(good)
+    sh = next(sh for _, sh in _sections(good) if sh[1] == 2)
+    struct.pack_into("<I", b, sh[4] + sh[5] - 16, 0x7fffff)
+    return bytes(b)
+
+
 BAD_ELVES = {
     # case: (the ELF's bytes from the good one and tmp_path, text the message must hold)
     "text": (lambda good, tmp: b"not a firmware\n", "not an ELF file"),
@@ -90,14 +121,17 @@ BAD_ELVES = {
     "truncated": (lambda good, tmp: good[:len(good) // 2], "truncated"),
     "the host's /bin/true": (lambda good, tmp: Path("/bin/true").read_bytes(), "not a 32-bit one"),
     "another machine": (lambda good, tmp: _other_machine(good), "another machine"),
+    "a section's name outside its table": (lambda good, tmp: _section_name_outside(good), "section 1's name"),
+    "symbol table entries of size 0": (lambda good, tmp: _symbol_table_entries_of_size_0(good), "symbol table"),
+    "a symbol's name outside its table": (lambda good, tmp: _symbol_name_outside(good), "name lies outside"),
     "an ATmega328P's": (lambda good, tmp: _elf_328p(tmp), "avr5"),
 }
 
 
 @pytest.mark.parametrize("case", sorted(BAD_ELVES))
 def test_sil_refuses_what_is_not_an_atmega2560_elf(built, tmp_path, capsys, case):
-    """Checked before simavr loads it: /bin/true made libsimavr crash (exit 139), a truncated ELF
-    stopped avr-nm with a traceback."""
+    """Checked before simavr loads it: /bin/true and a damaged section or symbol table made
+    libsimavr crash (exit 139 or 136), a truncated ELF stopped avr-nm with a traceback."""
     fw, elf, _ = _copy(built, tmp_path)
     make, needle = BAD_ELVES[case]
     elf.write_bytes(make(elf.read_bytes(), tmp_path))

@@ -24,7 +24,7 @@ import numpy as np
 
 from frogsim._files import user_cache_folder
 from frogsim.errors import FrogsimError, ScenarioError, clip
-from frogsim.export.board import F_CPU, Pin
+from frogsim.export.board import F_CPU, FLASH_BYTES, Pin
 
 #: the Debian packages the firmware path needs: the AVR tool chain, the Arduino AVR core, simavr
 APT_PACKAGES = ("gcc-avr", "avr-libc", "binutils-avr", "arduino-core-avr", "arduino-mk", "simavr",
@@ -125,6 +125,8 @@ AVR_ARCHS = {1: "avr1 (e.g. ATtiny11)", 2: "avr2 (e.g. ATtiny22)", 25: "avr25 (e
 _ELF32_HEADER = struct.Struct("<16sHHIIIIIHHHHHH")     # 52 bytes
 _PHDR = struct.Struct("<IIIIIIII")                      # 32 bytes: type, offset, vaddr, paddr, filesz, ...
 _SHDR = struct.Struct("<IIIIIIIIII")                    # 40 bytes: name, type, flags, addr, offset, size, ...
+_SYM = struct.Struct("<IIIBBH")                         # 16 bytes: name, value, size, info, other, shndx
+_SHT_SYMTAB = 2
 _SHT_NOBITS = 8
 
 
@@ -133,9 +135,11 @@ def check_avr_elf(path, folder=None) -> None:
     load as the ATmega2560's firmware: the ELF magic, 32-bit, little-endian, an executable for
     e_machine 83 (EM_AVR) of architecture avr6 (e_flags & 0x7f; an ATmega328P's is avr5), a
     header, a program header table and a section header table of the sizes ELF32 gives and
-    within the file, every loaded segment and every section's bytes within the file. Read here,
-    before simavr sees the file: libsimavr trusts the header (a file of another machine can
-    crash it, a truncated one stops avr-nm). With ``folder`` (the firmware folder given as
+    within the file, every loaded segment and every section's bytes within the file, the names of
+    the sections and symbols within their string tables, .text and .data within the 256 KB of
+    flash. Read here, before simavr sees the file: libsimavr's loader trusts all of these (a file
+    of another machine, or a damaged one, crashes it or makes it abort), and a truncated file
+    stops avr-nm. With ``folder`` (the firmware folder given as
     --firmware) the message names the folder and the ELF's path in it."""
     path = Path(path)
     value, what = str(path), ""
@@ -183,10 +187,40 @@ def check_avr_elf(path, folder=None) -> None:
         _t, offset, _va, _pa, filesz = _PHDR.unpack_from(data, e_phoff + k * _PHDR.size)[:5]
         if offset + filesz > size:
             bad(f"is a truncated ELF file (segment {k} ends at byte {offset + filesz} of {size})")
-    for k in range(e_shnum):
-        sh = _SHDR.unpack_from(data, e_shoff + k * _SHDR.size)
+    sections = [_SHDR.unpack_from(data, e_shoff + k * _SHDR.size) for k in range(e_shnum)]
+    for k, sh in enumerate(sections):
         if sh[1] != _SHT_NOBITS and sh[4] + sh[5] > size:
             bad(f"is a truncated ELF file (section {k} ends at byte {sh[4] + sh[5]} of {size})")
+    # what simavr's loader reads by section (libelf hands it NULL for a name or data it cannot
+    # find, and it does not look): every section's name within the section name table, a symbol
+    # table's entries of ELF32's size with their names in their string table, and the flash
+    # image (.text and .data) bytes of the file that fit the ATmega2560's flash
+    names = {}
+    if e_shnum:
+        strtab = sections[e_shstrndx]
+        for k, sh in enumerate(sections):
+            if strtab[1] == _SHT_NOBITS or sh[0] >= strtab[5] or data.find(b"\0", strtab[4] + sh[0],
+                                                                              strtab[4] + strtab[5]) < 0:
+                bad(f"is a damaged ELF file (section {k}'s name lies outside the section name table)")
+            names[data[strtab[4] + sh[0]:data.index(b"\0", strtab[4] + sh[0])]] = sh
+        for k, sh in enumerate(sections):
+            if sh[1] == _SHT_SYMTAB:
+                link = sections[sh[6]] if sh[6] < e_shnum else None
+                if sh[9] != _SYM.size or link is None or link[1] == _SHT_NOBITS:
+                    bad(f"is a damaged ELF file (its symbol table, section {k}, is not ELF32's)")
+                for j in range(sh[5] // _SYM.size):
+                    if _SYM.unpack_from(data, sh[4] + j * _SYM.size)[0] >= link[5]:
+                        bad(f"is a damaged ELF file (symbol {j}'s name lies outside its string table)")
+    flash = 0
+    for name in (b".text", b".data"):
+        sh = names.get(name)
+        if sh is not None:
+            if sh[1] == _SHT_NOBITS:
+                bad(f"is a damaged ELF file (its {name.decode()} section holds no bytes)")
+            flash += sh[5]
+    if flash > FLASH_BYTES:
+        bad(f"is an ELF file whose .text and .data take {flash} bytes, more than the ATmega2560's "
+            f"{FLASH_BYTES} bytes of flash")
 
 
 def symbol_address(elf, name: str) -> int:
