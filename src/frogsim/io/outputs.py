@@ -235,7 +235,8 @@ class OutputFolder:
         """Write the final manifest: the files present of those planned (plus ``extra_files``),
         each with its size and SHA-256; ``summaries`` maps each study run to its summary keys."""
         made = [f for folder in self.folders for f in self._files_under(folder) if f not in self._found_before]
-        names = [f for f in dict.fromkeys(self.files + list(extra_files) + made + [SUMMARY]) if (self.out / f).is_file()]
+        names = [f for f in dict.fromkeys(self.files + list(extra_files) + made + [SUMMARY])
+                 if (self.out / f).is_file()]
         studies = None
         if self.command in STUDY_COMMANDS:
             studies = dict(self.kept_studies)
