@@ -79,6 +79,10 @@ def _finishing(folder, work):
     or "failed"."""
     from frogsim.io.outputs import ended_status
     folder.begin()
+    if folder.left:
+        _warn(f"--overwrite left {len(folder.left)} file(s) in {folder.out} that the replaced run's manifest "
+              "does not list (frogsim did not write them): " + ", ".join(folder.left[:4])
+              + (", ..." if len(folder.left) > 4 else ""))
     try:
         result = work()
     except BaseException as exc:
@@ -332,13 +336,17 @@ def cmd_firmware(args) -> int:
         from frogsim.export.emulator import require
         for tool in ("make", "avr-gcc", "avr-size", "avr-objdump"):
             require(tool)
-    files = [f"{plan.name}/{plan.name}.ino", f"{plan.name}/frogsim_board.h", f"{plan.name}/frogsim_laws.h",
-             f"{plan.name}/frogsim_laws.c", "firmware.json"] + ([f"{plan.name}/Makefile", f"build/{plan.name}.elf", f"build/{plan.name}.hex"] if args.build else [])
-    folder = _folder(args, "firmware", files=files,
-                     scenario=scenario_record(sc.name, scenario_inputs(pneumatic, args.scenario)))
+    files = [f"{plan.name}/{f}" for f in (f"{plan.name}.ino", "frogsim_board.h", "frogsim_laws.h", "frogsim_laws.c",
+                                          "Makefile", "README.md")] + ["firmware.json"] + \
+        ([f"build/{plan.name}.elf", f"build/{plan.name}.hex"] if args.build else [])
+    inputs = scenario_inputs(pneumatic, args.scenario)
+    folder = _folder(args, "firmware", files=files, folders=["build"] if args.build else [],
+                     scenario=scenario_record(sc.name, inputs))
+    export = {"scenario": sc.name, "cycles": sc.gait.cycles if kind == "robot" else None, "inputs": inputs,
+              "scenario_file": next((f["path"] for f in inputs if f["role"] == "scenario"), None)}
 
     def work():
-        written = sketch.write_sketch(plan, out, sc.name)
+        written = sketch.write_sketch(plan, out, sc.name, export)
         _progress(f"{plan.name}: {len(plan.muscles)} muscle(s), {len(plan.channels)} ADC channel(s) at "
                   f"{plan.rate:g} Hz, ADC prescaler {plan.adc.prescaler} ({plan.adc.bits} bits) -> "
                   f"{written['ino']}")
@@ -380,20 +388,20 @@ def cmd_sil(args) -> int:
     from frogsim.export.sketch import find_elf, read_plan_record
     from frogsim.io.outputs import scenario_inputs, scenario_record
     out = out_folder(args.out)
-    rec = read_plan_record(args.firmware)
-    elf = find_elf(args.firmware)
+    rec = read_plan_record(args.firmware)      # a plan frogsim wrote, every key SIL reads checked
+    elf = find_elf(args.firmware)              # built, not older than its sources, an ATmega2560 ELF
     kind, sc, model, plan = _firmware_target(args.scenario, args.cycles)
-    sil.check_plan(rec, plan)
+    pneumatic = sc if kind == "pneumatic" else sc.pneumatic
+    inputs = scenario_inputs(pneumatic, args.scenario)
+    sil.check_plan(rec, plan, sc.name, sc.gait.cycles if kind == "robot" else None, inputs)
     from frogsim.export.emulator import check_tools
     check_tools()                          # simavr missing: refused before anything is written
-    pneumatic = sc if kind == "pneumatic" else sc.pneumatic
     if kind == "pneumatic":
         files = ["timeseries.csv", "pressures.png", "summary.json", "serial.csv"]
     else:
         files = ["timeseries.csv", "swim.png", "frog.xml", "summary.json", "serial.csv"] + \
             ([] if args.no_animation else ["animation.gif"])
-    folder = _folder(args, "sil", files=files,
-                     scenario=scenario_record(sc.name, scenario_inputs(pneumatic, args.scenario)))
+    folder = _folder(args, "sil", files=files, scenario=scenario_record(sc.name, inputs))
 
     def work():
         _progress(f"software in the loop: {rec['name']} ({elf}) on an emulated ATmega2560 against "

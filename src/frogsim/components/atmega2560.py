@@ -22,6 +22,10 @@ Sources:
 * Arduino Mega 2560 Rev3: ATmega2560 at 16 MHz, 256 KB flash of which 8 KB are used by the
   bootloader, 8 KB SRAM, 54 digital pins and 16 analog inputs (A0-A15 = digital pins 54-69);
   pins 0 and 1 carry USART0 (the USB serial port).
+* The datasheet, Sec. 17.9.2 "Clear Timer on Compare Match (CTC) Mode" and Table 17-6: the
+  16-bit Timer1 in CTC mode interrupts at f_clk / (N (1 + OCR1A)), N the clock prescaler (1, 8,
+  64, 256 or 1024: CS12:0), OCR1A 0..65535. The controller's period is therefore a whole number
+  of CPU cycles, N (1 + OCR1A).
 """
 from __future__ import annotations
 
@@ -48,6 +52,8 @@ INTERRUPT_PINS = (2, 3, 18, 19, 20, 21)
 #: digital pin -> its external interrupt INTn (datasheet Table 13-5 and the Mega's pin map:
 #: D21 = PD0 = INT0, D20 = PD1 = INT1, D19 = PD2 = INT2, D18 = PD3 = INT3, D2 = PE4 = INT4, D3 = PE5 = INT5)
 EXTERNAL_INTERRUPT = {21: 0, 20: 1, 19: 2, 18: 3, 2: 4, 3: 5}
+TIMER1_PRESCALERS = (1, 8, 64, 256, 1024)   # Timer1's clock prescalers (CS12:0 = 1..5)
+TIMER1_TOP = 65535            # OCR1A's largest value (16 bits)
 
 def conversion_time(prescaler: int, f_cpu: float = F_CPU, first: bool = False) -> float:
     """Time of one single-ended conversion [s]: 13 ADC clock cycles (25 for the first after the
@@ -125,6 +131,40 @@ def analog_pin(channel: int) -> int:
 def cycles(seconds: float, f_cpu: float = F_CPU) -> int:
     """Whole CPU cycles in ``seconds`` (rounded to the nearest)."""
     return int(math.floor(seconds * f_cpu + 0.5))
+
+
+def timer1_prescaler(period_cycles: int) -> int | None:
+    """The smallest Timer1 prescaler N with ``period_cycles`` = N (1 + OCR1A), OCR1A in
+    0..65535 (CTC mode, Sec. 17.9.2); None if there is none."""
+    for n in TIMER1_PRESCALERS:
+        if period_cycles % n == 0 and 1 <= period_cycles // n <= TIMER1_TOP + 1:
+            return n
+    return None
+
+
+def period_cycles(rate: float, f_cpu: int = F_CPU) -> int:
+    """The controller period [CPU cycles] of ``rate`` [Hz]: f_cpu / rate exactly, in rational
+    arithmetic on the rate as written (the decimal a float holds, to a millionth), never rounded.
+    ValueError if that is no whole number of cycles, or a whole number Timer1 cannot make
+    (:func:`timer1_prescaler`)."""
+    from fractions import Fraction
+    if not (math.isfinite(rate) and rate > 0):
+        raise ValueError(f"a rate of {rate} Hz")
+    ratio = Fraction(f_cpu) / Fraction(rate).limit_denominator(10**6)
+    clock = f"{f_cpu / 1e6:g}e6"
+    if ratio.denominator != 1:
+        raise ValueError(f"{clock}/rate must be a whole number of CPU cycles: {rate_text(rate)} gives "
+                         f"{float(ratio):.2f}".rstrip("0").rstrip("."))
+    cycles = ratio.numerator
+    if timer1_prescaler(cycles) is None:
+        raise ValueError(f"{clock}/rate = {cycles} CPU cycles, which Timer1 cannot count: N (1 + OCR1A) with N "
+                         f"{', '.join(map(str, TIMER1_PRESCALERS))} and OCR1A at most {TIMER1_TOP}")
+    return cycles
+
+
+def rate_text(rate: float) -> str:
+    """A rate as a scenario writes it: "3 kHz", "7 Hz"."""
+    return f"{rate / 1000:g} kHz" if rate >= 1000 else f"{rate:g} Hz"
 
 
 def adc_count(volts: float, vref: float, bits: int = 10) -> int:

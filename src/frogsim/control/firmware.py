@@ -185,7 +185,11 @@ def firmware_plan(model) -> FirmwarePlan:
     name = layout.name
     adc = AdcSettings(plan_adc.prescaler, plan_adc.bits, chip.ADC_CYCLES_FIRST, chip.ADC_CYCLES, plan_adc.describe())
     log_every = int(round(rate / fw.log_rate))
-    return FirmwarePlan(name=name, rate=rate, period_cycles=int(round(chip.F_CPU / rate)), muscles=list(pm.names),
+    try:
+        period = chip.period_cycles(rate)        # exact: the scenario's rules refused a rate Timer1 cannot make
+    except ValueError as exc:
+        raise ScenarioError("controller.rate", chip.rate_text(rate), str(exc)) from None
+    return FirmwarePlan(name=name, rate=rate, period_cycles=period, muscles=list(pm.names),
                         valve_pins=[layout.valve_pins[m] for m in pm.names], channels=channels, adc=adc,
                         busy_pin=fw.busy_pin, baud=fw.baud, log_every=log_every,
                         c_source=c_source(name, plan_laws), laws=plan_laws, table_bytes=n_bytes)

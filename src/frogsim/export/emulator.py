@@ -15,6 +15,7 @@ import ctypes
 import hashlib
 import os
 import shutil
+import struct
 import subprocess
 import tempfile
 from pathlib import Path
@@ -22,8 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from frogsim._files import user_cache_folder
-from frogsim.errors import FrogsimError
-from frogsim.export.board import F_CPU, Pin
+from frogsim.errors import FrogsimError, ScenarioError, clip
+from frogsim.export.board import F_CPU, FLASH_BYTES, Pin
 
 #: the Debian packages the firmware path needs: the AVR tool chain, the Arduino AVR core, simavr
 APT_PACKAGES = ("gcc-avr", "avr-libc", "binutils-avr", "arduino-core-avr", "arduino-mk", "simavr",
@@ -115,10 +116,126 @@ def _lib():
     return _LIB
 
 
+EM_AVR = 83                   # e_machine of an AVR ELF
+AVR_ARCH_MASK = 0x7f          # e_flags & this: the AVR architecture (avr5 = 5, ...)
+ATMEGA2560_ARCH = 6           # avr6: more than 128 KB of flash (a 3-byte program counter)
+#: avr-gcc's architectures and a part of each, for the refusal's message
+AVR_ARCHS = {1: "avr1 (e.g. ATtiny11)", 2: "avr2 (e.g. ATtiny22)", 25: "avr25 (e.g. ATtiny85)",
+             3: "avr3 (e.g. ATmega103)", 31: "avr31", 35: "avr35 (e.g. ATmega16U2)",
+             4: "avr4 (e.g. ATmega8)", 5: "avr5 (e.g. ATmega328P)", 51: "avr51 (e.g. ATmega1284P)",
+             6: "avr6 (ATmega2560)", 100: "avrtiny", 102: "avrxmega2", 103: "avrxmega3",
+             104: "avrxmega4", 105: "avrxmega5", 106: "avrxmega6", 107: "avrxmega7"}
+_ELF32_HEADER = struct.Struct("<16sHHIIIIIHHHHHH")     # 52 bytes
+_PHDR = struct.Struct("<IIIIIIII")                      # 32 bytes: type, offset, vaddr, paddr, filesz, ...
+_SHDR = struct.Struct("<IIIIIIIIII")                    # 40 bytes: name, type, flags, addr, offset, size, ...
+_SYM = struct.Struct("<IIIBBH")                         # 16 bytes: name, value, size, info, other, shndx
+_SHT_SYMTAB = 2
+_SHT_NOBITS = 8
+
+
+def check_avr_elf(path, folder=None) -> None:
+    """ScenarioError (naming --firmware and the file) unless ``path`` is an ELF file simavr can
+    load as the ATmega2560's firmware: the ELF magic, 32-bit, little-endian, an executable for
+    e_machine 83 (EM_AVR) of architecture avr6 (e_flags & 0x7f; an ATmega328P's is avr5), a
+    header, a program header table and a section header table of the sizes ELF32 gives and
+    within the file, every loaded segment and every section's bytes within the file, the names of
+    the sections and symbols within their string tables, .text and .data within the 256 KB of
+    flash. Read here, before simavr sees the file: libsimavr's loader trusts all of these (a file
+    of another machine, or a damaged one, crashes it or makes it abort), and a truncated file
+    stops avr-nm. With ``folder`` (the firmware folder given as
+    --firmware) the message names the folder and the ELF's path in it."""
+    path = Path(path)
+    value, what = str(path), ""
+    if folder is not None:
+        value = str(folder)
+        what = (path.relative_to(folder).as_posix() if path.is_relative_to(folder) else str(path)) + " "
+
+    def bad(why: str):
+        raise ScenarioError("--firmware", value, f"{what}{why}: build it for the Mega 2560 (frogsim firmware "
+                                                 "SCENARIO --out DIR --build)")
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise ScenarioError("--firmware", value, f"{what}cannot be read ({exc.strerror or exc})") from None
+    size = len(data)
+    if size < 4 or data[:4] != b"\x7fELF":
+        bad("is not an ELF file (no ELF magic number)")
+    if size < _ELF32_HEADER.size:
+        bad(f"is a damaged ELF file ({size} bytes, shorter than an ELF header)")
+    (ident, e_type, e_machine, e_version, _entry, e_phoff, e_shoff, e_flags, e_ehsize, e_phentsize,
+     e_phnum, e_shentsize, e_shnum, e_shstrndx) = _ELF32_HEADER.unpack_from(data)
+    if ident[4] != 1:
+        bad(f"is a {'64-bit' if ident[4] == 2 else 'damaged'} ELF file, not a 32-bit one (an AVR's)")
+    if ident[5] != 1:
+        bad("is a big-endian or damaged ELF file, not a little-endian one (an AVR's)")
+    if e_machine != EM_AVR:
+        bad(f"is an ELF file for another machine (e_machine {e_machine}, not {EM_AVR}: AVR)")
+    arch = e_flags & AVR_ARCH_MASK
+    if arch != ATMEGA2560_ARCH:
+        bad(f"is an AVR ELF file for {AVR_ARCHS.get(arch, f'architecture {arch}')}, not the ATmega2560's avr6")
+    if e_type != 2:
+        bad(f"is an AVR ELF file of type {e_type}, not an executable (an object file or a library?)")
+    if e_version != 1 or e_ehsize != _ELF32_HEADER.size:
+        bad("is a damaged ELF file (its header's version or size is not ELF32's)")
+    if e_phnum == 0:
+        bad("is an ELF file without program headers (nothing to load)")
+    if e_phentsize != _PHDR.size or e_phnum > 64 or e_phoff + e_phnum * _PHDR.size > size:
+        bad(f"is a damaged or truncated ELF file (its program header table, {e_phnum} entries at byte "
+            f"{e_phoff}, does not lie within its {size} bytes)")
+    if e_shnum and (e_shentsize != _SHDR.size or e_shnum > 4096 or e_shoff + e_shnum * _SHDR.size > size
+                    or e_shstrndx >= e_shnum):
+        bad(f"is a damaged or truncated ELF file (its section header table, {e_shnum} entries at byte "
+            f"{e_shoff}, does not lie within its {size} bytes)")
+    for k in range(e_phnum):
+        _t, offset, _va, _pa, filesz = _PHDR.unpack_from(data, e_phoff + k * _PHDR.size)[:5]
+        if offset + filesz > size:
+            bad(f"is a truncated ELF file (segment {k} ends at byte {offset + filesz} of {size})")
+    sections = [_SHDR.unpack_from(data, e_shoff + k * _SHDR.size) for k in range(e_shnum)]
+    for k, sh in enumerate(sections):
+        if sh[1] != _SHT_NOBITS and sh[4] + sh[5] > size:
+            bad(f"is a truncated ELF file (section {k} ends at byte {sh[4] + sh[5]} of {size})")
+    # what simavr's loader reads by section (libelf hands it NULL for a name or data it cannot
+    # find, and it does not look): every section's name within the section name table, a symbol
+    # table's entries of ELF32's size with their names in their string table, and the flash
+    # image (.text and .data) bytes of the file that fit the ATmega2560's flash
+    names = {}
+    if e_shnum:
+        strtab = sections[e_shstrndx]
+        for k, sh in enumerate(sections):
+            if strtab[1] == _SHT_NOBITS or sh[0] >= strtab[5] or data.find(b"\0", strtab[4] + sh[0],
+                                                                              strtab[4] + strtab[5]) < 0:
+                bad(f"is a damaged ELF file (section {k}'s name lies outside the section name table)")
+            names[data[strtab[4] + sh[0]:data.index(b"\0", strtab[4] + sh[0])]] = sh
+        for k, sh in enumerate(sections):
+            if sh[1] == _SHT_SYMTAB:
+                link = sections[sh[6]] if sh[6] < e_shnum else None
+                if sh[9] != _SYM.size or link is None or link[1] == _SHT_NOBITS:
+                    bad(f"is a damaged ELF file (its symbol table, section {k}, is not ELF32's)")
+                for j in range(sh[5] // _SYM.size):
+                    if _SYM.unpack_from(data, sh[4] + j * _SYM.size)[0] >= link[5]:
+                        bad(f"is a damaged ELF file (symbol {j}'s name lies outside its string table)")
+    flash = 0
+    for name in (b".text", b".data"):
+        sh = names.get(name)
+        if sh is not None:
+            if sh[1] == _SHT_NOBITS:
+                bad(f"is a damaged ELF file (its {name.decode()} section holds no bytes)")
+            flash += sh[5]
+    if flash > FLASH_BYTES:
+        bad(f"is an ELF file whose .text and .data take {flash} bytes, more than the ATmega2560's "
+            f"{FLASH_BYTES} bytes of flash")
+
+
 def symbol_address(elf, name: str) -> int:
     """The data-space address of variable ``name`` in ``elf`` (from ``avr-nm``; the AVR tool chain
-    places data at 0x800000 + address); FrogsimError if the ELF has no such symbol."""
-    out = subprocess.run([require("avr-nm"), str(elf)], capture_output=True, text=True, check=True).stdout
+    places data at 0x800000 + address); ScenarioError in one line if avr-nm cannot read the ELF,
+    FrogsimError if the ELF has no such symbol."""
+    run = subprocess.run([require("avr-nm"), str(elf)], capture_output=True, text=True)
+    if run.returncode != 0:
+        why = next((line.strip() for line in run.stderr.splitlines() if line.strip()), f"exit {run.returncode}")
+        raise ScenarioError("--firmware", str(elf), f"avr-nm cannot read its symbols ({clip(why, 160)}): a "
+                                                    "damaged ELF file; build it again")
+    out = run.stdout
     for line in out.splitlines():
         parts = line.split()
         if len(parts) == 3 and parts[2] == name:
@@ -145,6 +262,7 @@ class EmulatedBoard:
         path = Path(elf)
         if not path.is_file():
             raise FrogsimError(f"firmware {str(path)!r}: no such file")
+        check_avr_elf(path)
         self._lib = _lib()
         self._h = self._lib.board_open(str(path).encode(), int(f_cpu), int(round(vref * 1000)))
         if not self._h:

@@ -574,13 +574,38 @@ def warnings_of(s: dict, rec: dict) -> list:
     return out
 
 
-def check_plan(rec: dict, plan) -> None:
-    """ScenarioError unless the firmware folder was exported from this plan (same digest)."""
+def check_plan(rec: dict, plan, scenario: str | None = None, cycles: int | None = None,
+               inputs: list | None = None) -> None:
+    """ScenarioError unless the firmware folder was exported from this plan (same digest). When it
+    was not, the message names the likely cause from what the export kept (firmware.json's
+    "export": the scenario's name, the gait cycles, the input files' digests) against this run's
+    ``scenario`` name, ``cycles`` (a robot's gait cycles, None for the pneumatics) and described
+    ``inputs`` (:func:`frogsim.io.outputs.scenario_inputs`)."""
     from frogsim.errors import ScenarioError
     from frogsim.export.sketch import plan_record
-    if plan_record(plan)["plan_sha256"] != rec.get("plan_sha256"):
+    if plan_record(plan)["plan_sha256"] == rec.get("plan_sha256"):
+        return
+    again = "export and build it again (frogsim firmware SCENARIO --out DIR --build)"
+    export = rec.get("export") if isinstance(rec.get("export"), dict) else {}
+    if not export:
         raise ScenarioError("--firmware", rec.get("name"), "was exported from another scenario, or from this "
-                                                           "one before an edit: export and build it again")
+                                                           f"one before an edit: {again}")
+    was = export.get("scenario")
+    if scenario is not None and was != scenario:
+        why = f"was exported from another scenario ({was!r}, not {scenario!r})"
+    elif export.get("cycles") != cycles:
+        gave = export.get("cycles")
+        why = f"was exported for {gave} gait cycle(s), this run has {cycles} (a different --cycles)"
+        again = f"give --cycles {gave}, or {again}"
+    else:
+        from frogsim.sweep.spec import changed_inputs
+        changed = changed_inputs(export.get("inputs"), inputs) if inputs is not None else []
+        if changed:
+            why = f"was exported from scenario {was!r} before an edit (its {', '.join(changed[:3])} differ now)"
+        else:
+            why = (f"was exported from scenario {was!r} with the same files, but another plan (another "
+                   "frogsim version?)")
+    raise ScenarioError("--firmware", rec.get("name"), f"{why}: {again}")
 
 
 #: the per-controller metrics compared between the SIL run and the compiled runs

@@ -96,23 +96,34 @@ class OutputFolder:
     ``check()`` raises ScenarioError (nothing written) if the run may not write there;
     ``begin()`` clears what an allowed overwrite replaces and writes the running manifest;
     ``finish()`` writes the final one. ``files`` are the names the run plans to write (for a
-    study command: ``studies`` maps each study to its file names).
+    study command: ``studies`` maps each study to its file names), relative to the folder (a
+    name may lie in a subfolder: "NAME/NAME.ino"). ``folders`` are subfolders whose files other
+    tools write for the run (a compiler's objects): every file found there at the end that was
+    not there when the run began is listed in the manifest too, so that a later ``--overwrite``
+    removes it.
+
+    Removing a replaced run's files: each file its manifest lists (never one outside the folder,
+    never one it does not list), then every subfolder left empty; files another hand put in such
+    a subfolder stay, and :attr:`left` names them (the command line warns).
     """
 
     def __init__(self, out, command: str, argv: list[str], overwrite: bool = False,
                  files: list[str] | None = None, studies: dict[str, list[str]] | None = None,
-                 scenario: dict | None = None):
+                 scenario: dict | None = None, folders: list[str] | None = None):
         self.out = Path(out)
         self.command = command
         self.argv = list(argv)
         self.overwrite = overwrite
         self.studies = dict(studies or {})
         self.files = list(files or []) + [f for names in self.studies.values() for f in names]
+        self.folders = list(folders or [])
         self.scenario = scenario
         self.previous = None
         self.kept_studies: dict = {}
         self.started = None
+        self.left: list[str] = []
         self._remove: list[str] = []
+        self._found_before: set = set()
 
     def keep(self, name: str) -> None:
         """Leave ``name`` in place when an allowed overwrite clears the folder (a resumable
@@ -168,13 +179,43 @@ class OutputFolder:
         self.previous = None
 
     # --- writing --------------------------------------------------------------------------------
+    def _inside(self, name: str) -> Path | None:
+        """out/name if ``name`` is a relative path that stays inside the folder (through no
+        symbolic link out of it), else None."""
+        rel = Path(name)
+        if rel.is_absolute() or not rel.parts or ".." in rel.parts:
+            return None
+        path = self.out / rel
+        try:
+            if not path.resolve().is_relative_to(self.out.resolve()):
+                return None
+        except (OSError, RuntimeError):
+            return None
+        return path
+
+    def _files_under(self, folder: str) -> list[str]:
+        """The files under subfolder ``folder`` (relative names, sorted)."""
+        base = self._inside(folder)
+        if base is None or not base.is_dir() or base.is_symlink():
+            return []
+        return sorted(p.relative_to(self.out).as_posix() for p in base.rglob("*") if p.is_file())
+
     def begin(self) -> None:
-        """Make the folder, delete what this run replaces, and claim it (manifest "running")."""
+        """Make the folder, delete what this run replaces (the files listed, then the subfolders
+        they leave empty), and claim it (manifest "running")."""
         self.out.mkdir(parents=True, exist_ok=True)
+        emptied = set()
         for name in dict.fromkeys(self._remove):
-            path = self.out / name
-            if path.is_file() and path.parent == self.out:
+            path = self._inside(name)
+            if path is not None and path.is_file():
                 path.unlink()
+                emptied.update(d for d in path.parents if d != self.out and d.is_relative_to(self.out))
+        for d in sorted(emptied, key=lambda p: len(p.parts), reverse=True):
+            if d.is_dir() and not d.is_symlink() and not any(d.iterdir()):
+                d.rmdir()
+        tops = {d.relative_to(self.out).parts[0] for d in emptied}
+        self.left = [f for top in sorted(tops) for f in self._files_under(top)]
+        self._found_before = {f for folder in self.folders for f in self._files_under(folder)}
         self.started = _now()
         self._write("running", [])
 
@@ -193,7 +234,9 @@ class OutputFolder:
                extra_files: list[str] = ()) -> Path:
         """Write the final manifest: the files present of those planned (plus ``extra_files``),
         each with its size and SHA-256; ``summaries`` maps each study run to its summary keys."""
-        names = [f for f in dict.fromkeys(self.files + list(extra_files) + [SUMMARY]) if (self.out / f).is_file()]
+        made = [f for folder in self.folders for f in self._files_under(folder) if f not in self._found_before]
+        names = [f for f in dict.fromkeys(self.files + list(extra_files) + made + [SUMMARY])
+                 if (self.out / f).is_file()]
         studies = None
         if self.command in STUDY_COMMANDS:
             studies = dict(self.kept_studies)

@@ -38,11 +38,16 @@ from frogsim.components import atmega2560 as chip
 from frogsim.errors import ScenarioError
 from frogsim.scenario.fields import build, integer, quantity, unwrap
 from frogsim.scenario.motion import command_sample
-from frogsim.scenario.schema import GAUGE_MAX, GAUGE_MIN
+from frogsim.scenario.schema import BAR, GAUGE_MAX, GAUGE_MIN, AngleSetpoint
 
 FIRST_VALVE_PIN = 22          # the Mega's double header D22..D53: valve pins by default
 LAST_VALVE_PIN = 53
 OVERRUN_DIGITS = 5            # the log's overrun counter is a uint16 (at most 65535)
+#: the largest magnitude [Q4 counts: sixteenths of an ADC count] a pressure or an angle may take in
+#: the laws' fixed point (frogsim.control.fixed): int32 on the board, with room for a sum of two
+Q4_LIMIT = 2**30
+Q4_PER_COUNT = 16
+ADC_FULL_MAX = 1024           # 10 bits: the most counts a volt gives
 _C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,31}")
 
 
@@ -283,7 +288,10 @@ def check_firmware(sc) -> None:
     analog input beyond A15 or used twice, more analog signals than 16, names that are no muscle
     or joint sensed here, sensors the firmware does not model, transfer functions that are not
     increasing or leave 0..V_REF, a log the baud rate cannot carry, conversions that do not fit
-    the controller period (:func:`frogsim.components.atmega2560.plan_adc`)."""
+    the controller period (:func:`frogsim.components.atmega2560.plan_adc`); a controller rate
+    Timer1 cannot make exactly (:func:`_check_rate`), a sensor span so narrow that the laws' fixed
+    point would overflow, a setpoint or a hold band outside its sensor's range
+    (:func:`_check_setpoints`)."""
     fw = sc.firmware
     if fw is None:
         return
@@ -291,6 +299,7 @@ def check_firmware(sc) -> None:
     if fw.name and not _C_NAME.fullmatch(fw.name):
         raise ScenarioError(f"{path}.name", fw.name, "must be a C identifier of at most 32 characters "
                                                      "(letters, digits, _; not starting with a digit)")
+    _check_rate(sc.controller.rate)
     _check_transfer(fw, path, {q for q, _ in sensed_signals(sc)})
     for cname, c in sc.controllers.items():
         s = getattr(c, "sensor", None)
@@ -303,6 +312,7 @@ def check_firmware(sc) -> None:
             raise ScenarioError(f"controllers.{cname}.angle_sensor", "(noise, lag or bits given)",
                                 "with [firmware] firmware.angle_sensor and the ADC are the angle sensor: "
                                 "leave these settings out")
+    _check_setpoints(sc, fw)
     wanted = sensed_signals(sc)
     encoders = fw.angle_encoder is not None
     if fw.encoder_pins and not encoders:
@@ -390,10 +400,144 @@ def _check_transfer(fw, path: str, quantities: set) -> None:
         if obj.high_voltage > fw.vref:
             raise ScenarioError(f"{path}.{key}.high_voltage", f"{obj.high_voltage:g} V",
                                 f"must not exceed the ADC's reference firmware.vref ({fw.vref:g} V)")
+        u = "bar" if unit == 1e5 else "deg"
         if getattr(obj, hi) <= getattr(obj, lo):
-            u = "bar" if unit == 1e5 else "deg"
             raise ScenarioError(f"{path}.{key}.{hi}", f"{getattr(obj, hi) / unit:g} {u}",
                                 f"must exceed {lo} ({getattr(obj, lo) / unit:g} {u})")
+        # Q4 counts per unit (10 bits at most) times the widest range a value may span: frogsim's
+        # gauge pressures, or a turn of angles
+        width = (GAUGE_MAX - GAUGE_MIN) if key == "transducer" else 2.0 * math.pi
+        per_volt = Q4_PER_COUNT * ADC_FULL_MAX / fw.vref
+        span = getattr(obj, hi) - getattr(obj, lo)
+        q4 = per_volt * (obj.high_voltage - obj.low_voltage) / span * width
+        if q4 > Q4_LIMIT:
+            least = per_volt * (obj.high_voltage - obj.low_voltage) * width / Q4_LIMIT
+            raise ScenarioError(
+                f"{path}.{key}.{hi}", f"{getattr(obj, hi) / unit:g} {u}",
+                f"the span {getattr(obj, lo) / unit:g}..{getattr(obj, hi) / unit:g} {u} is so narrow that the "
+                f"firmware's fixed point overflows: {width / unit:.3g} {u} (the range of frogsim's "
+                f"{'gauge pressures' if u == 'bar' else 'angles'}) would be {q4:.3g} sixteenths of an ADC count, "
+                f"more than the 2^30 its int32 arithmetic holds; the span must be at least {least / unit:.3g} {u}")
+
+
+def _check_rate(rate: float) -> None:
+    """The controller rate is one the board's Timer1 makes exactly: 16e6/rate a whole number of
+    CPU cycles N (1 + OCR1A) (:func:`frogsim.components.atmega2560.period_cycles`); the message
+    names the nearest rates that are."""
+    try:
+        chip.period_cycles(rate)
+    except ValueError as exc:
+        near = [chip.rate_text(r) for r in working_rates(rate)]
+        near = ", ".join(near[:-1]) + " or " + near[-1] if len(near) > 1 else "".join(near)
+        raise ScenarioError("controller.rate", chip.rate_text(rate),
+                            f"{exc}; {near} work (the board's Timer1 makes the period from whole CPU "
+                            "cycles)") from None
+
+
+def working_rates(rate: float) -> list:
+    """Controller rates [Hz] near ``rate`` that Timer1 makes exactly, written with few digits: the
+    nearest below and above with two significant digits and with three (0.01 Hz .. 1 MHz)."""
+    from fractions import Fraction
+    best = {}
+    for k in range(-4, 7):
+        for m in range(1, 1000):
+            if m % 10 == 0:
+                continue                       # the same rate as m / 10 at k + 1
+            r = Fraction(m) * Fraction(10) ** k
+            if r > 10**6:
+                break
+            cycles = Fraction(chip.F_CPU) / r
+            if cycles.denominator != 1 or chip.timer1_prescaler(cycles.numerator) is None:
+                continue
+            digits = len(str(m))
+            for d in (2, 3):
+                if digits <= d:
+                    side = "below" if r < rate else "above"
+                    if r == rate:
+                        continue
+                    old = best.get((d, side))
+                    if old is None or abs(r - Fraction(rate)) < abs(old - Fraction(rate)):
+                        best[(d, side)] = r
+    return sorted({float(r) for r in best.values()})
+
+
+def setpoint_range(sp, duration: float) -> tuple:
+    """The lowest and highest value [SI] a setpoint takes over a run of ``duration`` [s], from
+    t = 0: a constant's value; the steps in force up to the end (the first step's value holds
+    before it); a sine's extremes over the phase it reaches (its mean before its start); a table
+    between its rows and at 0 and the end."""
+    if sp.kind == "constant":
+        return sp.value, sp.value
+    if sp.kind == "sine":
+        if duration <= sp.start:
+            return sp.mean, sp.mean
+        phase = 2.0 * math.pi * sp.frequency * (duration - sp.start)
+        up = 1.0 if phase >= 0.5 * math.pi else math.sin(phase)
+        down = -1.0 if phase >= 1.5 * math.pi else min(0.0, math.sin(phase))
+        return sp.mean + sp.amplitude * down, sp.mean + sp.amplitude * up
+    pts = list(sp.points())
+    if not pts:
+        return sp.bounds()
+    if sp.kind == "steps":
+        vals = [pts[0][1]] + [v for t, v in pts if t <= duration]
+    else:
+        import numpy as np
+        ts, vs = [t for t, _ in pts], [v for _, v in pts]
+        vals = [float(np.interp(0.0, ts, vs)), float(np.interp(duration, ts, vs))]
+        vals += [v for t, v in pts if 0.0 <= t <= duration]
+    return min(vals), max(vals)
+
+
+def _check_setpoints(sc, fw) -> None:
+    """Every sensed controller's setpoint over the run stays within its sensor's range: a pressure
+    setpoint and its hold band (setpoint +- band/2) within the transducer's low_pressure_gauge ..
+    high_pressure_gauge, an angle setpoint within the angle sensor's low_angle .. high_angle (a
+    joint-angle pair's co-contraction pressure and band within the transducer's). Beyond it the
+    transducer's line is not the sensor's (its output saturates): the firmware would hold a
+    pressure its sensor does not measure."""
+    t, a = fw.transducer, fw.angle_sensor
+    p_lo, p_hi = t.low_pressure_gauge, t.high_pressure_gauge
+    a_lo, a_hi = a.low_angle, a.high_angle
+    p_range = f"firmware.transducer's {p_lo / BAR:g}..{p_hi / BAR:g} bar gauge"
+
+    def bar(x):
+        return f"{x / BAR:g} bar"
+
+    for name, c in sc.controllers.items():
+        sp = getattr(c, "setpoint", None)
+        if sp is None or not c.sensed():
+            continue
+        where = f"controllers.{name}"
+        lo, hi = setpoint_range(sp, sc.duration)
+        ends = ((hi, "" if lo == hi else " (highest value)"), (lo, " (lowest value)"))
+        if isinstance(sp, AngleSetpoint):
+            for v, end in ends:
+                if not a_lo <= v <= a_hi:
+                    raise ScenarioError(f"{where}.setpoint", f"{math.degrees(v):g} deg{end}",
+                                        f"must lie within the angle sensor's range, firmware.angle_sensor's "
+                                        f"{math.degrees(a_lo):g}..{math.degrees(a_hi):g} deg: beyond it the "
+                                        "firmware cannot measure the angle it must hold")
+            p0 = getattr(c, "co_contraction", None)
+            if p0 is None:
+                continue
+            lo = hi = p0
+            what = "co_contraction"
+        else:
+            for v, end in ends:
+                if not p_lo <= v <= p_hi:
+                    raise ScenarioError(f"{where}.setpoint", f"{bar(v)}{end}",
+                                        f"must lie within the transducer's range, {p_range}: beyond it the "
+                                        "firmware cannot measure the pressure it must hold")
+            what = "setpoint"
+        if what == "co_contraction" and not p_lo <= lo <= p_hi:
+            raise ScenarioError(f"{where}.co_contraction", bar(lo),
+                                f"must lie within the transducer's range, {p_range}")
+        band = getattr(c, "band", None)
+        if band is not None and (lo - 0.5 * band < p_lo or hi + 0.5 * band > p_hi):
+            raise ScenarioError(f"{where}.band", bar(band),
+                                f"the hold band around the {what} ({(lo - 0.5 * band) / BAR:g}.."
+                                f"{bar(hi + 0.5 * band)} over the run) must lie within the transducer's range, "
+                                f"{p_range}")
 
 
 def _check_pins(sc, layout: Layout, path: str) -> None:
