@@ -22,7 +22,8 @@ UPC = 1e6 / 819.2                   # [Pa/count] 0.5..4.5 V over 0..10 bar on a 
 OFFSET = -102.4 * UPC + UPC / 2     # 0.5 V reads 0 bar; the middle of the count's step
 REC = {
     "format": 2, "name": "stub", "rate_hz": 1000.0, "log_every": 10, "baud": 115200, "plan_sha256": DIGEST,
-    "muscles": ["hip"], "adc": {"bits": 10},
+    "muscles": ["hip"], "adc": {"bits": 10, "prescaler": 128}, "f_cpu_hz": 16000000, "period_cycles": 16000,
+    "valve_pins": [[22, 23]], "busy_pin": 13,
     "channels": [{"signal": "hip pressure", "quantity": "pressure", "name": "hold", "analog_input": 0,
                   "unit_per_count": UPC, "offset": OFFSET, "unit": "Pa gauge", "count_range": [0, 1023]}],
 }
@@ -378,7 +379,7 @@ def test_a_firmware_json_of_an_unknown_format_is_refused(tmp_path, capsys):
     (tmp_path / "fw" / "firmware.json").write_text(json.dumps(REC | {"format": 3}))
     code = main(["log", "--port", "p", "--firmware", str(tmp_path / "fw"), "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and "export the firmware again" in err[0]
+    assert code == 2 and len(err) == 1 and "export it again" in err[0] and "format = 3" in err[0]
     assert not (tmp_path / "o").exists()
 
 
