@@ -395,9 +395,9 @@ def test_the_firmware_section_is_variable_like_every_setting():
 def test_every_firmware_setting_is_documented():
     from pathlib import Path
     import dataclasses
-    from frogsim.scenario.firmware import AnglePotentiometer, Firmware, Transducer
+    from frogsim.scenario.firmware import AngleEncoder, AnglePotentiometer, Firmware, Transducer
     text = (Path(__file__).resolve().parent.parent / "docs" / "control.md").read_text()
-    for cls in (Firmware, Transducer, AnglePotentiometer):
+    for cls in (Firmware, Transducer, AnglePotentiometer, AngleEncoder):
         for f in dataclasses.fields(cls):
             assert f"`{f.name}`" in text, f"{cls.__name__}.{f.name} is not in docs/control.md"
 

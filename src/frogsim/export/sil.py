@@ -94,8 +94,12 @@ class BoardRun:
                          if "pins" in ch]
         self.enc_count = [int(chans[i]["start_count"]) for i, _, _ in self.encoders]
         for (i, a, bpin), c in zip(self.encoders, self.enc_count):
-            self.board.set_pin(a, c & 1)          # A's level is the count's parity (see frame)
-            self.board.set_pin(bpin, c & 1)
+            # A's level is the count's parity (see frame); a pin is low unless driven, and simavr
+            # 1.6 must not see an external-interrupt pin driven low before the firmware has set
+            # its interrupt up (it then hangs in the low-level mode the reset leaves)
+            if c & 1:
+                self.board.set_pin(a, 1)
+                self.board.set_pin(bpin, 1)
         self.period = int(rec["period_cycles"])
         self.mv = [-1] * len(self.inputs)          # the voltages set, changed only when they change
         self.overrun_address = symbol_address(elf, "fs_overruns")
@@ -272,18 +276,24 @@ class BoardRun:
 
     # -- what it measured --------------------------------------------------------------------------
     def timing(self, executions: int | None = None) -> dict:
-        """The executions' timing against their nominal sample starts s0 + j P [cycles]: busy
-        time (the interrupt's work), response (start to end), valve write latency (start to the
-        last valve change it made), late (ended after the next sample's start)."""
+        """The executions' timing [cycles]: busy time (the interrupt's work), and from the compare
+        match that started each one (its sample's start: the last match before it began) its
+        response (to its end) and valve write latency (to the last valve change it made); late:
+        it ended after the next period began. ``lag``: how far each execution's start trails
+        its nominal sample s0 + j P (grows when samples are skipped)."""
         n = len(self.ends) if executions is None else min(executions, len(self.ends))
         P = self.period
-        start = self.s0 + P * np.arange(n)
+        starts = np.array(self.starts[:n], float)
+        ticks = np.array(self.ticks, float)
+        at = np.searchsorted(ticks, starts, side="right") - 1
+        trigger = ticks[np.maximum(at, 0)] if ticks.size else starts
         ends = np.array(self.ends[:n], float)
-        busy = ends - np.array(self.starts[:n], float)
-        response = ends - start
+        busy = ends - starts
+        response = ends - trigger
         writes = np.array(self.write_cycle[:n], float)
         wrote = writes >= 0
-        latency = writes[wrote] - start[wrote]
+        latency = writes[wrote] - trigger[wrote]
+        lag = starts - (self.s0 + P * np.arange(n)) if n else np.zeros(0)
         us = 1e6 / self.board.f_cpu
 
         def stat(x, scale):
@@ -293,6 +303,7 @@ class BoardRun:
                 "cpu_load_percent": stat(busy, 100.0 / P),
                 "response_us": stat(response, us),
                 "valve_write_latency_us": {**stat(latency, us), "samples_with_a_valve_change": int(wrote.sum())},
+                "lag_behind_the_nominal_sample_us": stat(lag, us),
                 "samples_late": int((response > P).sum())}
 
     def load(self, samples: int) -> np.ndarray:
@@ -521,6 +532,7 @@ class _Loop:
             "cpu_load_percent": timing["cpu_load_percent"],
             "response_us": timing["response_us"],
             "valve_write_latency_us": timing["valve_write_latency_us"],
+            "lag_behind_the_nominal_sample_us": timing["lag_behind_the_nominal_sample_us"],
             "awake_percent": 100.0 * b.awake if b.awake is not None else None,
             "overruns": b.overruns,
             "both_valves_open_samples": b.both_open,
