@@ -80,7 +80,8 @@ def test_on_the_boards_own_timing_each_write_comes_after_its_conversion(hold):
     assert sil_["response_us"]["max"] < 1000
     # awake at least while the interrupt runs, asleep the rest but for the log's formatting
     assert sil_["cpu_load_percent"]["mean"] <= sil_["awake_percent"] < 100
-    assert sil_["log_records"] == {"made": 201, "received": 201, "dropped": 0, "unsent": 0, "lines_unreadable": 0}
+    assert sil_["log_records"] == {"made": 201, "received": 201, "dropped": 0, "unsent": 0, "lines_unreadable": 0,
+                                   "faults": {}}
     assert sil_["warnings"] == []
     cmp = sil_["compiled"]["controllers"]["hold"]["tracking_error_rms_bar"]
     assert cmp["sil"] == pytest.approx(s["control"]["hold"]["tracking_error_rms_bar"], rel=1e-12)

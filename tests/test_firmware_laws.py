@@ -188,7 +188,7 @@ def _run_both(plan, steps: int, seed: int):
     h.frogsim_reset()
     rng = np.random.default_rng(seed)
     n_ch, n_m = len(plan.channels), len(plan.muscles)
-    mem = np.zeros((n_m, FW_MEM))
+    mem = fwm.firmware_memory(plan)
     modes = (ctypes.c_int8 * n_m)()
     adc = (ctypes.c_uint16 * max(1, n_ch))()
     centre = rng.integers(0, 1024, n_ch)
@@ -226,7 +226,7 @@ def test_the_gait_table_switches_where_the_models_schedule_does():
     rs = frogsim.load_robot_scenario("swim")
     m = frogsim.build_model(rs.pneumatic)
     plan = fwm.firmware_plan(m)
-    mem = np.zeros((len(plan.muscles), FW_MEM))
+    mem = fwm.firmware_memory(plan)
     rate = rs.pneumatic.controller.rate
     dead = rs.pneumatic.valves.charge.dead_time
     assert rs.pneumatic.valves.discharge.dead_time == dead     # (else the valves' times differ)
@@ -249,7 +249,7 @@ def test_the_models_compiled_sample_commands_what_the_twin_commands():
     u = np.zeros(2 * m.n)
     dt = 1.0 / sc.controller.rate
     cs = start_controllers(m.laws, m.mp, 0.0, y, u, dt)
-    mem = np.zeros((m.n, FW_MEM))
+    mem = fwm.firmware_memory(plan)
     rows = {int(m.laws[c, L_MUSCLE]): c for c in range(m.laws.shape[0]) if m.laws[c, L_FW] > 0}
     for k in range(300):
         if k:
@@ -395,9 +395,9 @@ def test_the_firmware_section_is_variable_like_every_setting():
 def test_every_firmware_setting_is_documented():
     from pathlib import Path
     import dataclasses
-    from frogsim.scenario.firmware import AngleEncoder, AnglePotentiometer, Firmware, Transducer
+    from frogsim.scenario.firmware import AngleEncoder, AnglePotentiometer, Firmware, SensorFault, Transducer
     text = (Path(__file__).resolve().parent.parent / "docs" / "control.md").read_text()
-    for cls in (Firmware, Transducer, AnglePotentiometer, AngleEncoder):
+    for cls in (Firmware, Transducer, AnglePotentiometer, AngleEncoder, SensorFault):
         for f in dataclasses.fields(cls):
             assert f"`{f.name}`" in text, f"{cls.__name__}.{f.name} is not in docs/control.md"
 
@@ -466,7 +466,7 @@ def test_the_robots_compiled_sample_reads_the_joint_angle_through_the_angle_sens
     qvel = np.zeros(len(joints))
     index = np.arange(len(joints), dtype=np.int64)       # joint j's angle at qpos[j] (as the engine maps it)
     cs = start_controllers(m.laws, m.mp, 0.0, y, u, dt)
-    mem = np.zeros((m.n, FW_MEM))
+    mem = fwm.firmware_memory(plan)
     rows = {int(m.laws[c, L_MUSCLE]): c for c in range(m.laws.shape[0]) if m.laws[c, L_FW] > 0}
     assert sorted(m.names[i] for i in rows) == ["hip_left", "hip_left_recovery"]
     theta = 0.0

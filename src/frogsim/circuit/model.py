@@ -251,8 +251,9 @@ PARTS = (
     ("volumes", (), ("motion",), _volumes_stage),
     ("g", ("air", "source", "exhaust", "pump", "supply", "valves"), ("motion",), _globals_stage),
     # with [firmware] a law's integer tables also read the run's length, the source's and the
-    # exhaust's pressures (frogsim.control.fixed)
-    ("laws", ("valves", "controllers", "controller", "joints", "firmware", "duration", "source", "pump", "exhaust"),
+    # exhaust's pressures, and its fault limits the muscles' names (frogsim.control.fixed)
+    ("laws", ("valves", "controllers", "controller", "joints", "firmware", "duration", "source", "pump", "exhaust",
+              "muscles"),
      ("g", "volumes"), _laws_stage),
     ("sched_u", ("controllers",), ("laws", "motion"), _schedule_stage),
     ("state", ("air", "source", "exhaust", "muscles", "solver"), ("volumes",), _state_stage),

@@ -39,6 +39,9 @@ import numpy as np
 
 from frogsim.components import atmega2560 as chip
 from frogsim.control.signals import setpoint
+from frogsim.control.table import (L_FAULT_AHI, L_FAULT_ALO, L_FAULT_MODE, L_FAULT_N, L_FAULT_PHI,
+                                   L_FAULT_PLO, L_INJ_A_AT, L_INJ_A_COUNT, L_INJ_P_AT, L_INJ_P_COUNT, L_JOINT1,
+                                   L_MUSCLE)
 from frogsim.control.table import (L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0, L_ADC_V0,
                                    L_ADC_VREF, L_FW, L_SP_KIND, SP_CONSTANT)
 from frogsim.scenario.firmware import ENCODER_ZERO, sensed_signals
@@ -191,11 +194,62 @@ def top_pressure(sc) -> float:
     return p_top
 
 
+def fault_limits(sc) -> dict:
+    """{"pressure": (lo, hi), "angle": (lo, hi) or None}: the counts outside which a reading is a
+    sensor fault (a transducer's live zero, low_voltage, less its ``fault_margin``, and its top
+    plus the margin: lo = floor((low_voltage - margin) full / V_REF), hi = floor((high_voltage +
+    margin) full / V_REF); a count below lo or above hi is a fault). A limit beyond the ADC's
+    range cannot be crossed. Encoder angles have none (None): their counts are not a voltage."""
+    fw = sc.firmware
+    full = adc_full(sc)
+
+    def limits(sensor):
+        lo = math.floor((sensor.low_voltage - sensor.fault_margin) * full / fw.vref)
+        hi = math.floor((sensor.high_voltage + sensor.fault_margin) * full / fw.vref)
+        return max(lo, 0), min(hi, full - 1)
+    return {"pressure": limits(fw.transducer),
+            "angle": None if fw.angle_encoder is not None else limits(fw.angle_sensor)}
+
+
+def injected_fault(sc, signal: str):
+    """(from when [s], the count it reads) of a [firmware] sensor_faults entry for ``signal``
+    (the first that names it), or None."""
+    fw = sc.firmware
+    for f in fw.sensor_faults:
+        if f.signal == signal:
+            full = adc_full(sc)
+            return f.at, min(max(math.floor(f.voltage * full / fw.vref), 0), full - 1)
+    return None
+
+
+def fault_columns(row: np.ndarray, sc) -> None:
+    """Write a valve row's sensor-fault columns (L_FAULT_*, L_INJ_*): the limits of the channels
+    its law reads (its muscle's pressure if a controller senses it, its joint's angle), the mode
+    while in fault and the good samples before the law resumes; a fault put into the plant."""
+    from frogsim.scenario.firmware import sensed_signals as _sensed
+    fw = sc.firmware
+    limits = fault_limits(sc)
+    sensed = set(_sensed(sc))
+    muscle = list(sc.muscles)[int(row[L_MUSCLE])]
+    j = int(row[L_JOINT1]) - 1
+    joint = list(sc.joints)[j] if j >= 0 else None
+    row[L_FAULT_PLO], row[L_FAULT_PHI] = limits["pressure"] if ("pressure", muscle) in sensed else (-1, 0)
+    row[L_FAULT_ALO], row[L_FAULT_AHI] = (limits["angle"] if joint is not None and limits["angle"] is not None
+                                          else (-1, 0))
+    row[L_FAULT_MODE] = -1.0 if fw.fault == "vent" else 0.0
+    row[L_FAULT_N] = fw.fault_resume
+    inj_p = injected_fault(sc, f"{muscle} pressure")
+    inj_a = injected_fault(sc, f"{joint} angle") if joint is not None else None
+    row[L_INJ_P_AT], row[L_INJ_P_COUNT] = inj_p if inj_p else (math.inf, 0)
+    row[L_INJ_A_AT], row[L_INJ_A_COUNT] = inj_a if inj_a else (math.inf, 0)
+
+
 def firmware_row(row: np.ndarray, sc, P, T) -> np.ndarray:
-    """A valve row in firmware mode: its sensors' transfer functions written and its firmware
-    block (P, T) appended."""
+    """A valve row in firmware mode: its sensors' transfer functions and fault limits written
+    and its firmware block (P, T) appended."""
     row = row.copy()
     adc_columns(row, sc)
+    fault_columns(row, sc)
     return with_block(row, list(P) or [0], T if len(T) else [0])
 
 

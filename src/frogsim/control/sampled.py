@@ -46,11 +46,13 @@ from frogsim.control.signals import (  # noqa: F401  (the memory layout and sign
     B_A_FILT, B_A_FILT_ON, B_A_SENSED, B_ANGLE, B_CLIPS, B_CMD_C, B_CMD_D, B_FILT, B_FILT_ON, B_INT, B_MODE,
     B_OMEGA, B_PHASE, B_PULSE, B_Q0, B_QC_HEAD, B_QC_N, B_QD_HEAD, B_QD_N, B_SENSED, B_SP, B_SW_C, B_SW_D,
     B_TARGET, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_FW, CS_PUMP, CS_Q, CS_SAMPLE, CS_SIZE, MODE_CHARGE,
-    MODE_HOLD, MODE_VENT, TOL, B_FW0, FW_MEM, adc_count, pump_band, sense, sense_joint, sensor_noise, setpoint)
+    MODE_HOLD, MODE_VENT, TOL, B_FAULT_A, B_FAULT_P, B_FW0, FW_MEM, adc_count, fw_fault, pump_band, sense,
+    sense_joint, sensor_noise, setpoint)
 from frogsim.control.table import (  # noqa: F401  (the table's layout, re-exported)
     KIND_EXTERNAL, KIND_PUMP_BAND, L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0,
-    L_ADC_V0, L_ADC_VREF, L_DEAD_C, L_DEAD_D, L_FW, L_HIGH, L_INPUT, L_JOINT1, L_KIND, L_LOW, L_MUSCLE, L_PATM,
-    L_SIZE, laws_table)
+    L_ADC_V0, L_ADC_VREF, L_DEAD_C, L_DEAD_D, L_FAULT_AHI, L_FAULT_ALO, L_FAULT_MODE, L_FAULT_N, L_FAULT_PHI,
+    L_FAULT_PLO, L_FW, L_HIGH, L_INJ_A_AT, L_INJ_A_COUNT, L_INJ_P_AT, L_INJ_P_COUNT, L_INPUT, L_JOINT1, L_KIND,
+    L_LOW, L_MUSCLE, L_PATM, L_SIZE, laws_table)
 
 
 def sampled_laws(g):
@@ -291,15 +293,28 @@ def firmware_mode(laws, c, cs, b, y, k, ts):
     full = laws[c, L_ADC_FULL]
     vref = laws[c, L_ADC_VREF]
     cp = adc_count(laws[c, L_ADC_V0], laws[c, L_ADC_K], laws[c, L_ADC_Q0], full, vref, y[pressure_index(i)] - patm)
+    if ts >= laws[c, L_INJ_P_AT]:                      # a fault put into the plant: the wire's count
+        cp = int(laws[c, L_INJ_P_COUNT])
     cs[b + B_SENSED] = patm + count_value(laws[c, L_ADC_V0], laws[c, L_ADC_K], laws[c, L_ADC_Q0], full, vref, cp)
     ca = 0
     if laws[c, L_JOINT1] > 0.0:
         afull = laws[c, L_AADC_FULL]
         ca = adc_count(laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], afull, vref, cs[b + B_ANGLE])
+        if ts >= laws[c, L_INJ_A_AT]:
+            ca = int(laws[c, L_INJ_A_COUNT])
         cs[b + B_A_SENSED] = count_value(laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], afull, vref,
                                          ca)
     sp, _ = setpoint(laws, c, ts)
     cs[b + B_SP] = sp
+    # the channels' fault checks (both evaluated: each counts its good samples), then the law
+    fault = False
+    if laws[c, L_FAULT_PLO] >= 0.0:
+        fault = fw_fault(cp, laws[c, L_FAULT_PLO], laws[c, L_FAULT_PHI], cs, b + B_FAULT_P, laws[c, L_FAULT_N])
+    if laws[c, L_FAULT_ALO] >= 0.0:
+        if fw_fault(ca, laws[c, L_FAULT_ALO], laws[c, L_FAULT_AHI], cs, b + B_FAULT_A, laws[c, L_FAULT_N]):
+            fault = True
+    if fault:
+        return laws[c, L_FAULT_MODE]
     at = int(laws[c, L_FW])
     n_p = int(laws[c, at])
     n_t = int(laws[c, at + 1])

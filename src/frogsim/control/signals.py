@@ -58,7 +58,9 @@ B_TARGET = 23    # this muscle's pressure target at the last sample [Pa abs]
 B_CLIPS = 24     # samples at which the pair's targets p0 +- dp/2 were clipped to [atmosphere, source]
 B_FW0 = 25       # [firmware]: the integer twin's memory (FW_MEM slots, whole numbers; the C
 FW_MEM = 5       # twin's int32_t mem[FW_MEM]), see frogsim.control.fixed
-B_Q0 = 30        # queues: charge (due, state) x Q, then discharge (due, state) x Q
+B_FAULT_P = 30   # [firmware]: good samples still needed after a fault of the pressure channel (0: none)
+B_FAULT_A = 31   # ... of the angle channel
+B_Q0 = 32        # queues: charge (due, state) x Q, then discharge (due, state) x Q
 TOL = 1e-9       # [s] a due time this close to a sample is that sample
 
 
@@ -214,6 +216,21 @@ def adc_count(v0, k, q0, full, vref, q):
 def fw_at(T, k, n):
     """Entry k of a firmware table of n entries, its last after the end (both twins: T[min(k, n-1)])."""
     return int(T[k if k < n else n - 1])
+
+
+@jit
+def fw_fault(count, lo, hi, mem, i, resume):
+    """The firmware's fault check of one channel's count (both twins): a count below ``lo`` or
+    above ``hi`` is a fault and sets mem[i] to ``resume``, the good samples needed before the
+    channel is trusted again; a good count with mem[i] > 0 counts one of them down. True while
+    the channel is in fault (this sample's count bad, or good samples still to come)."""
+    if count < lo or count > hi:
+        mem[i] = resume
+        return True
+    if mem[i] > 0:
+        mem[i] -= 1
+        return True
+    return False
 
 
 @jit

@@ -101,7 +101,18 @@ L_AADC_V0 = 50   # angle sensor: volts at L_AADC_Q0 [V]
 L_AADC_K = 51    # ... volts per rad [V/rad]
 L_AADC_Q0 = 52   # ... its low angle [rad]
 L_AADC_FULL = 53  # ... the angle count's 2^bits (the ADC's, or 65536 for a quadrature encoder's counter)
-L_SIZE = 54
+# [firmware] sensor faults (frogsim.control.fixed.fault_columns): a count below LO or above HI is a fault
+L_FAULT_PLO = 54   # the pressure count's fault limits (LO -1: the pressure is not checked)
+L_FAULT_PHI = 55
+L_FAULT_ALO = 56   # the angle count's (LO -1: not checked)
+L_FAULT_AHI = 57
+L_FAULT_MODE = 58  # the mode while in fault: -1 vent, 0 hold
+L_FAULT_N = 59     # good samples after a fault before the law runs again
+L_INJ_P_AT = 60    # a fault put into the plant (SensorFault): from this time [s] (inf: none) ...
+L_INJ_P_COUNT = 61  # ... the pressure channel reads this count
+L_INJ_A_AT = 62    # the same for the angle channel
+L_INJ_A_COUNT = 63
+L_SIZE = 64
 L_SP0 = L_SIZE   # knots (t_j, p_j) from here on; the firmware block after them
 
 

@@ -419,8 +419,8 @@ class _Loop:
         # frogsim.control.firmware has it; a hand-written one is checked against the shadow)
         self.twin_mem = None
         if getattr(plan, "laws", None):
-            from frogsim.control.signals import FW_MEM
-            self.twin_mem = np.zeros((len(plan.laws), FW_MEM))
+            from frogsim.control.firmware import firmware_memory
+            self.twin_mem = firmware_memory(plan)
         self.shadow_modes = []       # the compiled law on the plant's state, per sample
         self.pending = None          # with encoders: the counts of the sample whose period runs next
         self.checked = 0
@@ -441,6 +441,9 @@ class _Loop:
         if qpos is not None:
             angles = {n: float(qpos[self.joint_qpos[j]]) for j, n in enumerate(self.joint_names)}
         counts = np.asarray(self.counts(self.plan, self.model, y, angles), np.int64)
+        for i, at, count in getattr(self.plan, "injected", ()):
+            if t >= at:                   # a sensor fault put into the plant: the wire's count
+                counts[i] = count
         before = len(self.board.decisions)
         self.shadow_modes.append(self.shadow.modes(self.k, y, qpos, qvel))
         b = self.board
@@ -517,6 +520,12 @@ class _Loop:
         received = sum(1 for r in log.records if r[0] < done)
         dropped = max((r[-1] for r in log.records if r[0] < done), default=0)
         unsent = max(0, made - received - dropped)
+        n_ch = len(rec["channels"])
+        faults = {}
+        for i, ch in enumerate(rec["channels"]):
+            ks = [r[0] for r in log.records if r[0] < done and (r[2 + n_ch] >> i) & 1]
+            if ks:
+                faults[ch["signal"]] = {"records": len(ks), "first_sample": ks[0], "last_sample": ks[-1]}
         rate = float(rec["rate_hz"])
         span = ran / rate
         s = {
@@ -539,7 +548,8 @@ class _Loop:
             "adc_read_differs_samples": self.adc_differs(timing["response"], b.period),
             "log_records": {"made": made, "received": received, "dropped": dropped, "unsent": unsent,
                             # the stream is cut where the emulation stops: its last line may be partial
-                            "lines_unreadable": log.bad - log.discarded.get("partial_last_line", 0)},
+                            "lines_unreadable": log.bad - log.discarded.get("partial_last_line", 0),
+                            "faults": faults},
             "log_lines": received,
             "log_lines_dropped": dropped,
             "flash_bytes": rec.get("flash_bytes"),
@@ -580,6 +590,9 @@ def warnings_of(s: dict, rec: dict) -> list:
     if s["mismatched_samples"]:
         out.append(f"the firmware's valve commands differ from the integer twin's on the same counts at "
                    f"{s['mismatched_samples']} samples; the first: {s.get('first_mismatch')}")
+    for signal, f in lr.get("faults", {}).items():
+        out.append(f"sensor {signal!r} was in fault in {f['records']} log records (samples {f['first_sample']}.."
+                   f"{f['last_sample']}): its muscles were put in the safe state")
     if s["both_valves_open_samples"]:
         out.append(f"a muscle's charge and discharge valves were open together {s['both_valves_open_samples']} "
                    "times")

@@ -36,7 +36,7 @@ from typing import NamedTuple
 
 from frogsim.components import atmega2560 as chip
 from frogsim.errors import ScenarioError
-from frogsim.scenario.fields import build, integer, quantity, unwrap
+from frogsim.scenario.fields import build, choice, integer, quantity, unwrap
 from frogsim.scenario.motion import command_sample
 from frogsim.scenario.schema import BAR, GAUGE_MAX, GAUGE_MIN, AngleSetpoint
 
@@ -60,6 +60,8 @@ class Transducer:
     high_voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=4.5)
     low_pressure_gauge: float = quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar", default=0.0)
     high_pressure_gauge: float = quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar", default=10e5)
+    fault_margin: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=0.2,
+                                   doc="a reading this far below low_voltage or above high_voltage is a fault")
 
     def volts(self, p_gauge: float) -> float:
         """The output [V] at gauge pressure p_gauge [Pa]."""
@@ -75,6 +77,8 @@ class AnglePotentiometer:
     high_voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=4.5)
     low_angle: float = quantity("angle", ge=-math.pi, le=math.pi, display="deg", default=-math.pi / 2)
     high_angle: float = quantity("angle", ge=-math.pi, le=math.pi, display="deg", default=math.pi / 2)
+    fault_margin: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=0.2,
+                                   doc="a reading this far below low_voltage or above high_voltage is a fault")
 
     def volts(self, angle: float) -> float:
         """The output [V] at the joint angle [rad]."""
@@ -101,6 +105,31 @@ ENCODER_ZERO = 32768
 
 
 @dataclass(frozen=True)
+class SensorFault:
+    """A fault put into the plant for a test of the firmware's fault handling: from ``at`` on, the
+    named analog signal's wire carries ``voltage`` (0 V: a dead or disconnected transducer)
+    instead of the sensor's output, in the model and in SIL alike."""
+    signal: str = ""
+    at: float = quantity("time", ge=0.0, display="s", default=0.0, doc="when the sensor fails")
+    voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=0.0,
+                              doc="what the wire reads from then on")
+
+    @classmethod
+    def from_raw(cls, raw, path: str) -> "SensorFault":
+        if not isinstance(raw, dict):
+            raise ScenarioError(path, raw, 'expected { signal = "hip pressure", at = "1 s", voltage = "0 V" }')
+        raw = dict(raw)
+        signal = unwrap(raw.pop("signal", ""))
+        if not isinstance(signal, str) or not signal:
+            raise ScenarioError(f"{path}.signal", signal, 'expected a signal the firmware reads, e.g. "hip pressure"')
+        f = build(cls, raw, path)
+        return cls(signal=signal, at=f.at, voltage=f.voltage)
+
+
+FAULT_MODES = ("vent", "hold")
+
+
+@dataclass(frozen=True)
 class Firmware:
     """The ``[firmware]`` section (module docstring). ``valve_pins``, ``pressure_inputs`` and
     ``angle_inputs`` hold what the file wrote; :func:`firmware_layout` adds the defaults."""
@@ -115,6 +144,11 @@ class Firmware:
     baud: int = integer(ge=300, le=2_000_000, default=115200, doc="serial log's baud rate")
     log_rate: float = quantity("frequency", gt=0.0, le=1e6, display="Hz", default=100.0,
                                doc="serial log lines per second (a divisor of controller.rate)")
+    fault: str = choice(FAULT_MODES, default="vent",
+                        doc="what a muscle's valves do while a sensor its law reads is in fault")
+    fault_resume: int = integer(ge=0, le=60000, default=10,
+                                doc="good samples after a fault before the law runs again")
+    sensor_faults: tuple = field(default=(), metadata={"fixed": True})
     # (name, value) pairs as written (tuples: the section hashes by value, as the model's cached
     # parts need); read them as dicts through pins() and inputs()
     valve_pins: tuple = field(default=(), metadata={"fixed": True})
@@ -140,12 +174,18 @@ class Firmware:
         for key, what in (("valve_pins", "pin"), ("pressure_inputs", "input"), ("angle_inputs", "input"),
                           ("encoder_pins", "pin")):
             tables[key] = tuple(_read_table(raw.pop(key, {}), f"{path}.{key}", what).items())
+        faults = unwrap(raw.pop("sensor_faults", []))
+        if not isinstance(faults, list):
+            raise ScenarioError(f"{path}.sensor_faults", faults, "expected a list of "
+                                '{ signal = "hip pressure", at = "1 s", voltage = "0 V" }')
+        faults = tuple(SensorFault.from_raw(f, f"{path}.sensor_faults[{k}]") for k, f in enumerate(faults))
         name = unwrap(raw.pop("name", ""))
         if not isinstance(name, str):
             raise ScenarioError(f"{path}.name", name, "expected text: the sketch's name, a C identifier")
         fw = build(cls, raw, path)
         return cls(name=name, vref=fw.vref, transducer=fw.transducer, angle_sensor=fw.angle_sensor,
-                   angle_encoder=fw.angle_encoder, busy_pin=fw.busy_pin, baud=fw.baud, log_rate=fw.log_rate, **tables)
+                   angle_encoder=fw.angle_encoder, fault=fw.fault, fault_resume=fw.fault_resume,
+                   sensor_faults=faults, busy_pin=fw.busy_pin, baud=fw.baud, log_rate=fw.log_rate, **tables)
 
 
 def _read_table(raw, path: str, what: str) -> dict:
@@ -367,6 +407,16 @@ def check_firmware(sc) -> None:
                                                        f"{owner[s.analog_input]}'s")
         owner[s.analog_input] = s.label
     _check_pins(sc, layout, path)
+    labels = {s.label: s for s in layout.signals}
+    for k, f in enumerate(fw.sensor_faults):
+        where = f"{path}.sensor_faults[{k}].signal"
+        if f.signal not in labels:
+            raise ScenarioError(where, f.signal, f"must be a signal the firmware reads ({', '.join(labels) or 'none'})")
+        if labels[f.signal].encoder:
+            raise ScenarioError(where, f.signal, "is an encoder's count: a voltage fault is for analog signals")
+        if f.at > sc.duration:
+            raise ScenarioError(f"{path}.sensor_faults[{k}].at", f"{f.at:g} s", f"must lie within the run "
+                                                                             f"(0..{sc.duration:g} s)")
     rate = sc.controller.rate
     ratio = rate / fw.log_rate
     if fw.log_rate > rate or abs(ratio - round(ratio)) > 1e-9 * ratio:
