@@ -325,7 +325,47 @@ def _firmware_target(source, cycles=None):
     return "pneumatic", scenario, model, fw.firmware_plan(model)
 
 
+def _firmware_fit(args, plan, sc, export):
+    """The plan's fit on the board (frogsim.export.fit), before anything is written: with --build
+    the sketch is built in a temporary folder and its interrupt timed on the emulated board (the
+    ELF and HEX are kept for the export), without it the cycle estimate. ScenarioError (exit 2)
+    if it does not fit and --allow-overrun is not given. Returns (fit, the temporary build or None)."""
+    import tempfile
+
+    from frogsim.export import fit as fitting
+    from frogsim.export import sketch
+    from frogsim.scenario.firmware import log_line_bytes
+    from frogsim.scenario.motion import command_sample
+    if not args.build:
+        n_enc = sum(1 for ch in plan.channels if getattr(ch, "pins", ()))
+        line = log_line_bytes(len(plan.channels), len(plan.muscles), command_sample(sc.duration, plan.rate),
+                              plan.adc.bits, n_encoders=n_enc)
+        return fitting.check_fit(fitting.estimate(plan, line), plan, args.allow_overrun), None
+    from frogsim.export.emulator import check_tools
+    from frogsim.export.sil import interrupt_timing
+    check_tools()
+    tmp = Path(tempfile.mkdtemp(prefix="frogsim-fw-"))
+    try:
+        sketch.write_sketch(plan, tmp, sc.name, export)
+        _progress("building with arduino-mk (BOARD_TAG=mega, BOARD_SUB=atmega2560) ...")
+        built = sketch.build_sketch(tmp, plan.name)
+        _progress(f"      {built.describe()}")
+        _progress("timing the control interrupt on the emulated ATmega2560 (200 samples of random counts) ...")
+        rec = sketch.read_plan_record(tmp)
+        timing = interrupt_timing(rec, built.elf)
+        _progress(f"      interrupt mean {timing['mean_percent']:.1f} %, max {timing['max_percent']:.1f} % of the "
+                  f"{timing['period_cycles']}-cycle period, chip awake {timing['awake_percent']:.1f} %")
+        fit = fitting.check_fit(fitting.emulated(timing), plan, args.allow_overrun)
+    except BaseException:
+        import shutil
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return dict(fit, timing=timing), (tmp, built)
+
+
 def cmd_firmware(args) -> int:
+    import shutil
+
     from frogsim._files import write_json
     from frogsim.export import sketch
     from frogsim.io.outputs import scenario_inputs, scenario_record
@@ -340,45 +380,56 @@ def cmd_firmware(args) -> int:
                                           "Makefile", "README.md")] + ["firmware.json"] + \
         ([f"build/{plan.name}.elf", f"build/{plan.name}.hex"] if args.build else [])
     inputs = scenario_inputs(pneumatic, args.scenario)
-    folder = _folder(args, "firmware", files=files, folders=["build"] if args.build else [],
-                     scenario=scenario_record(sc.name, inputs))
     export = {"scenario": sc.name, "cycles": sc.gait.cycles if kind == "robot" else None, "inputs": inputs,
               "scenario_file": next((f["path"] for f in inputs if f["role"] == "scenario"), None)}
+    fit, built_tmp = _firmware_fit(args, plan, pneumatic, export)       # refused here: nothing written
+    try:
+        folder = _folder(args, "firmware", files=files, folders=["build"] if args.build else [],
+                         scenario=scenario_record(sc.name, inputs))
+    except BaseException:
+        if built_tmp:
+            shutil.rmtree(built_tmp[0], ignore_errors=True)
+        raise
 
     def work():
-        written = sketch.write_sketch(plan, out, sc.name, export)
-        _progress(f"{plan.name}: {len(plan.muscles)} muscle(s), {len(plan.channels)} ADC channel(s) at "
-                  f"{plan.rate:g} Hz, ADC prescaler {plan.adc.prescaler} ({plan.adc.bits} bits) -> "
-                  f"{written['ino']}")
-        if args.build:
-            _progress("building with arduino-mk (BOARD_TAG=mega, BOARD_SUB=atmega2560) ...")
-            built = sketch.build_sketch(out, plan.name)
+        try:
+            written = sketch.write_sketch(plan, out, sc.name, export)
+            _progress(f"{plan.name}: {len(plan.muscles)} muscle(s), {len(plan.channels)} channel(s) at "
+                      f"{plan.rate:g} Hz, ADC prescaler {plan.adc.prescaler} ({plan.adc.bits} bits) -> "
+                      f"{written['ino']}")
             rec = sketch.read_plan_record(out)
-            rec["flash_bytes"], rec["ram_bytes"] = built.flash_bytes, built.ram_bytes
-            rec["elf"] = str(built.elf.relative_to(out.resolve())) if built.elf.is_relative_to(out.resolve()) \
-                else str(built.elf)
-            _progress(f"      {built.elf}: {built.describe()}")
-            from frogsim.export.emulator import ToolMissing, check_tools
-            try:
-                check_tools()
-            except ToolMissing as exc:
-                _warn(f"the interrupt was not timed ({exc})")
+            timing = fit.pop("timing", None)
+            rec["fit"] = fit
+            if fit.get("allowed_overrun"):
+                _warn(f"the firmware does not fit its period ({fit['method']}: interrupt up to "
+                      f"{fit['interrupt_max_percent']:.0f} %, log {fit['log_percent']:.0f} %): written anyway "
+                      "(--allow-overrun), and firmware.json says so; on the board its samples come late")
             else:
-                from frogsim.export.sil import interrupt_timing
-                timing = interrupt_timing(rec, built.elf)
+                _progress(f"      fits: interrupt up to {fit['interrupt_max_percent']:.1f} % and the serial log "
+                          f"{fit['log_percent']:.1f} % of the period ({fit['method']})")
+            if built_tmp:
+                tmp, built = built_tmp
+                # the build's folder as it is (arduino-mk's paths in it are relative), each file with
+                # a new mtime: newer than the sources just written, so make and sil see it current
+                for f in sorted((tmp / "build").rglob("*")):
+                    dest = out / "build" / f.relative_to(tmp / "build")
+                    if f.is_dir():
+                        dest.mkdir(parents=True, exist_ok=True)
+                    else:
+                        dest.parent.mkdir(parents=True, exist_ok=True)
+                        shutil.copy(f, dest)
+                rec["flash_bytes"], rec["ram_bytes"] = built.flash_bytes, built.ram_bytes
+                rec["elf"] = f"build/{built.elf.name}"
                 rec["interrupt"] = timing
-                _progress(f"      interrupt on the emulated ATmega2560, {timing['samples']} samples of random "
-                          f"counts: mean {timing['mean_percent']:.1f} %, max {timing['max_percent']:.1f} % of "
-                          f"the {timing['period_cycles']}-cycle period")
-                if timing["samples_over_period"]:
-                    _warn(f"the interrupt overran its period at {timing['samples_over_period']} of "
-                          f"{timing['samples']} timed samples (max {timing['max_percent']:.0f} % of the period): "
-                          "the board cannot run these laws at this rate; lower [controller] rate or control "
-                          "fewer muscles (`frogsim sil` counts the overruns)")
+                _progress(f"      {out / rec['elf']}: {built.describe()}")
             write_json(out / "firmware.json", rec)
-        folder.finish()
-        _progress(f"wrote {out / plan.name}/, {out / 'firmware.json'}" + (f", {out / 'build'}/" if args.build else ""))
-        return 0
+            folder.finish()
+            _progress(f"wrote {out / plan.name}/, {out / 'firmware.json'}" + (f", {out / 'build'}/" if args.build
+                                                                               else ""))
+            return 0
+        finally:
+            if built_tmp:
+                shutil.rmtree(built_tmp[0], ignore_errors=True)
     return _finishing(folder, work)
 
 
@@ -667,6 +718,8 @@ FLAGS = {
     "--cycles": "gait cycles of each robot run",
     "--signal": "the signal of every input without its own RUN:SIGNAL, e.g. 'hip_left pressure'",
     "--no-animation": "skip the offscreen animation",
+    "--allow-overrun": "write a firmware whose interrupt and serial log do not fit the controller period "
+                       "(firmware.json records it); without it such a plan is refused",
     "--timing": "when the plant receives the firmware's valve writes: 'cycle', at the emulated cycle the "
                 "firmware set each pin (the board's truth, late samples included), or 'grid', each sample's "
                 "decision at the sample's own time as the compiled model has it (a check of the harness)",
@@ -780,6 +833,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file or shipped name, pneumatic or robot")
     _flag(s, "--build", action="store_true")
     _flag(s, "--cycles", "the scenario's; the program tables cover them", type=int, default=None, metavar="N")
+    _flag(s, "--allow-overrun", action="store_true")
     _writes(s)
     s.set_defaults(func=cmd_firmware)
     s = sub.add_parser("sil", help="software in the loop: the built firmware on an emulated ATmega2560 "

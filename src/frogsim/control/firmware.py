@@ -182,6 +182,12 @@ def firmware_plan(model) -> FirmwarePlan:
         else:
             T = program.firmware_table(sc.muscles[m].program, rate)
             plan_laws.append(Law(program, (int(T.size),), T if T.size else np.zeros(1, np.int64), -1, -1))
+    biggest = max((4 * law.T.size for law in plan_laws), default=0)
+    if biggest > fixed.TABLE_BYTES_ONE:
+        raise ScenarioError("duration", f"{sc.duration:g} s",
+                            f"one of the firmware's tables (a setpoint or program sample by sample) takes {biggest} "
+                            f"bytes, more than the {fixed.TABLE_BYTES_ONE} bytes avr-gcc allows one array: shorten "
+                            "the run, lower the controller rate or use constant setpoints")
     n_bytes = table_bytes(plan_laws)
     if n_bytes > fixed.TABLE_BYTES_MAX:
         raise ScenarioError("duration", f"{sc.duration:g} s",

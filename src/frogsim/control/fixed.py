@@ -50,6 +50,7 @@ Q4 = 16                 # sixteenths of a count
 Q16 = 65536             # gains
 INT32_MAX = 2**31 - 1
 TABLE_BYTES_MAX = 60 * 1024     # [B] the run's flash tables: below the 64 KB LPM reaches, with room
+TABLE_BYTES_ONE = 32767         # [B] one table: avr-gcc's largest object (its size_t is 16 bits)
 ADC_BITS = 10
 
 
