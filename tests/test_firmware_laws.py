@@ -376,10 +376,28 @@ def test_a_scenario_without_firmware_has_no_plan():
         fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(d)))
 
 
+def _late_step(at: str) -> dict:
+    """A setpoint whose table runs sample by sample up to its last step at ``at``."""
+    return {"kind": "steps", "steps": [{"at": "0 s", "value": "2 bar"}, {"at": at, "value": "3 bar"}]}
+
+
 def test_tables_beyond_the_flash_the_avr_reads_are_refused():
-    sine = {"kind": "sine", "mean": "3 bar", "amplitude": "1 bar", "frequency": "1 Hz"}
-    d = pneumatic({"a": {"kind": "bang-bang", "muscle": "hip", "setpoint": sine}}, duration="20 s")
-    with pytest.raises(ScenarioError, match=r"duration = '?20 s'?: the firmware's tables .* take 80004 bytes"):
+    """Three tables up to their steps at 7.9, 7.8 and 7.7 s at 1 kHz (7901, 7801 and 7701 int32
+    entries: each under avr-gcc's 32767-byte object) take 4 x 23403 = 93612 bytes, more than the
+    60 KB the AVR's LPM reads."""
+    ctl = {m: {"kind": "bang-bang", "muscle": m, "setpoint": _late_step(f"7.{9 - i} s")}
+           for i, m in enumerate(("a", "b", "c"))}
+    d = pneumatic(ctl, duration="8 s", muscles=("a", "b", "c"))
+    with pytest.raises(ScenarioError, match=r"duration = '?8 s'?: the firmware's tables .* take 93612 bytes"):
+        fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(d)))
+
+
+def test_a_table_beyond_avr_gccs_largest_object_is_refused():
+    """One table of 19.9 s at 1 kHz: 19901 x 4 = 79604 bytes, more than the 32767 bytes an array
+    may take with avr-gcc (its size_t is 16 bits)."""
+    d = pneumatic({"a": {"kind": "bang-bang", "muscle": "hip", "setpoint": _late_step("19.9 s")}}, duration="20 s")
+    with pytest.raises(ScenarioError, match=r"duration = '?20 s'?: one of the firmware's tables .* takes 79604 "
+                                            r"bytes, more than the 32767"):
         fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(d)))
 
 
