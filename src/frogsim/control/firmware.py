@@ -300,7 +300,21 @@ def adc_counts(plan: FirmwarePlan, model, y, qpos=None) -> np.ndarray:
     (gauge pressures of the muscles from y) and the joint angles ``qpos`` [rad] (a dict joint ->
     angle, or the angles in the scenario's joint order; None without a robot): the same
     conversion (:func:`frogsim.control.signals.adc_count`) with the same numbers as the model's
-    compiled sample."""
+    compiled sample (an encoder's count through its line, :func:`frogsim.control.fixed.angle_line`)."""
+    return _counter(plan, model)(y, qpos)
+
+
+_COUNTERS: dict = {}
+
+
+def _counter(plan: FirmwarePlan, model):
+    """A function (y, qpos) -> counts for the plan's channels, its numbers made once (SIL calls
+    it every sample). Each count is :func:`frogsim.control.signals.adc_count`'s arithmetic, in
+    the same order of operations: floor((v0 + k (q - q0)) full / vref), clipped."""
+    key = (id(plan), id(model))
+    hit = _COUNTERS.get(key)
+    if hit is not None and hit[0] is plan and hit[1] is model:
+        return hit[2]
     pm = _model_of(model)
     sc = pm.scenario
     fw = sc.firmware
@@ -313,17 +327,35 @@ def adc_counts(plan: FirmwarePlan, model, y, qpos=None) -> np.ndarray:
     pv0, pk, pq0 = fixed.pressure_volts(fw)
     av0, ak, aq0 = aline
     joints = list(sc.joints)
-    out = np.zeros(len(plan.channels), np.uint16)
-    for j, ch in enumerate(plan.channels):
-        if ch.quantity == "pressure":
-            i = pm.names.index(ch.name)
-            out[j] = adc_count(pv0, pk, pq0, full, fw.vref, float(y[pressure_index(i)]) - patm)
-        else:
-            if qpos is None:
-                raise FrogsimError(f"channel {ch.signal!r}: the joint angles (qpos) are needed")
-            th = qpos[ch.name] if isinstance(qpos, dict) else qpos[joints.index(ch.name)]
-            out[j] = adc_count(av0, ak, aq0, float(afull), fw.vref, float(th))
-    return out
+    p_ch = [j for j, ch in enumerate(plan.channels) if ch.quantity == "pressure"]
+    p_idx = np.array([pressure_index(pm.names.index(plan.channels[j].name)) for j in p_ch], np.int64)
+    a_ch = [j for j, ch in enumerate(plan.channels) if ch.quantity != "pressure"]
+    a_names = [plan.channels[j].name for j in a_ch]
+    a_idx = [joints.index(n) if n in joints else -1 for n in a_names]
+    vref = float(fw.vref)
+
+    import math
+    p_pairs = list(zip(p_ch, p_idx.tolist()))
+    a_pairs = list(zip(a_ch, a_names, a_idx))
+    top_p, top_a = full - 1.0, float(afull) - 1.0
+    afull_f = float(afull)
+
+    def counts(y, qpos=None):
+        out = [0] * len(plan.channels)
+        for j, i in p_pairs:
+            x = math.floor((pv0 + pk * ((float(y[i]) - patm) - pq0)) * full / vref)
+            out[j] = int(min(max(x, 0.0), top_p))
+        if a_pairs and qpos is None:
+            raise FrogsimError(f"channel {plan.channels[a_ch[0]].signal!r}: the joint angles (qpos) are needed")
+        for j, n, i in a_pairs:
+            th = float(qpos[n] if isinstance(qpos, dict) else qpos[i])
+            x = math.floor((av0 + ak * (th - aq0)) * afull_f / vref)
+            out[j] = int(min(max(x, 0.0), top_a))
+        return np.array(out, np.uint16)
+    if len(_COUNTERS) > 32:
+        _COUNTERS.clear()
+    _COUNTERS[key] = (plan, model, counts)
+    return counts
 
 
 def firmware_memory(plan: FirmwarePlan) -> np.ndarray:

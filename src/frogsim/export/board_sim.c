@@ -50,6 +50,13 @@ struct board_t {
     int stop_index, stop_value, stop_hit;
     /* cycles the core spent asleep (SLEEP instruction until the next interrupt woke it) */
     uint64_t sleep_cycles;
+    /* board_run_frame: at each fall of watch `snap_index`, `snap_len` bytes of data memory at
+     * `snap_addr` are copied into the caller's buffer (the counts an interrupt read, at its end) */
+    int snap_index;
+    uint32_t snap_addr;
+    int snap_len;
+    uint8_t *snap_buf;
+    long snap_n, snap_max;
 };
 
 static void pin_changed(struct avr_irq_t *irq, uint32_t value, void *param) {
@@ -63,6 +70,11 @@ static void pin_changed(struct avr_irq_t *irq, uint32_t value, void *param) {
     b->ev_tail++;
     if (w->index == b->stop_index && (int)value == b->stop_value && w->last != (int)value)
         b->stop_hit = 1;
+    if (w->index == b->snap_index && value == 0 && w->last != 0 && b->snap_buf) {
+        if (b->snap_n < b->snap_max)
+            memcpy(b->snap_buf + (size_t)b->snap_n * b->snap_len, b->avr->data + b->snap_addr, b->snap_len);
+        b->snap_n++;
+    }
     w->last = (int)value;
 }
 
@@ -132,6 +144,7 @@ board_t *board_open(const char *elf, uint32_t frequency, uint32_t vref_mv) {
     board_t *b = (board_t *)calloc(1, sizeof(board_t));
     b->avr = avr;
     b->stop_index = -1;
+    b->snap_index = -1;
     uint32_t flags = 0;
     avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
     flags &= ~AVR_UART_FLAG_STDIO;                      /* bytes go to board_uart_read only */
@@ -241,6 +254,41 @@ int board_run_until_pin(board_t *b, int index, int value, uint64_t max_cycle) {
     }
     b->stop_index = -1;
     return b->stop_hit;
+}
+
+/* One controller period in one call: run to cycle `end`, driving input pins on the way (event i:
+ * at cycle in_cycle[i], pin `in_bit[i]` of port `in_port[i]` to `in_level[i]`, in order), and at
+ * each fall of watch `snap_index` copy `snap_len` bytes of data memory at `snap_addr` into `snaps`
+ * (at most `max_snaps`). Returns the number of falls (snapshots wanted; more than max_snaps: some
+ * were not kept), or -1 if the firmware stopped or crashed. */
+long board_run_frame(board_t *b, uint64_t end, long n_in, const uint64_t *in_cycle, const char *in_port,
+                     const int32_t *in_bit, const int32_t *in_level, int snap_index, uint32_t snap_addr,
+                     int snap_len, uint8_t *snaps, long max_snaps) {
+    if (snap_len < 0 || (uint64_t)snap_addr + (uint64_t)snap_len > (uint64_t)b->avr->ramend + 1)
+        return -1;
+    b->snap_index = snap_index;
+    b->snap_addr = snap_addr;
+    b->snap_len = snap_len;
+    b->snap_buf = snaps;
+    b->snap_n = 0;
+    b->snap_max = max_snaps;
+    for (long i = 0; i <= n_in; i++) {
+        uint64_t until = i < n_in ? in_cycle[i] : end;
+        while (b->avr->cycle < until) {
+            int st = step(b);
+            if (st == cpu_Done || st == cpu_Crashed) {
+                b->snap_buf = NULL;
+                return -1;
+            }
+        }
+        if (i < n_in) {
+            avr_irq_t *irq = avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ(in_port[i]), in_bit[i]);
+            if (irq)
+                avr_raise_irq(irq, in_level[i] ? 1 : 0);
+        }
+    }
+    b->snap_buf = NULL;
+    return b->snap_n;
 }
 
 uint64_t board_cycle(board_t *b) { return b->avr->cycle; }

@@ -93,6 +93,13 @@ def _lib():
         lib.board_close.argtypes = [vp]
         lib.board_watch.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
         lib.board_watch_vector.argtypes = [vp, ctypes.c_int, ctypes.c_int]
+        lib.board_run_frame.restype = ctypes.c_long
+        lib.board_run_frame.argtypes = [vp, u64, ctypes.c_long, vp, vp, vp, vp, ctypes.c_int, ctypes.c_uint32,
+                                        ctypes.c_int, vp, ctypes.c_long]
+        raw = lib["board_events"]             # a second prototype of it, taking raw pointers (no from_param)
+        raw.restype = ctypes.c_long
+        raw.argtypes = [vp, vp, vp, vp, ctypes.c_long]
+        lib.board_events_raw = raw
         lib.board_sleep_cycles.restype = u64
         lib.board_sleep_cycles.argtypes = [vp]
         lib.board_set_adc_mv.argtypes = [vp, ctypes.c_int, ctypes.c_uint32]
@@ -354,10 +361,29 @@ class EmulatedBoard:
         n = self._lib.board_events(self._h, c, i, v, limit)
         return c[:n], i[:n], v[:n]
 
+    def run_frame(self, end: int, inputs, snap_index: int, snap_address: int, snap_len: int, snaps: np.ndarray) -> int:
+        """Run to cycle ``end`` in one call: ``inputs`` (cycles uint64, ports uint8 ('A'..'L'),
+        bits int32, levels int32: arrays, in time order, or None) drive input pins on the way, and
+        at each fall of watched pin ``snap_index`` ``snap_len`` bytes of data memory at
+        ``snap_address`` are copied into the rows of ``snaps`` (uint8 (rows, snap_len)). Returns
+        the number of falls; FrogsimError if the firmware stopped."""
+        if inputs is None or not len(inputs[0]):
+            n, cyc, port, bit, lvl = 0, None, None, None, None
+        else:
+            cyc, port, bit, lvl = inputs
+            n = len(cyc)
+            cyc, port, bit, lvl = (cyc.ctypes.data, port.ctypes.data, bit.ctypes.data, lvl.ctypes.data)
+        got = self._lib.board_run_frame(self._h, int(end), n, cyc, port, bit, lvl, int(snap_index),
+                                        int(snap_address), int(snap_len), snaps.ctypes.data, snaps.shape[0])
+        if got < 0:
+            raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
+        return int(got)
+
     def events_into(self, c: np.ndarray, i: np.ndarray, v: np.ndarray) -> int:
         """Move up to len(c) queued pin changes into the given arrays (uint64, int32, int32: no
-        allocation, for a loop that drains them every sample); returns how many."""
-        return int(self._lib.board_events(self._h, c, i, v, c.size))
+        allocation, for a loop that drains them every sample; contiguous, as np.empty makes them);
+        returns how many."""
+        return int(self._lib.board_events_raw(self._h, c.ctypes.data, i.ctypes.data, v.ctypes.data, c.size))
 
     def serial(self, limit: int = 1 << 20) -> tuple[bytes, np.ndarray]:
         """The bytes the firmware sent on USART0 since the last call, and the cycle of each."""
