@@ -144,6 +144,8 @@ class Firmware:
     baud: int = integer(ge=300, le=2_000_000, default=115200, doc="serial log's baud rate")
     log_rate: float = quantity("frequency", gt=0.0, le=1e6, display="Hz", default=100.0,
                                doc="serial log lines per second (a divisor of controller.rate)")
+    velocity_filter: int = integer(ge=1, le=64, default=8,
+                                   doc="samples of the joint-angle laws' velocity filter (a power of two)")
     fault: str = choice(FAULT_MODES, default="vent",
                         doc="what a muscle's valves do while a sensor its law reads is in fault")
     fault_resume: int = integer(ge=0, le=60000, default=10,
@@ -184,7 +186,7 @@ class Firmware:
             raise ScenarioError(f"{path}.name", name, "expected text: the sketch's name, a C identifier")
         fw = build(cls, raw, path)
         return cls(name=name, vref=fw.vref, transducer=fw.transducer, angle_sensor=fw.angle_sensor,
-                   angle_encoder=fw.angle_encoder, fault=fw.fault, fault_resume=fw.fault_resume,
+                   angle_encoder=fw.angle_encoder, velocity_filter=fw.velocity_filter, fault=fw.fault, fault_resume=fw.fault_resume,
                    sensor_faults=faults, busy_pin=fw.busy_pin, baud=fw.baud, log_rate=fw.log_rate, **tables)
 
 
@@ -355,6 +357,9 @@ def check_firmware(sc) -> None:
     _check_setpoints(sc, fw)
     wanted = sensed_signals(sc)
     encoders = fw.angle_encoder is not None
+    if fw.velocity_filter & (fw.velocity_filter - 1):
+        raise ScenarioError(f"{path}.velocity_filter", fw.velocity_filter,
+                            "must be a power of two (1, 2, 4, 8, 16, 32 or 64 samples: the filter is a shift)")
     if fw.encoder_pins and not encoders:
         raise ScenarioError(f"{path}.encoder_pins", dict(fw.encoder_pins),
                             "needs firmware.angle_encoder (the encoders' counts per revolution)")
