@@ -9,15 +9,16 @@ import shutil
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, assume, given, settings, strategies as st
 
 import frogsim
 from frogsim.circuit.layout import pressure_index
 from frogsim.components import atmega2560 as chip
 from frogsim.control import firmware as fwm
+from frogsim.control import fixed
 from frogsim.control.kinds import bang_bang, joint_angle, program, pwm, sliding_mode
 from frogsim.control.sampled import B_MODE, B_SENSED, CS_BLOCK, CS_SIZE, sample_controllers, start_controllers
-from frogsim.control.signals import FW_MEM
+from frogsim.control.signals import FW_MEM, SN_SIZE, fw_sine
 from frogsim.control.table import L_FW, L_MUSCLE
 from frogsim.errors import ScenarioError
 from frogsim.scenario.load import merged_raw, with_firmware
@@ -160,6 +161,67 @@ def test_joint_angle_twins_agree(lib, data, k, cp, ca):
            data.draw(st.integers(0, 2**31 - 2)), data.draw(st.integers(-2**24, 2**24))]
     c, nb = _both(lib, joint_angle, P, sp + dsp, mem, k, cp, ca)
     assert c == nb
+
+
+# the sine generator: random blocks (phases, steps, means, amplitudes, in and out of their ranges)
+INT32S = st.integers(-2**31 + 1, 2**31 - 1)
+SINE_BLOCKS = st.tuples(st.one_of(st.integers(0, 200), st.integers(0, 2**31 - 1)), INT32S, INT32S,
+                        st.one_of(Q4S, st.integers(-2**30, 2**30)), st.one_of(st.integers(0, 2**17 - 1), INT32S),
+                        st.one_of(st.integers(0, 2**15 - 1), INT32S), st.one_of(st.integers(0, 2**16 - 1), INT32S))
+SAMPLES = st.one_of(st.integers(0, 100), st.integers(0, 10**7), st.integers(0, 2**32 - 1))
+
+
+@needs_gcc
+@settings(SETTINGS, max_examples=2000)
+@given(block=SINE_BLOCKS, k=SAMPLES)
+def test_the_sine_generators_twins_agree(lib, block, k):
+    S = (ctypes.c_int32 * SN_SIZE)(*block)
+    rate = ctypes.c_int32(0)
+    lib.fs_sine.argtypes = [ctypes.c_uint32, ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_int32)]
+    lib.fs_sine.restype = ctypes.c_int32
+    value = lib.fs_sine(k, S, ctypes.byref(rate))
+    assert (value, rate.value) == fw_sine(np.array(block, float), 0, k)
+
+
+@settings(max_examples=300, deadline=None)
+@given(m=st.floats(-2000.0, 18000.0), a=st.floats(0.0, fixed.SINE_AMP_MAX), f=st.floats(0.01, 50.0),
+       start=st.sampled_from((0.0, 0.25, 1e-3 / 3, 2.0)) | st.floats(0.0, 3.0),
+       rate=st.sampled_from((1000.0, 500.0, 2000.0)))
+def test_the_integer_sine_follows_the_float_sine_within_one_q4_count(m, a, f, start, rate):
+    # the closed form m + a sin(2 pi f (t - start)) from start, m before, at t_k = k / rate (Q4 counts);
+    # the rate a 2 pi f cos(...) in Q4 counts per sample x 256 (the joint-angle law's unit)
+    dt = 1.0 / rate
+    unit = dt * 256.0
+    assume(a * 2 * math.pi * f * unit * 32768 / 32767 < 2**16 - 1)     # else tabulated (the next test)
+    block = fixed.sine_params(m, a, f, start, rate, unit)
+    assert block is not None
+    P = np.array(block, float)
+    ks = np.unique(np.concatenate([np.arange(0, 10001, 7), np.arange(max(0, int(start * rate) - 3),
+                                                                     int(start * rate) + 4)]))
+    worst = 0.0
+    for k in ks:
+        t = k * dt
+        sp, dsp = fw_sine(P, 0, int(k))
+        if t < start:
+            assert (sp, dsp) == (math.floor(m + 0.5), 0)
+            continue
+        ph = 2 * math.pi * f * (t - start)
+        err = abs(sp - (m + a * math.sin(ph)))
+        worst = max(worst, err)
+        # the rate: two roundings, the nearest entry (half a step of phase), the entry's rounding,
+        # the phase's drift
+        R = a * 2 * math.pi * f * unit
+        drift = 2 * math.pi * (64.5 + 0.5 * k) / 2**32
+        assert abs(dsp - R * math.cos(ph)) <= 1.0 + R * (math.pi / 1024 + 2**-15 + drift)
+        assert err <= 0.625 + 2**-18 + 1.16 * a / 32767 + a * drift
+    assert worst <= 1.0
+
+
+def test_the_sine_generator_refuses_what_it_cannot_hold():
+    assert fixed.sine_params(8000.0, fixed.SINE_AMP_MAX, 1.0, 0.0, 1000.0, 0.256) is not None
+    assert fixed.sine_params(8000.0, fixed.SINE_AMP_MAX + 1, 1.0, 0.0, 1000.0, 0.256) is None
+    assert fixed.sine_params(8000.0, 4000.0, 11.0, 0.0, 1000.0, 0.256) is None      # 70,774 > 2^16 - 1
+    assert fixed.sine_params(8000.0, 4000.0, 1.0, 0.0, 1000.0, 0.256) is not None
 
 
 # --- whole plans: frogsim_sample (C) == firmware_modes (Numba) over random runs of counts ----------------
@@ -432,7 +494,7 @@ def test_tables_end_at_their_last_change_and_a_pair_shares_its_setpoint():
     # then its rate, zero, as many), read by both muscles of the pair; the ten muscles that hold
     # their valves shut have no mode change (one empty table, shared)
     assert plan.table_bytes == 4 * 2 * 1001 + 4
-    assert plan.c_source.count("FS_TABLE =") == 2
+    assert plan.c_source.count("FS_TABLE =") == 3          # the two tables and the sine generator's
     ja = [law for law in plan.laws if law.module is joint_angle]
     assert len(ja) == 2 and ja[0].P[8] == 1001 and ja[0].T[1000] != ja[0].T[999]
 
