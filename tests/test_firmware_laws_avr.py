@@ -11,7 +11,9 @@ import pytest
 
 import frogsim
 from frogsim.control import firmware as fwm
-from frogsim.control.signals import SN_SIZE, fw_sine
+from frogsim.control import fixed
+from frogsim.control.kinds import joint_angle
+from frogsim.control.signals import FW_MEM, SN_SIZE, fw_sine
 from tests.avr_tools import need_avr_tools
 
 BATCH = 150             # cases per build (their results in the AVR's 8 KB of RAM)
@@ -81,3 +83,63 @@ def test_the_sine_generator_on_the_avr_is_the_numba_twin(tmp_path, seed):
     got = _run_on_avr(tmp_path, "sine", decls, body, 2, BATCH)
     for i, (block, k) in enumerate(zip(blocks, ks)):
         assert tuple(got[i]) == fw_sine(np.array(block, float), 0, k), (block, k)
+
+
+def _joint_cases(rng, n: int, sine: bool):
+    """Joint-angle cases aimed at the fast path's edges (as tests/test_firmware_laws.py's)."""
+    edges = np.array([-2**15 - 1, -2**15, -2**15 + 1, -1, 0, 1, 2**15 - 2, 2**15 - 1, 2**15])
+    gains = np.array([0, 1, 0xFFFF, 0x10000, 0x10001, 2**29 - 1, 2**29, -2**29, -2**29 - 1, 2**30, 617662, 80425, 618])
+
+    def diff():
+        u = rng.random()
+        return int(rng.choice(edges)) if u < 0.3 else int(rng.integers(-2**15 - 4, 2**15 + 5)) if u < 0.8 \
+            else int(rng.integers(-2**24, 2**24))
+
+    def gain():
+        return int(rng.choice(gains)) if rng.random() < 0.5 else int(rng.integers(-2**31 + 1, 2**31))
+    cases = []
+    for _ in range(n):
+        ca = int(rng.integers(0, 1024)) if rng.random() < 0.9 else 65535
+        aq = 16 * ca + 8
+        mem = [int(rng.choice([rng.integers(-2**30, 2**30 + 1), rng.choice([-2**30, 2**30, 0, 65535, -65537])])),
+               int(rng.integers(0, 16 * 1023 + 9)), int(rng.integers(0, 2)), int(rng.integers(0, 2**31 - 1)),
+               int(rng.integers(-2**24, 2**24))]
+        shift = int(rng.integers(0, 9))
+        dth = aq - mem[1] if mem[2] > 0 else 0
+        vf = mem[4] + ((256 * dth - mem[4]) >> shift)
+        lo = int(rng.integers(0, 20000))
+        P = [int(rng.choice([-1, 1])), int(rng.integers(0, 30000)), lo, int(rng.integers(lo, 30001)), gain(), gain(),
+             gain(), int(rng.integers(0, 2001)), 1, shift]
+        if sine:
+            P += [int(rng.integers(0, 50)), int(rng.integers(-2**31 + 1, 2**31)),
+                  int(rng.integers(-2**31 + 1, 2**31)), aq + diff(), int(rng.integers(0, 2**17)),
+                  int(rng.integers(0, 2**15)), int(rng.integers(0, 2**16))]
+            k = int(rng.integers(0, 10**7))
+        else:
+            P += fixed.NO_SINE
+            k = int(rng.integers(0, 5))
+        T = [max(-2**31 + 1, min(2**31 - 1, aq + diff())), max(-2**31 + 1, min(2**31 - 1, vf + diff()))]
+        cases.append((P, T, mem, k, int(rng.integers(0, 1024)), ca))
+    return cases
+
+
+@pytest.mark.parametrize("sine, seed", [(False, 1), (False, 2), (True, 3), (True, 4)])
+def test_the_joint_angle_law_on_the_avr_is_the_numba_twin(tmp_path, sine, seed):
+    need_avr_tools()
+    cases = _joint_cases(np.random.default_rng(seed), BATCH, sine)
+    n_p = len(cases[0][0])
+    decls = (_c_ints("PP", [c[0] for c in cases], flash=True) + _c_ints("TT", [c[1] for c in cases], flash=True)
+             + _c_ints("MM", [c[2] for c in cases], flash=True)
+             + _c_ints("KK", [[c[3], c[4], c[5]] for c in cases], "uint32_t", flash=True))
+    body = (f"        int32_t P_ram[{n_p}], mem[{FW_MEM}];\n        uint8_t j;\n"
+            f"        for (j = 0; j < {n_p}; j++) P_ram[j] = (int32_t)pgm_read_dword(&PP[i][j]);\n"
+            f"        for (j = 0; j < {FW_MEM}; j++) mem[j] = (int32_t)pgm_read_dword(&MM[i][j]);\n"
+            "        out[i][0] = fs_joint_angle(pgm_read_dword(&KK[i][0]), (uint16_t)pgm_read_dword(&KK[i][1]),\n"
+            "                                   (uint16_t)pgm_read_dword(&KK[i][2]), mem, P_ram, TT[i]);\n"
+            f"        for (j = 0; j < {FW_MEM}; j++) out[i][1 + j] = mem[j];")
+    got = _run_on_avr(tmp_path, "joint", decls, body, 1 + FW_MEM, BATCH)
+    for i, (P, T, mem, k, cp, ca) in enumerate(cases):
+        m = np.array(mem, float)
+        mode = joint_angle.fw_law(np.array(P, float), np.array(T, float), m, k, cp, ca)
+        assert [int(got[i][0])] + list(got[i][1:]) == [mode] + [int(v) for v in m], (P, T, mem, k, cp, ca)
+
