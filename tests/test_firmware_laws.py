@@ -108,11 +108,21 @@ Q4S = st.integers(0, 16 * 1023 + 8)
 SETTINGS = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 
+def _sine_or_table(data):
+    """A sine block (random, its mean within the sensor's range) or NO_SINE, half each."""
+    if data.draw(st.booleans(), label="sine"):
+        block = list(data.draw(SINE_BLOCKS, label="block"))
+        block[3] = data.draw(Q4S, label="mean")
+        return block
+    return fixed.NO_SINE
+
+
 @needs_gcc
 @SETTINGS
-@given(P_half=st.integers(0, 4000), T=st.lists(Q4S, min_size=1, max_size=30), k=KS, cp=COUNTS)
-def test_bang_bang_twins_agree(lib, P_half, T, k, cp):
-    c, n = _both(lib, bang_bang, [P_half, len(T)], T, [0] * FW_MEM, k % 64, cp, 0)
+@given(P_half=st.integers(0, 4000), T=st.lists(Q4S, min_size=1, max_size=30), k=KS, cp=COUNTS, data=st.data())
+def test_bang_bang_twins_agree(lib, P_half, T, k, cp, data):
+    P = [P_half, len(T)] + _sine_or_table(data)
+    c, n = _both(lib, bang_bang, P, T, [0] * FW_MEM, k % 64 if P[2] < 0 else k, cp, 0)
     assert c == n
 
 
@@ -141,6 +151,7 @@ def test_pwm_twins_agree(lib, data, k, cp, how):
     nmin = data.draw(st.integers(0, N))
     T = data.draw(st.lists(st.integers(0, N) if how == 2 else Q4S, min_size=1, max_size=20))
     P = [N, how, data.draw(st.integers(0, N)), pb, nmin, data.draw(st.integers(0, 1)), len(T)]
+    P += _sine_or_table(data) if how == 0 else fixed.NO_SINE
     mem = [data.draw(st.integers(0, N - 1)), data.draw(st.integers(-N, N)), 0, 0, 0][:FW_MEM]
     c, n = _both(lib, pwm, P, T, mem, k, cp, 0)
     assert c == n
@@ -156,7 +167,11 @@ def test_sliding_mode_twins_agree(lib, data, k, cp, last, seed):
     sp = data.draw(st.lists(Q4S, min_size=n, max_size=n))
     dsp = data.draw(st.lists(st.integers(-2**24, 2**24), min_size=n, max_size=n))
     rho = data.draw(st.integers(0, sliding_mode.S_MAX))
-    P = [data.draw(st.integers(0, 2**20)), data.draw(st.integers(0, 2**20)), rho * rho, n, 1024]
+    sine = _sine_or_table(data)
+    if sine[0] >= 0:        # a generated setpoint: no setpoint tables, and its rate below 2^16
+        sine[6] = data.draw(st.integers(0, 2**16 - 1))
+        n, sp, dsp = 0, [], []
+    P = [data.draw(st.integers(0, 2**20)), data.draw(st.integers(0, 2**20)), rho * rho, n, 1024] + sine
     c, nb = _both(lib, sliding_mode, P, sp + dsp + list(rates), [last, 0, 0, 0, 0][:FW_MEM], k, cp, 0)
     assert c == nb
 
@@ -548,10 +563,22 @@ def test_a_scenario_without_firmware_has_no_plan():
 
 
 def test_tables_beyond_the_flash_the_avr_reads_are_refused():
-    sine = {"kind": "sine", "mean": "3 bar", "amplitude": "1 bar", "frequency": "1 Hz"}
-    d = pneumatic({"a": {"kind": "bang-bang", "muscle": "hip", "setpoint": sine}}, duration="20 s")
-    with pytest.raises(ScenarioError, match=r"duration = '?20 s'?: the firmware's tables .* take 80004 bytes"):
+    # steps are tabulated sample by sample up to the last: 19,501 int32 entries, and the sine
+    # generator's table (2048 bytes) that the bang-bang law links
+    steps = {"kind": "steps", "steps": [{"at": "0 s", "value": "3 bar"}, {"at": "19.5 s", "value": "2 bar"}]}
+    d = pneumatic({"a": {"kind": "bang-bang", "muscle": "hip", "setpoint": steps}}, duration="20 s")
+    with pytest.raises(ScenarioError, match=r"duration = '?20 s'?: the firmware's tables .* take 80052 bytes"):
         fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(d)))
+
+
+def test_a_sine_setpoint_is_generated_on_the_board_not_tabulated():
+    # 20 s of a 1 Hz sine took 80,004 bytes of table; generated, the law's table is one entry
+    sine = {"kind": "sine", "mean": "3 bar", "amplitude": "1 bar", "frequency": "1 Hz", "start": "0.25 s"}
+    d = pneumatic({"a": {"kind": "bang-bang", "muscle": "hip", "setpoint": sine}}, duration="20 s")
+    plan = fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(d)))
+    law = plan.laws[0]
+    assert law.P[bang_bang.P_SINE] == 250 and law.T.size == 1          # k0: the first sample at 0.25 s
+    assert plan.table_bytes == 4 + 2 * 1024
 
 
 def test_the_firmware_section_is_variable_like_every_setting():

@@ -143,3 +143,34 @@ def test_the_joint_angle_law_on_the_avr_is_the_numba_twin(tmp_path, sine, seed):
         mode = joint_angle.fw_law(np.array(P, float), np.array(T, float), m, k, cp, ca)
         assert [int(got[i][0])] + list(got[i][1:]) == [mode] + [int(v) for v in m], (P, T, mem, k, cp, ca)
 
+
+def test_sine_setpoints_generated_on_the_board_command_the_valves_the_model_commands(tmp_path):
+    """tests/firmware/robot-every-kind.toml with a sine setpoint (and a start) for each closed-loop
+    kind: exported, built and run in the loop; the board's machine code (its sine generator)
+    decides as the model's compiled laws (the Numba twins) at every sample."""
+    import json
+    import re
+    from pathlib import Path
+
+    from frogsim.cli import main
+    need_avr_tools()
+    text = (Path(__file__).with_name("firmware") / "robot-every-kind.toml").read_text()
+    sines = {"hip": '{ kind = "sine", mean = "15 deg", amplitude = "8 deg", frequency = "2 Hz", start = "0.1 s" }',
+             "relay": '{ kind = "sine", mean = "2.5 bar", amplitude = "1 bar", frequency = "3 Hz", start = "0.05 s" }',
+             "sliding": '{ kind = "sine", mean = "2 bar", amplitude = "0.8 bar", frequency = "2 Hz" }',
+             "pulses": '{ kind = "sine", mean = "1.5 bar", amplitude = "0.5 bar", frequency = "2 Hz" }'}
+    for name, sp in sines.items():
+        text, n = re.subn(rf"(\[controllers\.{name}\][^\[]*?\nsetpoint = )[^\n]*", rf"\g<1>{sp}", text)
+        assert n == 1, name
+    scenario = tmp_path / "robot-sines.toml"
+    scenario.write_text(text)
+    fw, out = tmp_path / "fw", tmp_path / "sil"
+    assert main(["firmware", str(scenario), "--out", str(fw), "--build", "--quiet"]) == 0
+    from frogsim.scenario.load import with_firmware
+    plan = fwm.firmware_plan(frogsim.load_robot_scenario(with_firmware(str(scenario))))
+    generated = [law for law in plan.laws if law.module is not fwm.program and law.P[law.module.P_SINE] >= 0]
+    assert len(generated) == 5                          # both rows of the joint and the three pressure laws
+    assert main(["sil", str(scenario), "--firmware", str(fw), "--timing", "grid", "--out", str(out),
+                 "--no-animation", "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["sil"]["mismatched_samples"] == 0 and s["sil"]["samples"] == 601
