@@ -9,15 +9,16 @@ import shutil
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import HealthCheck, assume, event, given, settings, strategies as st
 
 import frogsim
 from frogsim.circuit.layout import pressure_index
 from frogsim.components import atmega2560 as chip
 from frogsim.control import firmware as fwm
+from frogsim.control import fixed
 from frogsim.control.kinds import bang_bang, joint_angle, program, pwm, sliding_mode
 from frogsim.control.sampled import B_MODE, B_SENSED, CS_BLOCK, CS_SIZE, sample_controllers, start_controllers
-from frogsim.control.signals import FW_MEM
+from frogsim.control.signals import FW_MEM, SN_SIZE, fw_sine
 from frogsim.control.table import L_FW, L_MUSCLE
 from frogsim.errors import ScenarioError
 from frogsim.scenario.load import merged_raw, with_firmware
@@ -74,6 +75,22 @@ def lib():
     return fwm.host_library(plan)
 
 
+@pytest.fixture(scope="module")
+def probe(lib):
+    """The laws compiled with FS_CHECK_FAST: the joint-angle law returns 2 where it leaves its fast
+    path (so a test sees which path the C takes on this machine)."""
+    plan = fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(pneumatic(HOLD))))
+    return fwm.host_library("#define FS_CHECK_FAST 1\n" + plan.c_source)
+
+
+def _path(probe, P, T, mem, k, cp, ca) -> bool:
+    """True where the C twin takes the joint-angle law's fast path."""
+    P32 = (ctypes.c_int32 * len(P))(*[int(v) for v in P])
+    T32 = (ctypes.c_int32 * len(T))(*[int(v) for v in T])
+    M32 = (ctypes.c_int32 * FW_MEM)(*[int(v) for v in mem])
+    return probe.fs_joint_angle(k, cp, ca, M32, P32, T32) != 2
+
+
 def _both(lib, module, P, T, mem, k, cp, ca):
     """(mode, memory after) of the C twin and of the Numba twin."""
     P32 = (ctypes.c_int32 * len(P))(*[int(v) for v in P])
@@ -91,11 +108,21 @@ Q4S = st.integers(0, 16 * 1023 + 8)
 SETTINGS = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 
+def _sine_or_table(data):
+    """A sine block (random, its mean within the sensor's range) or NO_SINE, half each."""
+    if data.draw(st.booleans(), label="sine"):
+        block = list(data.draw(SINE_BLOCKS, label="block"))
+        block[3] = data.draw(Q4S, label="mean")
+        return block
+    return fixed.NO_SINE
+
+
 @needs_gcc
 @SETTINGS
-@given(P_half=st.integers(0, 4000), T=st.lists(Q4S, min_size=1, max_size=30), k=KS, cp=COUNTS)
-def test_bang_bang_twins_agree(lib, P_half, T, k, cp):
-    c, n = _both(lib, bang_bang, [P_half, len(T)], T, [0] * FW_MEM, k % 64, cp, 0)
+@given(P_half=st.integers(0, 4000), T=st.lists(Q4S, min_size=1, max_size=30), k=KS, cp=COUNTS, data=st.data())
+def test_bang_bang_twins_agree(lib, P_half, T, k, cp, data):
+    P = [P_half, len(T)] + _sine_or_table(data)
+    c, n = _both(lib, bang_bang, P, T, [0] * FW_MEM, k % 64 if P[2] < 0 else k, cp, 0)
     assert c == n
 
 
@@ -124,6 +151,7 @@ def test_pwm_twins_agree(lib, data, k, cp, how):
     nmin = data.draw(st.integers(0, N))
     T = data.draw(st.lists(st.integers(0, N) if how == 2 else Q4S, min_size=1, max_size=20))
     P = [N, how, data.draw(st.integers(0, N)), pb, nmin, data.draw(st.integers(0, 1)), len(T)]
+    P += _sine_or_table(data) if how == 0 else fixed.NO_SINE
     mem = [data.draw(st.integers(0, N - 1)), data.draw(st.integers(-N, N)), 0, 0, 0][:FW_MEM]
     c, n = _both(lib, pwm, P, T, mem, k, cp, 0)
     assert c == n
@@ -139,27 +167,185 @@ def test_sliding_mode_twins_agree(lib, data, k, cp, last, seed):
     sp = data.draw(st.lists(Q4S, min_size=n, max_size=n))
     dsp = data.draw(st.lists(st.integers(-2**24, 2**24), min_size=n, max_size=n))
     rho = data.draw(st.integers(0, sliding_mode.S_MAX))
-    P = [data.draw(st.integers(0, 2**20)), data.draw(st.integers(0, 2**20)), rho * rho, n, 1024]
+    sine = _sine_or_table(data)
+    if sine[0] >= 0:        # a generated setpoint: no setpoint tables, and its rate below 2^16
+        sine[6] = data.draw(st.integers(0, 2**16 - 1))
+        n, sp, dsp = 0, [], []
+    P = [data.draw(st.integers(0, 2**20)), data.draw(st.integers(0, 2**20)), rho * rho, n, 1024] + sine
     c, nb = _both(lib, sliding_mode, P, sp + dsp + list(rates), [last, 0, 0, 0, 0][:FW_MEM], k, cp, 0)
     assert c == nb
 
 
-@needs_gcc
-@SETTINGS
-@given(data=st.data(), k=st.integers(0, 100), cp=COUNTS, ca=COUNTS)
-def test_joint_angle_twins_agree(lib, data, k, cp, ca):
+# the joint-angle law: the C twin's fast path (16-bit products) and its int64 fallback, against the
+# Numba twin's int64 sums; each case drawn around the fast path's edges (joint_angle.c_source)
+EDGES16 = (-2**15 - 1, -2**15, -2**15 + 1, -1, 0, 1, 2**15 - 2, 2**15 - 1, 2**15)
+DIFFS = st.one_of(st.integers(-2**15 - 4, 2**15 + 4), st.sampled_from(EDGES16), st.integers(-2**24, 2**24))
+GAINS = st.one_of(st.integers(0, 2**31 - 1), st.integers(-2**31 + 1, 2**31 - 1),
+                  st.sampled_from((0, 1, 0xFFFF, 0x10000, 0x10001, 2**29 - 1, 2**29, -2**29, -2**29 - 1, 2**30,
+                                   2**31 - 1, -2**31 + 1)))
+INTEGRALS = st.one_of(st.integers(-2**30, 2**30), st.sampled_from((-2**30, -2**30 + 7, -65537, -65536, -1, 0, 65535,
+                                                                    65536, 2**30 - 7, 2**30)))
+# the sine generator: random blocks (phases, steps, means, amplitudes, in and out of their ranges)
+INT32S = st.integers(-2**31 + 1, 2**31 - 1)
+SINE_BLOCKS = st.tuples(st.one_of(st.integers(0, 200), st.integers(0, 2**31 - 1)), INT32S, INT32S,
+                        st.one_of(Q4S, st.integers(-2**30, 2**30)), st.one_of(st.integers(0, 2**17 - 1), INT32S),
+                        st.one_of(st.integers(0, 2**15 - 1), INT32S), st.one_of(st.integers(0, 2**16 - 1), INT32S))
+SAMPLES = st.one_of(st.integers(0, 100), st.integers(0, 10**7), st.integers(0, 2**32 - 1))
+
+
+def _fast(P, e, r) -> bool:
+    """Whether the C twin takes its fast path (e, r: the true differences sp - angle, dsp - vf)."""
+    return (-2**15 <= e < 2**15 and -2**15 <= r < 2**15 and -2**29 <= P[4] < 2**29 and -2**29 <= P[5] < 2**29
+            and 0 <= P[6] < 2**16)
+
+
+def _joint_case(data, sine: bool):
+    """(P, T, mem, k, cp, ca, fast) of a joint-angle case: the angle error e and the rate error r
+    aimed at the fast path's edges (through the table's setpoint and rate), or a sine block."""
+    ca = data.draw(st.one_of(COUNTS, st.just(65535)), label="ca")
+    aq = 16 * ca + 8
+    mem = [data.draw(INTEGRALS, label="integral"), data.draw(Q4S, label="last angle"), data.draw(st.integers(0, 1)),
+           data.draw(st.integers(0, 2**31 - 2)), data.draw(st.integers(-2**24, 2**24), label="vf")]
+    shift = data.draw(st.integers(0, 8))
+    dth = aq - mem[1] if mem[2] > 0 else 0
+    vf = mem[4] + ((256 * dth - mem[4]) >> shift)
+    k = data.draw(SAMPLES if sine else st.integers(0, 100), label="k")
     n = data.draw(st.integers(1, 8))
-    sp = data.draw(st.lists(Q4S, min_size=n, max_size=n))
-    dsp = data.draw(st.lists(st.integers(-2**24, 2**24), min_size=n, max_size=n))
-    gains = [data.draw(st.integers(0, 2**31 - 1)) for _ in range(3)]
+    kk = min(k, n - 1)
+    T = data.draw(st.lists(Q4S, min_size=n, max_size=n)) + data.draw(
+        st.lists(st.integers(-2**24, 2**24), min_size=n, max_size=n))
+    T[kk] = data.draw(st.one_of(DIFFS.map(lambda e: aq + e), st.sampled_from((-2**31 + 1, 2**31 - 1))), label="sp")
+    T[n + kk] = data.draw(st.one_of(DIFFS.map(lambda r: max(-2**31 + 1, min(2**31 - 1, vf + r))),
+                                    st.sampled_from((-2**31 + 1, 2**31 - 1))), label="dsp")
     lo = data.draw(st.integers(0, 20000))
-    P = [data.draw(st.sampled_from((-1, 1))), data.draw(st.integers(0, 30000)), lo,
-         data.draw(st.integers(lo, 30000))] + gains + [data.draw(st.integers(0, 2000)), n,
-                                                     data.draw(st.integers(0, 8))]
-    mem = [data.draw(st.integers(-2**30, 2**30)), data.draw(Q4S), data.draw(st.integers(0, 1)),
-           data.draw(st.integers(0, 2**31 - 2)), data.draw(st.integers(-2**24, 2**24))]
-    c, nb = _both(lib, joint_angle, P, sp + dsp, mem, k, cp, ca)
+    P = [data.draw(st.sampled_from((-1, 1))), data.draw(st.integers(0, 30000)), lo, data.draw(st.integers(lo, 30000)),
+         data.draw(GAINS, label="Kp"), data.draw(GAINS, label="Kd"), data.draw(GAINS, label="Ki"),
+         data.draw(st.integers(0, 2000)), n, shift]
+    P += list(data.draw(SINE_BLOCKS, label="sine")) if sine else fixed.NO_SINE
+    if sine:
+        sp, dsp = fw_sine(np.array(P, float), joint_angle.P_SINE, k)
+    else:
+        sp, dsp = T[kk], T[n + kk]
+    return P, T, mem, k, data.draw(COUNTS, label="cp"), ca, _fast(P, sp - aq, dsp - vf)
+
+
+@needs_gcc
+@settings(SETTINGS, max_examples=1500)
+@given(data=st.data())
+def test_joint_angle_twins_agree(lib, probe, data):
+    P, T, mem, k, cp, ca, fast = _joint_case(data, sine=False)
+    event("fast path" if fast else "int64 fallback")
+    assert _path(probe, P, T, mem, k, cp, ca) == fast
+    c, nb = _both(lib, joint_angle, P, T, mem, k, cp, ca)
     assert c == nb
+
+
+@needs_gcc
+@settings(SETTINGS, max_examples=500)
+@given(data=st.data())
+def test_joint_angle_twins_agree_on_a_sine(lib, probe, data):
+    P, T, mem, k, cp, ca, fast = _joint_case(data, sine=True)
+    event("fast path" if fast else "int64 fallback")
+    assert _path(probe, P, T, mem, k, cp, ca) == fast
+    c, nb = _both(lib, joint_angle, P, T, mem, k, cp, ca)
+    assert c == nb
+
+
+def _edge_cases() -> list:
+    """Joint-angle cases at the fast path's limits and just past them: (P, T, mem, ca, fast)."""
+    ca = 500
+    aq = 16 * ca + 8
+    out = []
+    for e in EDGES16:
+        for r in EDGES16:
+            for kp, kd, ki in ((2**29 - 1, 2**29 - 1, 0xFFFF), (-2**29, -2**29, 0), (2**29, 1, 1), (1, -2**29 - 1, 1),
+                               (0, 0, 0x10000), (0x10000, 0xFFFF, -1), (0, 0, 0), (2**31 - 1, 2**31 - 1, 2**31 - 1)):
+                for integral in (-2**30, 2**30 - 1, 0):
+                    mem = [integral, aq, 1, 0, 0]            # vf stays 0: dsp = r
+                    P = [1, 20000, 0, 2**30, kp, kd, ki, 100, 1, 3] + fixed.NO_SINE
+                    out.append((P, [aq + e, r], mem, ca, _fast(P, e, r)))
+    return out
+
+
+@needs_gcc
+def test_joint_angle_twins_agree_at_the_fast_paths_edges(lib, probe):
+    cases = _edge_cases()
+    assert {fast for *_, fast in cases} == {True, False}
+    for P, T, mem, ca, fast in cases:
+        assert _path(probe, P, T, mem, 0, 300, ca) == fast, (P, T, mem)
+        c, nb = _both(lib, joint_angle, P, T, mem, 0, 300, ca)
+        assert c == nb, (P, T, mem, fast)
+
+
+def test_the_fast_paths_sums_stay_in_int32_at_its_extremes():
+    # the bounds joint_angle.c_source proves, checked at the corners (Python integers, no overflow)
+    worst_H, worst_L = 0, 0
+    for g in (2**29 - 1, -2**29):
+        a, b = g >> 16, g & 0xFFFF
+        assert -2**13 <= a < 2**13 and 0 <= b < 2**16
+        for x in (-2**15, 2**15 - 1):
+            assert g * x == a * x * 2**16 + b * x
+            worst_L = max(worst_L, abs(b * x), 0xFFFF + b * x)
+            worst_H = max(worst_H, abs(a * x))
+    assert worst_L < 2**31
+    ih_max = (2**30) >> 16
+    H = 2 * worst_H + 2 * 2**15 + 0xFFFF * ih_max + 2**16
+    assert H < 2**31
+    for i in (-2**30, -1, 0, 2**30):                        # the integral's split
+        assert i == (i >> 16) * 2**16 + (i & 0xFFFF) and -2**14 <= i >> 16 <= 2**14
+
+
+@needs_gcc
+@settings(SETTINGS, max_examples=2000)
+@given(block=SINE_BLOCKS, k=SAMPLES)
+def test_the_sine_generators_twins_agree(lib, block, k):
+    S = (ctypes.c_int32 * SN_SIZE)(*block)
+    rate = ctypes.c_int32(0)
+    lib.fs_sine.argtypes = [ctypes.c_uint32, ctypes.POINTER(ctypes.c_int32), ctypes.POINTER(ctypes.c_int32)]
+    lib.fs_sine.restype = ctypes.c_int32
+    value = lib.fs_sine(k, S, ctypes.byref(rate))
+    assert (value, rate.value) == fw_sine(np.array(block, float), 0, k)
+
+
+@settings(max_examples=300, deadline=None)
+@given(m=st.floats(-2000.0, 18000.0), a=st.floats(0.0, fixed.SINE_AMP_MAX), f=st.floats(0.01, 50.0),
+       start=st.sampled_from((0.0, 0.25, 1e-3 / 3, 2.0)) | st.floats(0.0, 3.0),
+       rate=st.sampled_from((1000.0, 500.0, 2000.0)))
+def test_the_integer_sine_follows_the_float_sine_within_one_q4_count(m, a, f, start, rate):
+    # the closed form m + a sin(2 pi f (t - start)) from start, m before, at t_k = k / rate (Q4 counts);
+    # the rate a 2 pi f cos(...) in Q4 counts per sample x 256 (the joint-angle law's unit)
+    dt = 1.0 / rate
+    unit = dt * 256.0
+    assume(a * 2 * math.pi * f * unit * 32768 / 32767 < 2**16 - 1)     # else tabulated (the next test)
+    block = fixed.sine_params(m, a, f, start, rate, unit)
+    assert block is not None
+    P = np.array(block, float)
+    ks = np.unique(np.concatenate([np.arange(0, 10001, 7), np.arange(max(0, int(start * rate) - 3),
+                                                                     int(start * rate) + 4)]))
+    worst = 0.0
+    for k in ks:
+        t = k * dt
+        sp, dsp = fw_sine(P, 0, int(k))
+        if t < start:
+            assert (sp, dsp) == (math.floor(m + 0.5), 0)
+            continue
+        ph = 2 * math.pi * f * (t - start)
+        err = abs(sp - (m + a * math.sin(ph)))
+        worst = max(worst, err)
+        # the rate: two roundings, the nearest entry (half a step of phase), the entry's rounding,
+        # the phase's drift
+        R = a * 2 * math.pi * f * unit
+        drift = 2 * math.pi * (64.5 + 0.5 * k) / 2**32
+        assert abs(dsp - R * math.cos(ph)) <= 1.0 + R * (math.pi / 1024 + 2**-15 + drift)
+        assert err <= 0.625 + 2**-18 + 1.16 * a / 32767 + a * drift
+    assert worst <= 1.0
+
+
+def test_the_sine_generator_refuses_what_it_cannot_hold():
+    assert fixed.sine_params(8000.0, fixed.SINE_AMP_MAX, 1.0, 0.0, 1000.0, 0.256) is not None
+    assert fixed.sine_params(8000.0, fixed.SINE_AMP_MAX + 1, 1.0, 0.0, 1000.0, 0.256) is None
+    assert fixed.sine_params(8000.0, 4000.0, 11.0, 0.0, 1000.0, 0.256) is None      # 70,774 > 2^16 - 1
+    assert fixed.sine_params(8000.0, 4000.0, 1.0, 0.0, 1000.0, 0.256) is not None
 
 
 # --- whole plans: frogsim_sample (C) == firmware_modes (Numba) over random runs of counts ----------------
@@ -383,12 +569,13 @@ def _late_step(at: str) -> dict:
 
 def test_tables_beyond_the_flash_the_avr_reads_are_refused():
     """Three tables up to their steps at 7.9, 7.8 and 7.7 s at 1 kHz (7901, 7801 and 7701 int32
-    entries: each under avr-gcc's 32767-byte object) take 4 x 23403 = 93612 bytes, more than the
-    60 KB the AVR's LPM reads."""
+    entries: each under avr-gcc's 32767-byte object) take 4 x 23403 = 93612 bytes, and the sine
+    generator's table that a bang-bang law links 1024 x 2 = 2048 more: 95660, more than the 60 KB
+    the AVR's LPM reads."""
     ctl = {m: {"kind": "bang-bang", "muscle": m, "setpoint": _late_step(f"7.{9 - i} s")}
            for i, m in enumerate(("a", "b", "c"))}
     d = pneumatic(ctl, duration="8 s", muscles=("a", "b", "c"))
-    with pytest.raises(ScenarioError, match=r"duration = '?8 s'?: the firmware's tables .* take 93612 bytes"):
+    with pytest.raises(ScenarioError, match=r"duration = '?8 s'?: the firmware's tables .* take 95660 bytes"):
         fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(d)))
 
 
@@ -399,6 +586,16 @@ def test_a_table_beyond_avr_gccs_largest_object_is_refused():
     with pytest.raises(ScenarioError, match=r"duration = '?20 s'?: one of the firmware's tables .* takes 79604 "
                                             r"bytes, more than the 32767"):
         fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(d)))
+
+
+def test_a_sine_setpoint_is_generated_on_the_board_not_tabulated():
+    # 20 s of a 1 Hz sine took 80,004 bytes of table; generated, the law's table is one entry
+    sine = {"kind": "sine", "mean": "3 bar", "amplitude": "1 bar", "frequency": "1 Hz", "start": "0.25 s"}
+    d = pneumatic({"a": {"kind": "bang-bang", "muscle": "hip", "setpoint": sine}}, duration="20 s")
+    plan = fwm.firmware_plan(frogsim.build_model(frogsim.load_scenario(d)))
+    law = plan.laws[0]
+    assert law.P[bang_bang.P_SINE] == 250 and law.T.size == 1          # k0: the first sample at 0.25 s
+    assert plan.table_bytes == 4 + 2 * 1024
 
 
 def test_the_firmware_section_is_variable_like_every_setting():
@@ -448,9 +645,10 @@ def test_tables_end_at_their_last_change_and_a_pair_shares_its_setpoint():
     plan = fwm.firmware_plan(rs)
     # steps 10 deg -> 30 deg at 1 s, 1 kHz: the setpoint's table ends at sample 1000 (1001 entries,
     # then its rate, zero, as many), read by both muscles of the pair; the ten muscles that hold
-    # their valves shut have no mode change (one empty table, shared)
-    assert plan.table_bytes == 4 * 2 * 1001 + 4
-    assert plan.c_source.count("FS_TABLE =") == 2
+    # their valves shut have no mode change (one empty table, shared); and the sine generator's
+    # table (1024 int16), which the joint-angle law links
+    assert plan.table_bytes == 4 * 2 * 1001 + 4 + 2 * 1024
+    assert plan.c_source.count("FS_TABLE =") == 3          # the two tables and the sine's
     ja = [law for law in plan.laws if law.module is joint_angle]
     assert len(ja) == 2 and ja[0].P[8] == 1001 and ja[0].T[1000] != ja[0].T[999]
 
@@ -504,3 +702,34 @@ def test_the_robots_compiled_sample_reads_the_joint_angle_through_the_angle_sens
             b = int(CS_SIZE + c * cs[CS_BLOCK])
             assert cs[b + B_MODE] == want[i], f"sample {k}, muscle {m.names[i]}"
     assert {mode for mode, _ in seen} == {-1, 0, 1} and len({a for _, a in seen}) > 20     # not vacuous
+
+
+def test_ten_seconds_of_sine_joint_setpoints_fit_the_boards_flash():
+    # the swimming robot with its recovery muscles and five joints under joint-angle control with
+    # 0.5 Hz sines (five: fifteen analog inputs; a sixth needs the angle from elsewhere than the
+    # ADC), 10 s: tabulated, each joint's setpoint and rate took 2 x 10,001 int32 (80 KB; 400 KB
+    # for five, past the 60 KB allowed); generated, a joint-angle law's table is one entry
+    from frogsim.robot.params import JOINTS, SIDES
+    raw, base = merged_raw("swim")
+    raw = {**raw, "base_dir": base, "firmware": {}, "robot": {**raw["robot"], "recovery": "muscle"},
+           "gait": {**raw["gait"], "period": "2 s", "cycles": 5}}
+    rs0 = frogsim.load_robot_scenario({k: v for k, v in raw.items() if k != "firmware"})
+    joints = [f"{j}_{side}" for side in SIDES for j in JOINTS][:5]
+    ctls = {}
+    for name in joints:
+        rng = math.degrees(rs0.robot.joints[name.rsplit("_", 1)[0]].range)
+        ctls[name] = {"kind": "joint-angle", "joint": name, "proportional_gain": "30 bar/rad",
+                      "derivative_gain": "1 bar*s/rad", "integral_gain": "30 bar/(rad*s)",
+                      "setpoint": {"kind": "sine", "mean": f"{rng / 2:.3f} deg", "amplitude": f"{rng / 4:.3f} deg",
+                                   "frequency": "0.5 Hz"}}
+    rs = frogsim.load_robot_scenario({**raw, "controllers": ctls})
+    assert rs.duration == pytest.approx(10.0)
+    plan = fwm.firmware_plan(rs)
+    laws = [law for law in plan.laws if law.module is joint_angle]
+    assert len(laws) == 10 and all(law.P[joint_angle.P_SINE] >= 0 and law.T.size == 1 for law in laws)
+    assert 2 * 10001 * 4 * 5 > fixed.TABLE_BYTES_MAX
+    assert plan.table_bytes < 4 * 1024         # the gait's programs, the one-entry tables, the sine table
+    shorter = fwm.firmware_plan(frogsim.load_robot_scenario({**raw, "controllers": ctls,
+                                                             "gait": {**raw["gait"], "period": "2 s", "cycles": 1}}))
+    # the same laws for 2 s: the generator's parameters do not depend on the run's length
+    assert [law.P for law in shorter.laws if law.module is joint_angle] == [law.P for law in laws]

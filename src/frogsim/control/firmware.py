@@ -35,7 +35,7 @@ from frogsim.circuit.layout import pressure_index
 from frogsim.components import atmega2560 as chip
 from frogsim.control import fixed
 from frogsim.control.kinds import bang_bang, joint_angle, program, pwm, sliding_mode
-from frogsim.control.signals import FW_MEM, adc_count, fw_fault
+from frogsim.control.signals import FW_MEM, SINE_N, adc_count, fw_fault
 from frogsim.control.table import (L_FAULT_AHI, L_FAULT_ALO, L_FAULT_PHI, L_FAULT_PLO, L_FW, L_JOINT1, L_KIND,
                                    L_MUSCLE, L_PATM)
 from frogsim.errors import FrogsimError, ScenarioError
@@ -290,9 +290,12 @@ def _table_names(laws: list) -> list:
 
 
 def table_bytes(laws: list) -> int:
-    """[B] flash the laws' tables take (int32 entries; shared tables once)."""
+    """[B] flash the laws' tables take (int32 entries; shared tables once), and the sine
+    generator's table (int16, :data:`frogsim.control.signals.FW_SINE`) when a law that can call it
+    is linked."""
     names = _table_names(laws)
-    return sum(4 * max(1, law.T.size) for j, law in enumerate(laws) if names[j] == f"fs_T{j}")
+    sine = 2 * SINE_N if any(getattr(law.module, "SINE", False) for law in laws) else 0
+    return sine + sum(4 * max(1, law.T.size) for j, law in enumerate(laws) if names[j] == f"fs_T{j}")
 
 
 def adc_counts(plan: FirmwarePlan, model, y, qpos=None) -> np.ndarray:

@@ -17,15 +17,23 @@ The numbers:
   A setpoint p [Pa gauge] is round(16 x(p)), x(p) the count as a real number (the transducer's
   voltage times 2^bits / V_REF). Ranges: 16 x 1023 + 8 = 16376 fits int16; sums are int32.
 * **Gains.** A fractional gain (the joint-angle PID's, the sliding mode's times) is a Q16 integer
-  (x65536): products are taken in int64 (avr-gcc's 64-bit multiply, a few hundred cycles, only
-  where the range needs it) and shifted right by 16 (an arithmetic shift: floor, the same in C
-  and in Numba; no division anywhere, since C's truncates and Python's floors).
+  (x65536): products are shifted right by 16 (an arithmetic shift: floor, the same in C and in
+  Numba; no division anywhere, since C's truncates and Python's floors). The Numba twins take
+  them in int64; the C takes 16 x 16 -> 32-bit products where the ranges allow, with the same
+  result (the joint-angle law: :func:`frogsim.control.kinds.joint_angle.c_source`), and int64
+  elsewhere (avr-gcc's 64-bit multiply, a few hundred cycles). On the AVR the 16-bit products
+  are its MUL instructions (:data:`C_ARITHMETIC`).
 * **Tables.** What varies in time (a setpoint, a duty schedule, a program's valve states) is a
   table computed here, in Python, once, from the scenario's own functions, and read by both
   twins: the value at sample k is ``T[min(k, n - 1)]`` (after the table ends its last entry
   holds; a table ends at its last change, :func:`trimmed`, and at the latest at the run's last
   sample). Tables are int32, in flash on the board (FS_TABLE); the run's tables must fit the
   64 KB of flash the AVR's LPM instruction reaches (:data:`TABLE_BYTES_MAX`).
+* **Sines.** A sine setpoint is generated instead, by both twins alike, from a sine block in the
+  law's parameters (:func:`sine_params`, :func:`frogsim.control.signals.fw_sine`, the C
+  ``fs_sine``): a 32-bit phase accumulator and a 1024-entry int16 sine table in flash,
+  interpolated; within one Q4 count of the closed form (see :func:`sine_params`), and no table
+  that grows with the run.
 
 A row's firmware block (after its knots, from column ``laws[c, L_FW]``) is
 ``[len(P), len(T), P..., T...]``: the kind's integer parameters P (in RAM on the board) and its
@@ -38,12 +46,13 @@ import math
 import numpy as np
 
 from frogsim.components import atmega2560 as chip
-from frogsim.control.signals import setpoint
+from frogsim.control.signals import FW_SINE, SINE_BITS, SINE_N, SINE_ONE, SN_SIZE, setpoint
 from frogsim.control.table import (L_FAULT_AHI, L_FAULT_ALO, L_FAULT_MODE, L_FAULT_N, L_FAULT_PHI,
                                    L_FAULT_PLO, L_INJ_A_AT, L_INJ_A_COUNT, L_INJ_P_AT, L_INJ_P_COUNT, L_JOINT1,
                                    L_MUSCLE)
-from frogsim.control.table import (L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0, L_ADC_V0,
-                                   L_ADC_VREF, L_FW, L_SP_KIND, SP_CONSTANT)
+from frogsim.control.table import (L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0,
+                                   L_ADC_V0, L_ADC_VREF, L_FW, L_SP_A, L_SP_B, L_SP_C, L_SP_D, L_SP_KIND,
+                                   SP_CONSTANT, SP_SINE)
 from frogsim.scenario.firmware import ENCODER_ZERO, sensed_signals
 
 Q4 = 16                 # sixteenths of a count
@@ -261,8 +270,187 @@ def c_array(name: str, values, flash: bool) -> str:
     return f"static const int32_t {name}[{len(vals)}]{' FS_TABLE' if flash else ''} = {{{body}}};\n"
 
 
-#: C shared by every law: the table read and the relay (twins of signals.fw_at and fw_relay)
-C_COMMON = """static int32_t fs_at(const int32_t *T, uint32_t k, int32_t n) {
+def _uint32_as_int32(v: int) -> int:
+    """A uint32 (turns x 2^32) as the int32 that holds its bits, -2^31 moved to -2^31 + 1 (a
+    parameter is at most 2^31 - 1 in magnitude, :func:`with_block`: 2^-32 of a turn)."""
+    v %= 2**32
+    v = v - 2**32 if v >= 2**31 else v
+    return max(v, -INT32_MAX)
+
+
+NO_SINE = [-1] + [0] * (SN_SIZE - 1)     # a sine block that says "no sine: the table"
+
+
+def sine_block(row: np.ndarray, sc, line: tuple, full: int, offset: float, rate_unit: float):
+    """The integer sine generator's parameters (:func:`sine_params`) for a row whose setpoint is a
+    sine, or None (another kind of setpoint, or a sine the generator cannot hold: it is then
+    tabulated). The setpoint is read on the sensor ``line`` (its value less ``offset``: the
+    atmosphere for a pressure) in Q4 counts; its rate in Q4 counts per second times
+    ``rate_unit`` (the joint-angle law's Q12 counts per sample: dt 256)."""
+    if row[L_SP_KIND] != SP_SINE:
+        return None
+    fw = sc.firmware
+    mean, amp, f, start = (float(row[L_SP_A]), float(row[L_SP_B]), float(row[L_SP_C]), float(row[L_SP_D]))
+    return sine_params(Q4 * float(real_count(line, fw, mean - offset, full)), amp * q4_per_unit(line, fw, full),
+                       f, start, float(sc.controller.rate), rate_unit)
+
+
+SINE_AMP_MAX = 8191.0       # [Q4 counts] the largest amplitude the generator holds (the 10-bit range's half)
+
+
+def sine_params(m: float, a: float, f: float, start: float, rate: float, rate_unit: float):
+    """The sine block (slots SN_* of :mod:`frogsim.control.signals`, read by ``fw_sine`` and the C
+    ``fs_sine``) of the setpoint m + a sin(2 pi f (t - start)) from t = start, m before
+    (m and a in Q4 counts as real numbers, f [Hz], start [s]) sampled at t_k = k / rate, its rate
+    in Q4 counts per second times ``rate_unit``; None if the generator cannot hold it: an
+    amplitude above SINE_AMP_MAX or below 0, a rate amplitude of 2^16 units or more (the
+    joint-angle law: 16 counts per sample), a mean beyond 2^30 or a start after sample 2^31 - 1.
+
+    k0 is the first sample with k dt >= start (dt = 1 / rate, in the floating point of the
+    float setpoint, :func:`frogsim.control.signals.setpoint`); the phase there is
+    f (k0 dt - start) turns, rounded to 2^-32 turn, and each sample adds dphi = round(f dt 2^32)
+    turns / 2^32 (the frequency is within 2^-33 / dt of f). The value's error against the
+    closed form, in Q4 counts, is at most 1/2 (the rounding) + 1/8 (the amplitude's quarters)
+    + 2^-18 (the mean) + a 1.16 / 32767 (the table's and the interpolation's roundings and the
+    interpolation's curvature, (2 pi / SINE_N)^2 / 8 of SINE_ONE) + a 2 pi (64.5 + |k - k0| / 2)
+    / 2^32 (the phase: the 6 bits below the interpolation, the rounding of the phase at k0, the
+    step's rounding): below 0.98 for a <= SINE_AMP_MAX over 10^4 samples (10 s at 1 kHz); the
+    step's error adds a pi / 2^32 (7.3e-10 a) per sample after that."""
+    if not (0.0 <= a <= SINE_AMP_MAX and f > 0.0):
+        return None
+    dt = 1.0 / rate
+    A = int(math.floor(4.0 * a * 32768.0 / SINE_ONE + 0.5))
+    R = int(math.floor(a * 2.0 * math.pi * f * rate_unit * 32768.0 / SINE_ONE + 0.5))
+    k0 = max(0, int(math.ceil(start * rate)))
+    while k0 > 0 and (k0 - 1) * dt >= start:
+        k0 -= 1
+    while k0 * dt < start:
+        k0 += 1
+    W = int(math.floor(m * 2**17 + 0.5)) + 2**16          # the mean in 2^-17 units, plus a half
+    if A >= 2**15 or R >= 2**16 or k0 > INT32_MAX or abs(W >> 17) > 2**30:
+        return None
+    dphi = int(math.floor(f / rate * 2**32 + 0.5))
+    phi_k0 = int(math.floor(f * (k0 * dt - start) * 2**32 + 0.5))
+    return [k0, _uint32_as_int32(phi_k0 - k0 * dphi), _uint32_as_int32(dphi), W >> 17, W & (2**17 - 1), A, R]
+
+
+#: 16 x 16 -> 32 bit products and the top 10 bits of a uint32, for the laws' C. avr-gcc (5.4, -Os)
+#: compiles a product of two 16-bit halves of 32-bit values as its full 32-bit multiply (__mulsi3,
+#: about 100 cycles with its calls) and a 32-bit shift by n bits as a loop of n passes (6 to 8 cycles
+#: each), so on the AVR the products are the chip's MUL, MULS and MULSU in a few lines of inline
+#: assembly (about 20 cycles; the schoolbook sum of four 8 x 8 products, as Atmel's application
+#: note AVR201 writes it) and the shifts are whole bytes; elsewhere (the tests' host build) plain C.
+#: The tests check the AVR build against the Numba twins on the emulated chip
+#: (tests/test_firmware_laws_avr.py).
+C_ARITHMETIC = r"""#if defined(__GNUC__)
+#define FS_INLINE static inline __attribute__((always_inline))
+#define FS_COLD static __attribute__((noinline))
+#else
+#define FS_INLINE static inline
+#define FS_COLD static
+#endif
+#if defined(__AVR_HAVE_MUL__)
+FS_INLINE int32_t fs_mulss(int16_t a, int16_t b) {
+    int32_t r;
+    uint8_t z;
+    __asm__ ("clr %[z]\n\t"
+             "muls %B[a], %B[b]\n\t" "movw %C[r], r0\n\t"
+             "mul %A[a], %A[b]\n\t" "movw %A[r], r0\n\t"
+             "mulsu %B[a], %A[b]\n\t" "sbc %D[r], %[z]\n\t" "add %B[r], r0\n\t" "adc %C[r], r1\n\t"
+             "adc %D[r], %[z]\n\t"
+             "mulsu %B[b], %A[a]\n\t" "sbc %D[r], %[z]\n\t" "add %B[r], r0\n\t" "adc %C[r], r1\n\t"
+             "adc %D[r], %[z]\n\t"
+             "clr __zero_reg__"
+             : [r] "=&r" (r), [z] "=&r" (z) : [a] "a" (a), [b] "a" (b) : "r0");
+    return r;
+}
+
+FS_INLINE int32_t fs_mulsu(int16_t a, uint16_t b) {
+    int32_t r;
+    uint8_t z;
+    __asm__ ("clr %[z]\n\t"
+             "mulsu %B[a], %B[b]\n\t" "movw %C[r], r0\n\t"
+             "mul %A[a], %A[b]\n\t" "movw %A[r], r0\n\t"
+             "mulsu %B[a], %A[b]\n\t" "sbc %D[r], %[z]\n\t" "add %B[r], r0\n\t" "adc %C[r], r1\n\t"
+             "adc %D[r], %[z]\n\t"
+             "mul %A[a], %B[b]\n\t" "add %B[r], r0\n\t" "adc %C[r], r1\n\t" "adc %D[r], %[z]\n\t"
+             "clr __zero_reg__"
+             : [r] "=&r" (r), [z] "=&r" (z) : [a] "a" (a), [b] "a" (b) : "r0");
+    return r;
+}
+
+FS_INLINE uint32_t fs_muluu(uint16_t a, uint16_t b) {
+    uint32_t r;
+    uint8_t z;
+    __asm__ ("clr %[z]\n\t"
+             "mul %B[a], %B[b]\n\t" "movw %C[r], r0\n\t"
+             "mul %A[a], %A[b]\n\t" "movw %A[r], r0\n\t"
+             "mul %B[a], %A[b]\n\t" "add %B[r], r0\n\t" "adc %C[r], r1\n\t" "adc %D[r], %[z]\n\t"
+             "mul %A[a], %B[b]\n\t" "add %B[r], r0\n\t" "adc %C[r], r1\n\t" "adc %D[r], %[z]\n\t"
+             "clr __zero_reg__"
+             : [r] "=&r" (r), [z] "=&r" (z) : [a] "r" (a), [b] "r" (b) : "r0");
+    return r;
+}
+#else
+FS_INLINE int32_t fs_mulss(int16_t a, int16_t b) { return (int32_t)a * b; }
+FS_INLINE int32_t fs_mulsu(int16_t a, uint16_t b) { return (int32_t)a * (int32_t)b; }
+FS_INLINE uint32_t fs_muluu(uint16_t a, uint16_t b) { return (uint32_t)a * b; }
+#endif
+
+/* x >> 22 from its two top bytes */
+FS_INLINE uint16_t fs_top10(uint32_t x) {
+    return (uint16_t)(((uint16_t)(uint8_t)(x >> 24) << 2) | ((uint8_t)(x >> 16) >> 6));
+}
+"""
+
+
+def _c_sine() -> str:
+    """The sine table and fs_sine, the C twin of :func:`frogsim.control.signals.fw_sine` (the same
+    integers: k dphi mod 2^32 from 16-bit products, the shifts by 6, 15, 17 and 22 as whole bytes:
+    floor(x / 2^15) = 2 floor(x / 2^16) + bit 15 of x, floor(x / 2^17) = floor(floor(x / 2^16) / 2))."""
+    body = ",".join(str(int(v)) for v in FW_SINE)
+    assert SINE_BITS == 10              # fs_top10 and the fraction's bytes below
+    return f"""/* {SINE_ONE} sin(2 pi i / {SINE_N}): the sine generator's table (frogsim.control.signals.FW_SINE) */
+static const int16_t fs_sine_table[{SINE_N}] FS_TABLE = {{{body}}};
+
+/* The sine block S's setpoint at sample k (twin of frogsim.control.signals.fw_sine): its value,
+ * its rate in *rate (unless rate is 0: a law that reads no rate). Before S[0], the mean; then phase
+ * phi = S[1] + k S[2] (mod 2^32), the table interpolated over phi's 16 bits below its index, the
+ * cosine at the nearest entry. */
+int32_t fs_sine(uint32_t k, const int32_t *S, int32_t *rate) {{
+    uint32_t phi;
+    uint16_t klo = (uint16_t)k, khi = (uint16_t)(k >> 16);
+    uint16_t dlo = (uint16_t)S[2], dhi = (uint16_t)((uint32_t)S[2] >> 16), i, frac;
+    int16_t s0, s, c;
+    int32_t y;
+    if (k < (uint32_t)S[0]) {{
+        if (rate) *rate = 0;
+        return S[3];
+    }}
+    /* k S[2] mod 2^32 = klo dlo + ((klo dhi + khi dlo) mod 2^16) 2^16 */
+    phi = (uint32_t)S[1] + fs_muluu(klo, dlo)
+          + ((uint32_t)(uint16_t)((unsigned)klo * dhi + (unsigned)khi * dlo) << 16);
+    i = fs_top10(phi);
+    frac = (uint16_t)(((uint16_t)(phi >> 8) << 2) | ((uint8_t)phi >> 6));       /* phi >> 6, mod 2^16 */
+    s0 = (int16_t)FS_READ16(&fs_sine_table[i]);
+    s = (int16_t)FS_READ16(&fs_sine_table[(i + 1) & {SINE_N - 1}]);
+    s = (int16_t)(s0 + (int16_t)((fs_mulsu((int16_t)(s - s0), frac) + 32768L) >> 16));
+    if (rate) {{
+        c = (int16_t)FS_READ16(&fs_sine_table[fs_top10(phi + {(1 << 30) + (1 << (31 - SINE_BITS))}UL)]);
+        y = fs_mulsu(c, (uint16_t)S[6]) + 16384L;
+        *rate = (y >> 16) * 2 + ((uint16_t)y >> 15);
+    }}
+    return S[3] + ((int16_t)((fs_mulsu(s, (uint16_t)(S[5] & 0x7FFF)) + (S[4] & 0x1FFFFL)) >> 16) >> 1);
+}}
+"""
+
+
+#: C shared by every law: the arithmetic, the table read, the relay and the sine generator (twins
+#: of signals.fw_at, fw_relay and fw_sine)
+C_COMMON = C_ARITHMETIC + """
+int32_t fs_sine(uint32_t k, const int32_t *S, int32_t *rate);
+
+static int32_t fs_at(const int32_t *T, uint32_t k, int32_t n) {
     return (int32_t)FS_READ32(&T[k < (uint32_t)n ? k : (uint32_t)(n - 1)]);
 }
 
@@ -271,7 +459,8 @@ static int8_t fs_relay(int32_t cq, int32_t target, int32_t half_band) {
     if (cq > target + half_band) return -1;
     return 0;
 }
-"""
+
+""" + _c_sine()
 
 
 def clamp32(x):

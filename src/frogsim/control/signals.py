@@ -244,6 +244,60 @@ def fw_relay(cq, target, half_band):
     return 0
 
 
+# --- the firmware's sine setpoint generator (both twins; the C twin is fs_sine in fixed.C_COMMON) -----
+SINE_BITS = 10
+SINE_N = 1 << SINE_BITS      # entries of the firmware's sine table: one full turn, 2 KB of int16 in flash
+SINE_ONE = 32767             # the table's 1.0 (so that +-1 fit int16; the amplitudes carry 32768 / 32767)
+
+
+def _sine_table() -> np.ndarray:
+    """SINE_ONE sin(2 pi i / SINE_N), rounded: the firmware's sine table."""
+    i = np.arange(SINE_N)
+    return np.floor(SINE_ONE * np.sin(2.0 * np.pi * i / SINE_N) + 0.5).astype(np.int64)
+
+
+FW_SINE = _sine_table()
+# a sine block: SN_SIZE parameters of a law's P (frogsim.control.fixed.sine_block); SN_K0 < 0: none
+SN_K0 = 0        # the first sample of the sine (t_k >= start); before it the mean, rate 0
+SN_PHI0 = 1      # the phase at sample 0, extended back from k0 (turns x 2^32, uint32 held as int32)
+SN_DPHI = 2      # the phase step per sample, round(f / rate 2^32) (uint32 held as int32)
+SN_MEAN = 3      # the mean, rounded to the law's unit (Q4 counts)
+SN_FRAC = 4      # the mean's remainder below that unit plus one half, in 2^-17 units (0..2^17 - 1)
+SN_AMP = 5       # the amplitude in quarters of the unit, times 32768 / SINE_ONE (0..2^15 - 1)
+SN_RATE = 6      # the rate's amplitude (amplitude x 2 pi f in the law's rate unit) x 32768 / SINE_ONE
+                 # (0..2^16 - 1)
+SN_SIZE = 7
+MASK32 = 0xFFFFFFFF
+
+
+@jit
+def fw_sine(P, at, k):
+    """The integer sine setpoint at sample k from the sine block P[at:at + SN_SIZE]: (value, rate).
+
+    Before the block's first sample k0: (mean, 0). From it the phase is a 32-bit accumulator,
+    phi = (phi0 + k dphi) mod 2^32 (the turn is 2^32; exact in both twins: uint32 in C, here
+    masked, with the product split in 16-bit halves so that it stays below 2^63); the sine is
+    the table's entry at phi's top SINE_BITS bits linearly interpolated over its next 16 bits,
+    s = S[i] + ((S[i + 1] - S[i]) frac + 2^15) >> 16 (1.0 = SINE_ONE), the value
+    mean + (amp s + frac_mean) >> 17 (amp in quarters, frac_mean holding the mean's remainder and
+    the rounding half), the rate (R c + 2^14) >> 15 with c the table's entry nearest a quarter
+    turn ahead (the cosine). Amplitudes are masked to their widths (15 and 16 bits) and the
+    mean's remainder to 17 bits in both twins, so no sum leaves int32."""
+    k = k & MASK32
+    if k < (int(P[at + SN_K0]) & MASK32):
+        return int(P[at + SN_MEAN]), 0
+    d = int(P[at + SN_DPHI]) & MASK32
+    phi = (int(P[at + SN_PHI0]) + k * (d & 0xFFFF) + (((k * (d >> 16)) & 0xFFFF) << 16)) & MASK32
+    i = phi >> (32 - SINE_BITS)
+    frac = (phi >> (16 - SINE_BITS)) & 0xFFFF
+    s0 = FW_SINE[i]
+    s = s0 + (((FW_SINE[(i + 1) & (SINE_N - 1)] - s0) * frac + 32768) >> 16)
+    sp = int(P[at + SN_MEAN]) + (((int(P[at + SN_AMP]) & 0x7FFF) * s + (int(P[at + SN_FRAC]) & 0x1FFFF)) >> 17)
+    c = FW_SINE[((phi + (1 << 30) + (1 << (31 - SINE_BITS))) & MASK32) >> (32 - SINE_BITS)]
+    rate = ((int(P[at + SN_RATE]) & 0xFFFF) * c + 16384) >> 15
+    return sp, rate
+
+
 # --- the relay the laws share ---------------------------------------------------------------------------
 @jit
 def bang_bang(p, sp, band):

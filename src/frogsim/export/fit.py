@@ -26,7 +26,7 @@ from frogsim.components import atmega2560 as chip
 from frogsim.errors import ScenarioError
 
 #: AVR cycles per call of each kind's law, the largest measured (benchmarks/bench_fw_laws.py)
-LAW_CYCLES = {"program": 140, "bang_bang": 180, "pwm": 1130, "sliding_mode": 2360, "joint_angle": 1560}
+LAW_CYCLES = {"program": 140, "bang_bang": 500, "pwm": 1150, "sliding_mode": 2340, "joint_angle": 2180}
 #: the control interrupt's own cycles: entry and exit, the busy pin, the encoders' copy, the call
 #: of frogsim_sample, the log record's bookkeeping (measured: an interrupt with one program law
 #: and no channel, less the law)

@@ -10,7 +10,8 @@ import numpy as np
 from frogsim._jit import jit
 from frogsim.control import fixed
 from frogsim.control.kinds.common import SensedLoop
-from frogsim.control.signals import B_PHASE, B_PULSE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, fw_at, setpoint
+from frogsim.control.signals import (B_PHASE, B_PULSE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, fw_at, fw_sine,
+                                     setpoint)
 from frogsim.control.table import (DUTY_CLOSED, DUTY_SCHEDULED, L_DUTY, L_MINPULSE_N, L_PBAND, L_PERIOD_N,
                                    L_REST, valve_row, with_setpoint)
 from frogsim.errors import MISSING, ScenarioError
@@ -96,15 +97,16 @@ class PwmSettings(SensedLoop):
     def firmware_row(self, row, name: str, ctx):
         """The integer twin's block: P = [N, how (0 closed loop, 1 a duty, 2 a duty schedule),
         the constant duty's pulse round(duty N), the proportional band (Q4 counts), the minimum
-        pulse (samples), 1 to vent between open-loop pulses, the table's length]; T = the setpoint
-        at each sample (Q4 counts, closed loop) or the schedule's pulse round(duty N) at each
-        sample (open loop)."""
+        pulse (samples), 1 to vent between open-loop pulses, the table's length, the sine block
+        (:func:`frogsim.control.fixed.sine_block`: a closed loop's sine setpoint is generated)];
+        T = the setpoint at each sample (Q4 counts, closed loop, unless generated) or the
+        schedule's pulse round(duty N) at each sample (open loop)."""
         sc = ctx.sc
         fw = sc.firmware
         full = fixed.adc_full(sc)
         line = fixed.pressure_volts(fw)
         N = int(row[L_PERIOD_N])
-        how, n_const, T = 0, 0, [0]
+        how, n_const, T, sine = 0, 0, [0], fixed.NO_SINE
         pband = max(1, int(round(self.proportional_band * fixed.q4_per_unit(line, fw, full))))
         if self.duty is not None:
             how, n_const = 1, int(math.floor(self.duty * N + 0.5))
@@ -113,14 +115,17 @@ class PwmSettings(SensedLoop):
             duty, _ = fixed.setpoint_series(row, sc, 0.0)
             T, = fixed.trimmed(np.floor(duty * N + 0.5).astype(np.int64))
         else:
-            sp, _ = fixed.setpoint_series(row, sc, ctx.patm)
-            T, = fixed.trimmed(fixed.q4(line, fw, sp, full))
+            sine = fixed.sine_block(row, sc, line, full, ctx.patm, 0.0)
+            if sine is None:
+                sp, _ = fixed.setpoint_series(row, sc, ctx.patm)
+                T, = fixed.trimmed(fixed.q4(line, fw, sp, full))
+                sine = fixed.NO_SINE
             if (2 * N + 1) * pband > fixed.INT32_MAX:
                 raise ScenarioError(f"controllers.{name}.frequency", f"{self.frequency:g} Hz",
                                     f"with [firmware] a closed-loop pwm's period of {N} samples times its "
                                     f"proportional band ({pband} sixteenths of a count) must stay below 2^30 "
                                     "(int32 on the board): raise the frequency or narrow the band")
-        P = [N, how, n_const, pband, int(row[L_MINPULSE_N]), 1 if self.rest == "vent" else 0, len(T)]
+        P = [N, how, n_const, pband, int(row[L_MINPULSE_N]), 1 if self.rest == "vent" else 0, len(T)] + list(sine)
         return fixed.firmware_row(row, sc, P, T)
 
 
@@ -181,14 +186,18 @@ def pwm_mode(laws, c, cs, b, p, sp):
     return MODE_HOLD
 
 
+P_SINE = 7      # P[P_SINE:P_SINE + SN_SIZE]: the sine block of a closed loop's setpoint (< 0: the table)
+SINE = True     # the C twin calls the sine generator (its table is linked)
+
+
 @jit
 def fw_law(P, T, mem, k, cp, ca):
     """The integer twin of :func:`pwm_mode`: mem[0] the sample's place in the period, mem[1] this
     period's pulse in samples (sign: charge +, vent -). At a period's first sample the pulse is
     the constant's, the schedule's table entry, or round(min(|e| / band, 1) N) =
     (2 |e| N + band) / (2 band) (whole-number division of non-negative numbers: the same in C)
-    with e = setpoint - (16 cp + 8) in Q4 counts; pulses shorter than the minimum are dropped,
-    gaps shorter than it filled."""
+    with e = setpoint - (16 cp + 8) in Q4 counts (the setpoint from the sine block or the table);
+    pulses shorter than the minimum are dropped, gaps shorter than it filled."""
     N = int(P[0])
     how = int(P[1])
     phase = int(mem[0])
@@ -199,7 +208,11 @@ def fw_law(P, T, mem, k, cp, ca):
         elif how == 2:
             n_on = fw_at(T, k, int(P[6]))
         else:
-            e = fw_at(T, k, int(P[6])) - (16 * cp + 8)
+            if P[P_SINE] >= 0:
+                sp, _ = fw_sine(P, P_SINE, k)
+            else:
+                sp = fw_at(T, k, int(P[6]))
+            e = sp - (16 * cp + 8)
             if e < 0:
                 sign = -1
                 e = -e
@@ -235,7 +248,8 @@ def c_source() -> str:
         } else if (how == 2) {
             n_on = fs_at(T, k, P[6]);
         } else {
-            int32_t e = fs_at(T, k, P[6]) - ((int32_t)cp * 16 + 8), pb = P[3];
+            int32_t e = (P[7] >= 0 ? fs_sine(k, &P[7], 0) : fs_at(T, k, P[6])) - ((int32_t)cp * 16 + 8);
+            int32_t pb = P[3];
             if (e < 0) { sign = -1; e = -e; }
             n_on = e >= pb ? N : (2 * e * N + pb) / (2 * pb);
         }

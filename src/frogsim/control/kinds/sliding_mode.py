@@ -11,7 +11,7 @@ from frogsim._jit import jit
 from frogsim.circuit.layout import M_CB, M_CC, M_CM, M_CRL, M_DB, M_DC, M_DM, M_DRL, M_SIZE, Y_PE, Y_PS
 from frogsim.control import fixed
 from frogsim.control.kinds.common import PressureTracking
-from frogsim.control.signals import B_MODE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, fw_at, setpoint
+from frogsim.control.signals import B_MODE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, fw_at, fw_sine, setpoint
 from frogsim.control.table import (L_BRANCH, L_DEAD_C, L_DEAD_D, L_GAIN, L_HORIZON, L_MUSCLE, L_PENALTY,
                                    L_RHOREF, L_TAMB, L_TREF, valve_row, with_setpoint)
 from frogsim.physics.flow import iso6358_mass_flow
@@ -43,23 +43,26 @@ class SlidingModeSettings(PressureTracking):
 
 
 SHIFT = 20              # the dead time and the horizon in Q20 seconds (2^-20 s, about 1 us)
+P_SINE = 5              # P[P_SINE:P_SINE + SN_SIZE]: the sine block (P[P_SINE] < 0: the tables)
+SINE = True             # the C twin calls the sine generator (its table is linked)
 S_MAX = 16383           # |s| is clipped here (Q4 counts) so that s^2 + rho^2 fits int32
 RATE_MAX = 2**24        # [Q4 counts/s] table entries are clipped here
 
 
 def firmware_row(row, ctx):
     """The integer twin's block. P = [dead time (Q20 s), horizon lambda (Q20 s), rho^2 (Q4
-    counts squared, rho clipped to S_MAX), setpoint table length n, 2^bits]; T = the setpoint
-    (Q4 counts) at each sample, its rate (Q4 counts/s) at each sample, then per count c the
-    rates under charge and under vent (Q4 counts/s): the valve model :func:`mode_rates` at the
-    pressure in the middle of count c, with the source and the exhaust at their starting
-    pressures (the firmware measures neither), computed here for both twins."""
+    counts squared, rho clipped to S_MAX), setpoint table length n, 2^bits, the sine block
+    (:func:`frogsim.control.fixed.sine_block`: a sine setpoint is generated, n = 0)]; T = the
+    setpoint (Q4 counts) at each sample and its rate (Q4 counts/s) at each sample (n of each;
+    none for a generated sine), then per count c the rates under charge and under vent (Q4
+    counts/s): the valve model :func:`mode_rates` at the pressure in the middle of count c, with
+    the source and the exhaust at their starting pressures (the firmware measures neither),
+    computed here for both twins."""
     sc = ctx.sc
     fw = sc.firmware
     full = fixed.adc_full(sc)
     line = fixed.pressure_volts(fw)
     per_pa = fixed.q4_per_unit(line, fw, full)
-    sp, dsp = fixed.setpoint_series(row, sc, ctx.patm)
     laws = np.ascontiguousarray(row[None, :])
     i = int(row[L_MUSCLE])
     mp = np.zeros((i + 1, M_SIZE))
@@ -81,9 +84,15 @@ def firmware_row(row, ctx):
         rv[c] = int(np.clip(np.floor(r_v * per_pa + 0.5), -RATE_MAX, RATE_MAX))
     dead = max(row[L_DEAD_C], row[L_DEAD_D])
     rho = min(int(round(row[L_PENALTY] * per_pa)), S_MAX)
-    sp_q, dsp_q = fixed.trimmed(fixed.q4(line, fw, sp, full),
-                                np.clip(np.floor(dsp * per_pa + 0.5), -RATE_MAX, RATE_MAX).astype(np.int64))
-    P = [int(round(dead * 2**SHIFT)), int(round(row[L_HORIZON] * 2**SHIFT)), rho * rho, sp_q.size, full]
+    sine = fixed.sine_block(row, sc, line, full, ctx.patm, 1.0)
+    if sine is None:
+        sp, dsp = fixed.setpoint_series(row, sc, ctx.patm)
+        sp_q, dsp_q = fixed.trimmed(fixed.q4(line, fw, sp, full),
+                                    np.clip(np.floor(dsp * per_pa + 0.5), -RATE_MAX, RATE_MAX).astype(np.int64))
+        sine = fixed.NO_SINE
+    else:
+        sp_q = dsp_q = np.zeros(0, np.int64)
+    P = [int(round(dead * 2**SHIFT)), int(round(row[L_HORIZON] * 2**SHIFT)), rho * rho, sp_q.size, full] + list(sine)
     T = np.concatenate([sp_q, dsp_q, rc, rv])
     return fixed.firmware_row(row, sc, P, T)
 
@@ -151,12 +160,17 @@ def fw_law(P, T, mem, k, cp, ca):
     """The integer twin of :func:`sliding_mode` in Q4 counts (mem[0]: the mode last chosen):
     e = sp - (16 cp + 8) + (dead (dsp - r_last)) >> 20, s(m) = e + (lambda (dsp - r_m)) >> 20
     (products in int64, arithmetic shifts: floor in both twins), s clipped to +-S_MAX, the mode
-    minimising s^2 + rho^2 [m opens a valve the last mode kept shut]; ties go to hold, then charge."""
+    minimising s^2 + rho^2 [m opens a valve the last mode kept shut]; ties go to hold, then charge.
+    The setpoint and its rate come from the sine block (:func:`frogsim.control.signals.fw_sine`)
+    or the tables."""
     n = int(P[3])
     full = int(P[4])
     cq = 16 * cp + 8
-    sp = fw_at(T, k, n)
-    dsp = int(T[n + (k if k < n else n - 1)])
+    if P[P_SINE] >= 0:
+        sp, dsp = fw_sine(P, P_SINE, k)
+    else:
+        sp = fw_at(T, k, n)
+        dsp = int(T[n + (k if k < n else n - 1)])
     rc = int(T[2 * n + cp])
     rv = int(T[2 * n + full + cp])
     last = int(mem[0])
@@ -186,10 +200,14 @@ def c_source() -> str:
     return """int8_t fs_sliding_mode(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P,
                        const int32_t *T) {
     int32_t n = P[3], full = P[4];
-    int32_t cq = (int32_t)cp * 16 + 8;
-    uint32_t kk = k < (uint32_t)n ? k : (uint32_t)(n - 1);
-    int32_t sp = (int32_t)FS_READ32(&T[kk]);
-    int32_t dsp = (int32_t)FS_READ32(&T[n + kk]);
+    int32_t cq = (int32_t)cp * 16 + 8, sp, dsp;
+    if (P[5] >= 0) {
+        sp = fs_sine(k, &P[5], &dsp);
+    } else {
+        uint32_t kk = k < (uint32_t)n ? k : (uint32_t)(n - 1);
+        sp = (int32_t)FS_READ32(&T[kk]);
+        dsp = (int32_t)FS_READ32(&T[n + kk]);
+    }
     int32_t rc = (int32_t)FS_READ32(&T[2 * n + cp]);
     int32_t rv = (int32_t)FS_READ32(&T[2 * n + full + cp]);
     int32_t last = mem[0];
