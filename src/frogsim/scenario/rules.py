@@ -154,11 +154,29 @@ def check_controllers(sc: Scenario) -> None:
             raise _err(f"{path}.settle", c, "settle", f"must be shorter than the run (duration "
                                                      f"{sc.duration:g} s): the metrics count from it on")
         c.check(sc, path, p_top)
+        if c.kind == "pwm":
+            _check_pwm_period(sc, c, path)
     for mname, m in sc.muscles.items():
         if not m.program.steps and mname not in driven:
             raise ScenarioError(f"muscles.{mname}.program", MISSING,
                                 "required setting is missing (or put the muscle under a closed-loop "
                                 "[controllers] section)")
+
+
+def _check_pwm_period(sc: Scenario, c, path: str) -> None:
+    """A PWM's period must lie within the run (a longer one never ends its first pulse); with the
+    kind's own checks (at least twice the larger valve dead time, the valves' switching time, and
+    two controller samples) the message names the whole allowed range."""
+    period = 1.0 / c.frequency
+    if period <= sc.duration:
+        return
+    dead = max(sc.valves.charge.dead_time, sc.valves.discharge.dead_time)
+    hi = min(sc.controller.rate / 2.0, 1.0 / (2.0 * dead) if dead > 0 else float("inf"),
+             _meta(c, "frequency")["le"])
+    raise err(f"{path}.frequency", c, "frequency",
+              f"its period {period:g} s must lie within the run (duration {sc.duration:g} s): allowed "
+              f"{1.0 / sc.duration:g} Hz to {hi:g} Hz (the top: a period of at least twice the valve dead "
+              f"time, {dead * 1e3:g} ms, and two controller samples)")
 
 
 def check_pressure_setpoint(sc: Scenario, sp, path: str, p_top: float) -> None:

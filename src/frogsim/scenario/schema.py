@@ -15,6 +15,7 @@ from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, 
                                      unwrap)
 from frogsim.errors import MISSING, ScenarioError, Shown
 from frogsim.scenario.files import read_text
+from frogsim.components.atmega2560 import conversion_time
 from frogsim.physics.heat import cylinder_wall_area
 from frogsim.physics.muscle import braid_parameters, muscle_volume
 
@@ -30,13 +31,18 @@ MIN_BRAID_ANGLE = math.atan(1e-4)    # 0.0057 deg
 # near 80 K at 1 bar, and its c_p rises well before) to about 1000 K (c_p up by 10 % and k down to
 # 1.34 there, dissociation and the tubes' plastics long before); outside it the model's constant
 # R and k mean nothing
+# the controller is the Arduino Mega's loop (paper, Sec. 4): each sample reads a sensor, and one
+# ADC conversion takes 13 ADC clocks, at the fastest recommended ADC clock (1 MHz, 16 MHz / 16)
+# 13 µs: 76.9 kHz at most ([firmware] checks the whole plan against the real budget)
+CONTROLLER_RATE_MAX = 1.0 / conversion_time(16)
 TEMPERATURE_MIN = 150.0
 TEMPERATURE_MAX = 1000.0
 
 
 def gas_temperature(doc: str = "", **kw):
     """A gas or wall temperature [K], within TEMPERATURE_MIN to TEMPERATURE_MAX."""
-    return quantity("temperature", ge=TEMPERATURE_MIN, le=TEMPERATURE_MAX, display="K", doc=doc, **kw)
+    return quantity("temperature", ge=TEMPERATURE_MIN, le=TEMPERATURE_MAX, display="K", doc=doc,
+                    why="where air is an ideal gas of constant R and k, as the model has it", **kw)
 
 
 def gauge_pressure(doc: str = "", default=None):
@@ -402,8 +408,13 @@ class Muscle:
 
 @dataclass(frozen=True)
 class Controller:
-    """The microcontroller loop that samples commands: valve states change only at its samples."""
-    rate: float = quantity("frequency", gt=0.0, le=1e6, display="Hz", default=1000.0)
+    """The microcontroller loop that samples commands: valve states change only at its samples.
+
+    Its rate is at most CONTROLLER_RATE_MAX, the board's: the loop reads its sensors each sample,
+    and one conversion of the ATmega2560's ADC at its fastest recommended clock takes 13 µs."""
+    rate: float = quantity("frequency", gt=0.0, le=CONTROLLER_RATE_MAX, display="Hz", default=1000.0,
+                           why="the board's loop reads a sensor each sample, and one ADC conversion takes 13 µs "
+                               "(13 clocks at the fastest recommended ADC clock, 1 MHz)")
 
 
 @dataclass(frozen=True)
