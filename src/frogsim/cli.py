@@ -56,6 +56,11 @@ def _err(msg: str, code: int) -> int:
     return code
 
 
+def _count(n: int, noun: str, plural: str | None = None) -> str:
+    """"1 point", "2 points" (``plural`` for a noun that is not made with an s)."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
+
 def _progress(msg: str) -> None:
     """A progress message on stderr (none with --quiet; warnings use _warn)."""
     if not _QUIET:
@@ -583,14 +588,21 @@ def cmd_sweep(args) -> int:
     from frogsim._files import out_file
     from frogsim.sweep.spec import load_spec
     out_file(args.out, ".nc")
+    _seconds("--connect-timeout", args.connect_timeout)
     t0 = time.perf_counter()
     spec = load_spec(args.spec)
     for note in spec.notes:
         _progress(f"note: {note}")
     ds = run_sweep(spec, out=args.out, workers=args.workers, scheduler=args.scheduler,
                    progress=not args.quiet, overwrite=args.overwrite, connect_timeout=args.connect_timeout)
-    n, failed = ds.attrs["n_points"], ds.attrs["n_failed"]
-    _progress(f"{n} points in {time.perf_counter() - t0:.2f} s -> {args.out}")
+    n, failed, read = ds.attrs["n_points"], ds.attrs["n_failed"], ds.attrs.get("n_points_read", 0)
+    took = f"{time.perf_counter() - t0:.2f} s"
+    if read >= n:
+        _progress(f"all {_count(n, 'point')} already done in {args.out}: nothing run ({took})")
+    elif read:
+        _progress(f"{_count(n - read, 'point')} run in {took}, {read} read from the earlier run -> {args.out}")
+    else:
+        _progress(f"{_count(n, 'point')} in {took} -> {args.out}")
     if failed:
         first = next(iter(json.loads(ds.attrs["failures"]).values()), "")
         _warn(f"{failed} points failed (their metrics are NaN); first: {first}")
@@ -725,7 +737,7 @@ FLAGS = {
                 "decision at the sample's own time as the compiled model has it (a check of the harness)",
     "--scheduler": "run the chunks on a Dask distributed scheduler, e.g. tcp://host:8786 (--workers: "
                    "threads per Dask task, default 1)",
-    "--connect-timeout": "seconds to wait for the scheduler",
+    "--connect-timeout": "seconds to wait for the scheduler, finite and > 0",
     "--x": "swept parameter on the x axis (dotted path)",
     "--y": "second swept parameter: a heatmap",
     "--metric": "recorded metric, e.g. rise_time",

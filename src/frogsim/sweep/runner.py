@@ -35,6 +35,7 @@ Units (docs/sweeps.md)
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import sys
@@ -629,8 +630,12 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
     of refusing.
 
     Everything is validated first (spec, every point's scenario, the scheduler, the output file);
-    a ScenarioError then means nothing was written.
+    a ScenarioError then means nothing was written. The Dataset's attribute ``n_points_read``
+    (not written to ``out``) counts the points read from ``out`` and its journal instead of run.
     """
+    if not (isinstance(connect_timeout, (int, float)) and not isinstance(connect_timeout, bool)
+            and math.isfinite(connect_timeout) and connect_timeout > 0):
+        raise ScenarioError("--connect-timeout", connect_timeout, "must be a finite time in seconds > 0")
     spec = load_spec(spec_or_path)
     out = Path(out) if out is not None else None
     check_size("record.timeseries" if spec.timeseries else "sweep", Shown(f"{spec.n_points} points"),
@@ -743,7 +748,9 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
                 flush(force=True)
             journal.remove()
             journal = None
-        return to_dataset(spec, store)
+        result = to_dataset(spec, store)
+        result.attrs["n_points_read"] = done     # this call's only: the points it read, not ran
+        return result
     finally:
         if journal is not None:
             journal.close()
