@@ -35,6 +35,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from frogsim._words import count
 from frogsim.circuit import layout as CL
 from frogsim.envs import checks
 from frogsim.envs.plant import PneumaticPlant
@@ -143,7 +144,7 @@ class HipPressureEnv(gym.Env):
         info = {"error_bar": float(error), "switches": self.plant.last_switches,
                 "time_s": self.plant.t}
         truncated = self.steps >= self.max_steps
-        self.episode.end(False, truncated, f"truncated after {self.steps} steps, {self.plant.t:g} s")
+        self.episode.end(False, truncated, f"truncated after {count(self.steps, 'step')}, {self.plant.t:g} s")
         return self._obs(raw), float(reward), False, truncated, info
 
 

@@ -35,6 +35,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from frogsim._words import count
 from frogsim.circuit import layout as CL
 from frogsim.envs import checks
 from frogsim.envs.plant import ACTIONS
@@ -135,5 +136,5 @@ class SwimEnv(gym.Env):
         info = {"progress_m": progress, "air_L_std": air_L, "distance_m": dist,
                 "switches": switches, "time_s": self.stepper.t}
         truncated = self.steps >= self.max_steps
-        self.episode.end(False, truncated, f"truncated after {self.steps} steps, {self.stepper.t:g} s")
+        self.episode.end(False, truncated, f"truncated after {count(self.steps, 'step')}, {self.stepper.t:g} s")
         return self._obs(), float(reward), False, truncated, info

@@ -212,13 +212,16 @@ def check_step_grid(output_interval: float, period: float, timestep: float) -> N
                                                              f"recorded at its MuJoCo steps")
 
 
-def load_robot_scenario(source, cycles: int | None = None) -> RobotScenario:
+def load_robot_scenario(source, cycles: int | None = None, output_interval: float | None = None) -> RobotScenario:
     """Load and validate a robot scenario (a TOML path, a shipped name such as "swim", or a dict).
 
-    ``cycles`` overrides ``gait.cycles``. Raises ScenarioError naming field, value and what is
+    ``cycles`` overrides ``gait.cycles``, ``output_interval`` [s] the scenario's output interval
+    (checked as if written in the file). Raises ScenarioError naming field, value and what is
     allowed; nothing is run.
     """
     raw, base_dir = merged_raw(source)
+    if output_interval is not None:
+        raw["output_interval"] = f"{output_interval!r} s"
     if raw.get("muscles"):
         raise ScenarioError("muscles", "(a table)", "a robot scenario makes its muscles from "
                                                     "[joints] and [gait]: remove [muscles]")

@@ -7,6 +7,7 @@ or a fit iterate is refused exactly as the same values written in a file would b
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import TYPE_CHECKING
 
 from frogsim._budget import ASK_ABOVE, Need, check as check_size
@@ -113,7 +114,30 @@ def _check_muscles(sc) -> None:
             if c / 100.0 > mt.max_contraction:
                 raise ScenarioError(f"{path}.motion.contraction_percent", c,
                                     f"must be <= the muscle's max_contraction ({mt.max_contraction:.0%})")
-    # program steps after the end of the run are allowed: they simply never happen
+    # program steps after the end of the run are allowed: they simply never happen (but a program
+    # of several cycles must end within the run, _check_programs)
+
+
+def _check_programs(sc) -> None:
+    """A cycle program of several cycles must end within the run: the cycles past its end would be
+    dropped without a word. (One cycle may outlast the run: a run of part of a stroke.)"""
+    seen = set()
+    for mname, m in sc.muscles.items():
+        prog = m.program
+        if not prog.is_cycle or (prog.cycles or 1) <= 1:
+            continue
+        path = f"programs.{m.program_ref}.cycles" if m.program_ref else f"muscles.{mname}.program.cycles"
+        if path in seen:
+            continue
+        seen.add(path)
+        start, period, n = prog.start or 0.0, prog.pressurise + prog.release, prog.cycles
+        end = start + n * period
+        if end > sc.duration * (1.0 + 1e-12) + 1e-12:
+            whole = max(0, math.floor((sc.duration - start) / period + 1e-9))
+            raise ScenarioError(path, n, f"{n} cycles of {period:g} s from {start:g} s end at {end:g} s, after "
+                                         f"the run (duration {sc.duration:g} s), which holds {whole} of them: "
+                                         f"allowed {'1' if whole <= 1 else f'1 to {whole}'} in this run, or a "
+                                         f"duration of at least {end:g} s")
 
 
 def _check_motions(sc) -> None:
@@ -212,6 +236,7 @@ RULES = (
     (("valves",), _check_valves),
     (("muscle_types",), _check_muscle_types),
     (("muscles", "muscle_types"), _check_muscles),
+    (("muscles", "duration"), _check_programs),
     (("valves", "controller", "source", "pump", "controllers", "muscles", "air", "joints", "duration"),
      check_controllers),
     (("controller", "muscles", "muscle_types", "base_dir"), _check_motions),

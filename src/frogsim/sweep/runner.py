@@ -51,6 +51,7 @@ import numpy as np
 from frogsim._budget import check as check_size
 from frogsim._files import atomic_write
 from frogsim._parallel import map_pieces
+from frogsim._words import count
 from frogsim.errors import ScenarioError, Shown, SimulationError
 from frogsim.scenario.core import Scenario
 from frogsim.sweep.metrics import STATES
@@ -704,7 +705,8 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
         pending = [k for k, idx in enumerate(plan) if not store.completed[idx].all()]
         done = int(store.completed.sum())
         if progress and out is not None and done:
-            print(f"resuming {out}: {done} of {spec.n_points} points already done", file=sys.stderr, flush=True)
+            print(f"resuming {out}: {done} of {count(spec.n_points, 'point')} already done", file=sys.stderr,
+                  flush=True)
         last = [time.monotonic(), 0.0]
 
         def flush(force=False):
