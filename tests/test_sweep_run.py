@@ -240,7 +240,7 @@ def test_failed_point_is_isolated_and_reported(tmp_path, monkeypatch, capsys):
     path = write_case(tmp_path, spec)
     out = tmp_path / "r.nc"
     assert main(["sweep", str(path), "--out", str(out), "--quiet"]) == 0
-    assert "1 points failed" in capsys.readouterr().err
+    assert "1 point failed (its metrics are NaN)" in capsys.readouterr().err
     f = read_results(out)
     failed = f["failed"].values
     assert failed.tolist() == [False, True, False] and bool(f["completed"].all())

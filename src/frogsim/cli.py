@@ -631,7 +631,8 @@ def cmd_sweep(args) -> int:
         _progress(f"{_count(n, 'point')} in {took} -> {args.out}")
     if failed:
         first = next(iter(json.loads(ds.attrs["failures"]).values()), "")
-        _warn(f"{_count(failed, 'point')} failed (their metrics are NaN); first: {first}")
+        _warn(f"{_count(failed, 'point')} failed ({'its' if failed == 1 else 'their'} metrics are NaN); "
+              f"first: {first}")
     return 0
 
 
