@@ -274,3 +274,24 @@ def test_stepping_before_reset_or_after_the_episode_ended_raises(env_id):
         env.step(hold)
     env.reset(seed=0)
     env.step(hold)                              # a reset starts another episode
+
+
+@pytest.mark.parametrize("env_id", sorted(ENVS))
+def test_stepping_or_resetting_after_close_raises(env_id):
+    from gymnasium.error import ClosedEnvironmentError
+    env = gym.make(env_id, **SHORT[env_id]).unwrapped
+    hold = np.ones(env.action_space.shape, np.int64)
+    env.reset(seed=0)
+    env.step(hold)
+    env.close()
+    env.close()                                 # twice is allowed, as gymnasium asks
+    with pytest.raises(ClosedEnvironmentError, match=r"step\(\) after close\(\)"):
+        env.step(hold)
+    with pytest.raises(ClosedEnvironmentError, match=r"reset\(\) after close\(\)"):
+        env.reset(seed=0)
+    # through gymnasium.make's wrappers too
+    wrapped = gym.make(env_id, **SHORT[env_id])
+    wrapped.reset(seed=0)
+    wrapped.close()
+    with pytest.raises(ClosedEnvironmentError):
+        wrapped.step(hold)

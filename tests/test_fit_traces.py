@@ -143,6 +143,28 @@ def test_bad_temperature_units_are_refused_in_one_line(tmp_path, rig, unit, expe
     assert "\n" not in msg and "badT.csv" in msg and f"'source temperature [{unit}]'" in msg and expect in msg, msg
 
 
+@pytest.mark.parametrize("unit, value, kelvin", [
+    ("K", -5.0, "-5 K"), ("K", 0.0, "0 K"), ("degC", -300.0, "-26.85 K"), ("K", 1e6, "1e+06 K"),
+    ("degF", -190.0, "149.817 K"), ("degC", 727.0, "1000.15 K"),     # just outside 150 K and 1000 K
+])
+def test_temperatures_outside_the_gas_range_are_refused(tmp_path, rig, unit, value, kelvin):
+    # the issue's -5 K, 0 K, -300 degC (= -26.85 K) and 1e6 K, and two values just outside 150..1000 K
+    col = f"source temperature [{unit}]"
+    path = _csv(tmp_path / "hotT.csv", {"time [s]": [0, 0.1, 0.2, 0.5], "hip pressure [bar gauge]": [1, 2, 3, 4],
+                                        col: [293.0 if unit == "K" else 20.0, value, value, value]})
+    with pytest.raises(ScenarioError) as exc:
+        read_trace(path, rig)
+    msg = str(exc.value)
+    assert "\n" not in msg and "hotT.csv" in msg and repr(col) in msg, msg
+    assert f"{kelvin} in data row 2 (3 in all)" in msg and "allowed: 150 K to 1000 K" in msg, msg
+
+
+def test_temperatures_on_the_bounds_are_read(tmp_path, rig):
+    path = _csv(tmp_path / "edgeT.csv", {"time [s]": [0, 0.1, 0.2, 0.5], "hip pressure [bar gauge]": [1, 2, 3, 4],
+                                         "source temperature [degC]": [-123.15, 726.85, 20.0, 20.0]})
+    np.testing.assert_allclose(read_trace(path, rig).signals["source temperature"][:2], [150.0, 1000.0])
+
+
 def test_simulated_temperature_is_the_results(rig):
     from frogsim.fit.traces import model_signals, signal_kind, simulated
     res = frogsim.simulate(rig)

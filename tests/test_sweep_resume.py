@@ -90,5 +90,18 @@ def test_interrupted_in_process_resumes_and_refuses_another_spec(tmp_path, monke
     monkeypatch.setattr(runner, "run_built", lambda *a, **k: (calls.append(2), real(*a, **k))[1])
     ds = run_sweep(spec_path, out=out, workers=1, progress=False)
     assert calls.count(2) == len(load_spec(spec_path).chunks()) - 2
+    assert ds.attrs["n_points_read"] == 10 and "n_points_read" not in read_results(out).attrs
     assert_same_results(read_results(out), ds)
     assert_same_results(ds, run_sweep(spec_path, progress=False))
+
+
+def test_the_command_says_how_many_points_it_ran_and_how_many_it_read(tmp_path, monkeypatch, capsys):
+    from frogsim.cli import main
+    spec_path = write_case(tmp_path)           # 24 points, chunks of 5
+    out = tmp_path / "r.nc"
+    interrupted(monkeypatch, spec_path, out, after=2)
+    monkeypatch.undo()
+    capsys.readouterr()
+    assert main(["sweep", str(spec_path), "--out", str(out)]) == 0
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.startswith("14 points run in ") and ", 10 read from the earlier run -> " in last, last

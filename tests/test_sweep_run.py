@@ -10,6 +10,7 @@ from sweep_helpers import write_case
 import frogsim
 from frogsim.cli import main
 from frogsim.sweep import load_spec, read_results, run_sweep
+from frogsim.errors import ScenarioError
 
 LHS = """
 name = "lhs-test"
@@ -170,8 +171,26 @@ def test_rerun_of_complete_sweep_does_nothing(grid_case, capsys):
     folder, path, ds = grid_case
     before = (folder / "results.nc").stat().st_mtime_ns
     assert main(["sweep", str(path), "--out", str(folder / "results.nc")]) == 0
-    assert "24 of 24 points already done" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "24 of 24 points already done" in err
+    # the last line says the points were read, not computed ("24 points in 0.31 s" was the bug)
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("all 24 points already done in ") and "nothing run" in last, err
     assert (folder / "results.nc").stat().st_mtime_ns == before
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf", "0", "-1"])
+@pytest.mark.parametrize("scheduler", [[], ["--scheduler", "tcp://127.0.0.1:9"]])
+def test_a_connect_timeout_that_is_no_time_is_refused(tmp_path, capsys, value, scheduler):
+    path = write_case(tmp_path)
+    out = tmp_path / "out" / "r.nc"
+    assert main(["sweep", str(path), "--out", str(out), f"--connect-timeout={value}", "--quiet"] + scheduler) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("frogsim: error: --connect-timeout = ") and "finite time in seconds > 0" in err, err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(ScenarioError, match="connect-timeout"):
+        run_sweep(path, connect_timeout=float(value))
 
 
 def test_plot_line_and_heatmap(grid_case, capsys):
@@ -221,7 +240,7 @@ def test_failed_point_is_isolated_and_reported(tmp_path, monkeypatch, capsys):
     path = write_case(tmp_path, spec)
     out = tmp_path / "r.nc"
     assert main(["sweep", str(path), "--out", str(out), "--quiet"]) == 0
-    assert "1 points failed" in capsys.readouterr().err
+    assert "1 point failed (its metrics are NaN)" in capsys.readouterr().err
     f = read_results(out)
     failed = f["failed"].values
     assert failed.tolist() == [False, True, False] and bool(f["completed"].all())

@@ -5,9 +5,11 @@
     frogsim reproduce [STUDY ...] --out DIR reproduce the paper's studies (the pneumatic ones by
                                             default; name leg-in-air for the robot's in-air study)
     frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
-    frogsim control [STUDY ...] --out DIR   the closed-loop control studies (control-pressure, control-joint, hysteresis)
+    frogsim control [STUDY ...] --out DIR   the closed-loop control studies (control-pressure, control-joint,
+                                            hysteresis, heat)
     frogsim simulate SCENARIO --out DIR     run one scenario (TOML path or shipped name)
-    frogsim swim SCENARIO [--cycles N] --out DIR  run the robot in MuJoCo (swim, leg-in-air): CSV,
+    frogsim swim SCENARIO [--cycles N] [--output-interval T] --out DIR
+                                            run the robot in MuJoCo (swim, leg-in-air): CSV,
                                             figure, summary.json, MJCF, animation
     frogsim params [NAME]                   show a parameter set with the source of every value
     frogsim sweep SPEC.toml --out RESULTS.nc run a parameter sweep (resumable; see docs/sweeps.md)
@@ -49,6 +51,7 @@ import time
 from pathlib import Path
 
 from frogsim._files import out_folder
+from frogsim._words import count as _count
 
 
 def _err(msg: str, code: int) -> int:
@@ -80,7 +83,7 @@ def _finishing(folder, work):
     from frogsim.io.outputs import ended_status
     folder.begin()
     if folder.left:
-        _warn(f"--overwrite left {len(folder.left)} file(s) in {folder.out} that the replaced run's manifest "
+        _warn(f"--overwrite left {_count(len(folder.left), 'file')} in {folder.out} that the replaced run's manifest "
               "does not list (frogsim did not write them): " + ", ".join(folder.left[:4])
               + (", ..." if len(folder.left) > 4 else ""))
     try:
@@ -238,10 +241,11 @@ def cmd_simulate(args) -> int:
                      scenario=scenario_record(scenario.name, scenario_inputs(scenario, args.scenario)))
 
     def work():
-        _progress(f"simulating {scenario.name!r}: {len(scenario.muscles)} muscles, {scenario.duration:g} s ...")
+        _progress(f"simulating {scenario.name!r}: {_count(len(scenario.muscles), 'muscle')}, "
+                  f"{scenario.duration:g} s ...")
         t0 = time.perf_counter()
         result = simulate(scenario)
-        _progress(f"      {result.stats['steps']} steps in {time.perf_counter() - t0:.2f} s")
+        _progress(f"      {_count(result.stats['steps'], 'step')} in {time.perf_counter() - t0:.2f} s")
         _write_simulate(out, result)
         folder.finish()
         _progress(f"wrote {out / 'timeseries.csv'}, {out / 'pressures.png'}, {out / 'summary.json'}, "
@@ -263,8 +267,16 @@ def _write_simulate(out: Path, result, extra: dict | None = None) -> None:
 def cmd_swim(args) -> int:
     from frogsim.io.outputs import scenario_inputs, scenario_record
     from frogsim.robot.scenario import load_robot_scenario
+    from frogsim.errors import ScenarioError
     out = out_folder(args.out)
-    rs = load_robot_scenario(args.scenario, cycles=args.cycles)   # all validation before any write
+    interval = _time_text("--output-interval", args.output_interval)
+    try:
+        rs = load_robot_scenario(args.scenario, cycles=args.cycles,   # all validation before any write
+                                 output_interval=interval)
+    except ScenarioError as exc:
+        if interval is None or exc.field != "output_interval":
+            raise
+        raise ScenarioError("--output-interval", args.output_interval, exc.allowed) from None
     planned = ["timeseries.csv", "swim.png", "frog.xml", "summary.json"] + ([] if args.no_animation else
                                                                            ["animation.gif"])
     folder = _folder(args, "swim", files=planned,
@@ -279,8 +291,8 @@ def _swim_into(args, folder, out: Path, rs) -> int:
     from frogsim.studies.robot import write_outputs
     if not cache_is_warm(run_steps):
         _progress("first run: compiling the engine (cached afterwards)")
-    _progress(f"running {rs.name!r}: {len(rs.muscles)} muscles in {rs.options.environment}, "
-              f"{rs.gait.cycles} cycles of {rs.gait.period:g} s ...")
+    _progress(f"running {rs.name!r}: {_count(len(rs.muscles), 'muscle')} in {rs.options.environment}, "
+              f"{_count(rs.gait.cycles, 'cycle')} of {rs.gait.period:g} s ...")
     result = swim(rs)
     _progress(f"      {result.stats['mujoco_steps']} MuJoCo steps in {result.wall_s:.2f} s "
               f"({result.t[-1] / result.wall_s:.3g} x real time; compiling {result.compile_s:.2f} s "
@@ -290,7 +302,7 @@ def _swim_into(args, folder, out: Path, rs) -> int:
     _progress(f"mean speed {s['mean_speed_m_per_s']:.3f} m/s ({s['mean_speed_body_lengths_per_s']:.2f} "
               f"body lengths/s), {s['distance_per_cycle_m']:.3f} m and {s['air_used_per_cycle_L_std']:.3f} L "
               f"(standard) of air per cycle, source {s['source_pressure_after_cycles_bar_gauge']:.2f} bar gauge "
-              f"after {s['cycles']} cycles")
+              f"after {_count(s['cycles'], 'cycle')}")
     if "animation_skipped" in s:
         _warn(f"animation skipped: {s['animation_skipped']}")
     _progress("wrote " + ", ".join(str(p) for p in files.values()))
@@ -394,7 +406,7 @@ def cmd_firmware(args) -> int:
     def work():
         try:
             written = sketch.write_sketch(plan, out, sc.name, export)
-            _progress(f"{plan.name}: {len(plan.muscles)} muscle(s), {len(plan.channels)} channel(s) at "
+            _progress(f"{plan.name}: {_count(len(plan.muscles), 'muscle')}, {_count(len(plan.channels), 'channel')} at "
                       f"{plan.rate:g} Hz, ADC prescaler {plan.adc.prescaler} ({plan.adc.bits} bits) -> "
                       f"{written['ino']}")
             rec = sketch.read_plan_record(out)
@@ -463,7 +475,8 @@ def cmd_sil(args) -> int:
                      timing=args.timing)
         s = run.sil
         s["timing"] = args.timing
-        _progress(f"      {s['samples']} samples in {s['wall_s']:.1f} s ({s['real_time_factor']:.2f} x real time; "
+        _progress(f"      {_count(s['samples'], 'sample')} in {s['wall_s']:.1f} s "
+                  f"({s['real_time_factor']:.2f} x real time; "
                   f"emulated AVR {s['avr_wall_s']:.1f} s, plant {s['plant_wall_s']:.1f} s)")
         write_log_csv(out / "serial.csv", parse_log(run.serial, rec), rec, last_sample=s["samples"] - 1)
         if kind == "robot":
@@ -486,6 +499,24 @@ def cmd_sil(args) -> int:
                   "plant gave it (the emulation's fault, not the firmware's)")
         return 0
     return _finishing(folder, work)
+
+
+def _time_text(flag: str, text: str | None) -> float | None:
+    """A flag's time [s] from "10 ms" (any time unit) or a bare number of seconds, finite and > 0;
+    None if not given. ScenarioError naming the flag otherwise."""
+    import math
+
+    from frogsim.errors import ScenarioError
+    from frogsim.scenario.units import to_si
+    if text is None:
+        return None
+    try:
+        x = float(text)
+    except ValueError:
+        x = to_si(text, "time", flag)
+    if not (math.isfinite(x) and x > 0):
+        raise ScenarioError(flag, text, "must be a finite time > 0, e.g. '1 ms' or 0.001 (seconds)")
+    return x
 
 
 def _seconds(flag: str, value) -> None:
@@ -583,17 +614,25 @@ def cmd_sweep(args) -> int:
     from frogsim._files import out_file
     from frogsim.sweep.spec import load_spec
     out_file(args.out, ".nc")
+    _seconds("--connect-timeout", args.connect_timeout)
     t0 = time.perf_counter()
     spec = load_spec(args.spec)
     for note in spec.notes:
         _progress(f"note: {note}")
     ds = run_sweep(spec, out=args.out, workers=args.workers, scheduler=args.scheduler,
                    progress=not args.quiet, overwrite=args.overwrite, connect_timeout=args.connect_timeout)
-    n, failed = ds.attrs["n_points"], ds.attrs["n_failed"]
-    _progress(f"{n} points in {time.perf_counter() - t0:.2f} s -> {args.out}")
+    n, failed, read = ds.attrs["n_points"], ds.attrs["n_failed"], ds.attrs.get("n_points_read", 0)
+    took = f"{time.perf_counter() - t0:.2f} s"
+    if read >= n:
+        _progress(f"all {_count(n, 'point')} already done in {args.out}: nothing run ({took})")
+    elif read:
+        _progress(f"{_count(n - read, 'point')} run in {took}, {read} read from the earlier run -> {args.out}")
+    else:
+        _progress(f"{_count(n, 'point')} in {took} -> {args.out}")
     if failed:
         first = next(iter(json.loads(ds.attrs["failures"]).values()), "")
-        _warn(f"{failed} points failed (their metrics are NaN); first: {first}")
+        _warn(f"{_count(failed, 'point')} failed ({'its' if failed == 1 else 'their'} metrics are NaN); "
+              f"first: {first}")
     return 0
 
 
@@ -634,9 +673,9 @@ def cmd_fit(args) -> int:
 def _fit_into(args, folder, spec) -> int:
     from frogsim.fit import fit
     from frogsim.fit.report import write_outputs
-    tables = f" and {len(spec.force_tables)} force table(s)" if spec.force_tables else ""
-    _progress(f"fitting {len(spec.parameters)} parameters to {len(spec.experiments)} trace(s){tables}, "
-              f"{spec.starts} start(s) ...")
+    tables = f" and {_count(len(spec.force_tables), 'force table')}" if spec.force_tables else ""
+    _progress(f"fitting {_count(len(spec.parameters), 'parameter')} to {_count(len(spec.experiments), 'trace')}"
+              f"{tables}, {_count(spec.starts, 'start')} ...")
     res = fit(spec, progress=not args.quiet)
     files = write_outputs(res, args.out)
     folder.finish()
@@ -683,8 +722,8 @@ def cmd_optimize_gait(args) -> int:
         from frogsim._files import atomic_write, write_csv, write_json
         _progress(("continuing" if done else "starting") +
                   f" a gait search on {search.rs.name!r}: objective {search.objective}, "
-                  f"{search.trials} trials ({done} done), {search.cycles} cycles of "
-                  f"{search.period:g} s each, {search.workers} worker(s) ...")
+                  f"{_count(search.trials, 'trial')} ({done} done), {_count(search.cycles, 'cycle')} of "
+                  f"{search.period:g} s each, {_count(search.workers, 'worker')} ...")
         res = G.run_search(search, study_db, fresh=not resume, progress=_progress)
         best, base = res["best"].value, res["baseline"].value
         unit = G.OBJECTIVES[search.objective][1]
@@ -718,6 +757,8 @@ FLAGS = {
     "--cycles": "gait cycles of each robot run",
     "--signal": "the signal of every input without its own RUN:SIGNAL, e.g. 'hip_left pressure'",
     "--no-animation": "skip the offscreen animation",
+    "--output-interval": "time between recorded rows, e.g. '1 ms' (a bare number is seconds): finite, > 0 and "
+                         "a whole number of robot.timestep steps",
     "--allow-overrun": "write a firmware whose interrupt and serial log do not fit the controller period "
                        "(firmware.json records it); without it such a plan is refused",
     "--timing": "when the plant receives the firmware's valve writes: 'cycle', at the emulated cycle the "
@@ -725,7 +766,7 @@ FLAGS = {
                 "decision at the sample's own time as the compiled model has it (a check of the harness)",
     "--scheduler": "run the chunks on a Dask distributed scheduler, e.g. tcp://host:8786 (--workers: "
                    "threads per Dask task, default 1)",
-    "--connect-timeout": "seconds to wait for the scheduler",
+    "--connect-timeout": "seconds to wait for the scheduler, finite and > 0",
     "--x": "swept parameter on the x axis (dotted path)",
     "--y": "second swept parameter: a heatmap",
     "--metric": "recorded metric, e.g. rise_time",
@@ -770,7 +811,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     from frogsim import __version__
-    p = _Parser(prog="frogsim", description=__doc__.split("\n\n")[0],
+    p = _Parser(prog="frogsim", description=DESCRIPTION,
                                 epilog="\n\n".join(__doc__.split("\n\n")[2:]).strip(),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--version", action="version", version=f"frogsim {__version__}",
@@ -789,11 +830,12 @@ def build_parser() -> argparse.ArgumentParser:
     _writes(s, workers="one per core")
     s.set_defaults(func=cmd_reproduce)
     for name, what, func in (("design", "the design studies (main tubes, endurance, valves)", cmd_design),
-                             ("control", "the closed-loop control studies (control-pressure, control-joint, hysteresis)",
-                              cmd_control)):
+                             ("control", "the closed-loop control studies (control-pressure, control-joint, "
+                                         "hysteresis, heat)", cmd_control)):
         s = sub.add_parser(name, help=f"run {what}: a PNG and a CSV per study, DIR/summary.json with written "
                                       "conclusions")
-        s.add_argument("studies", nargs="*", metavar="STUDY", help=f"studies to run (default: all {name} studies)")
+        s.add_argument("studies", nargs="*", metavar="STUDY",
+                       help=f"studies to run, of {', '.join(GROUP_STUDIES[name])} (default: all {name} studies)")
         _writes(s, workers="one per core")
         s.set_defaults(func=func)
     s = sub.add_parser("simulate", help="run one scenario: timeseries.csv, pressures.png, summary.json")
@@ -806,6 +848,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("scenario", metavar="SCENARIO", help="robot scenario TOML file, or a shipped name "
                                                         "(`frogsim scenarios` lists them)")
     _flag(s, "--cycles", "the scenario's", type=int, default=None, metavar="N")
+    _flag(s, "--output-interval", "the scenario's", default=None, metavar="T")
     _flag(s, "--no-animation", action="store_true")
     _writes(s)
     s.set_defaults(func=cmd_swim)
@@ -895,6 +938,16 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+#: the studies ``frogsim design`` and ``frogsim control`` run, named in their --help (written out, not
+#: read from the registry, which would make every command import the studies; a test compares them)
+GROUP_STUDIES = {"design": ("design-tubes", "design-endurance", "design-valve"),
+                 "control": ("control-pressure", "control-joint", "hysteresis", "heat")}
+#: what ``frogsim --help`` says first (the module docstring's first line is for programmers)
+DESCRIPTION = textwrap.fill("frogsim simulates the frog-inspired swimming robot powered by pneumatic muscles (Chinese "
+               "Journal of Mechanical Engineering, 2017): the paper's studies, single runs, the robot "
+               "swimming in MuJoCo, closed-loop valve control, parameter sweeps, fits to measured traces "
+               "and the controllers as Arduino firmware. 'frogsim COMMAND --help' gives a command's options.",
+                            100)
 _QUIET = False
 
 

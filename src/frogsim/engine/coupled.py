@@ -528,13 +528,18 @@ class CoupledStepper:
 
     def step(self, u, palm: float) -> int:
         """Command the valve states ``u`` (charge, discharge per muscle; 1 open, 0 shut) and the
-        palms' target (1 open, 0 folded), then run one controller period. Returns the number of
-        valve state changes commanded. SimulationError (with the quantity and the time) if the
-        run goes unstable; the stepper then needs a :meth:`reset`."""
+        palms' target (1 open, 0 folded), then run one controller period. ``u`` is an (n, 2) array,
+        a row (charge, discharge) per muscle in the order of ``cm.muscle_names``, or the same
+        flattened, (2 n,). Returns the number of valve state changes commanded. SimulationError
+        (with the quantity and the time) if the run goes unstable; the stepper then needs a
+        :meth:`reset`."""
         cm, a = self.cm, self.cm.arrays
         u = np.asarray(u, float)
+        if u.shape == (self.n, 2):
+            u = u.reshape(-1)
         if u.shape != (2 * self.n,):
-            raise ValueError(f"u has shape {u.shape}, expected ({2 * self.n},)")
+            raise ValueError(f"u has shape {u.shape}, expected ({self.n}, 2): (charge, discharge) per muscle, "
+                             f"or ({2 * self.n},) flattened")
         t = self.t
         changed = np.nonzero(u != self.u_cmd)[0]
         for j in changed:

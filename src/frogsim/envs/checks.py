@@ -12,7 +12,8 @@ given and what is allowed, before anything is built or stepped:
 
 :class:`Episode` keeps an environment's episode state: :meth:`Episode.check_step` raises
 ``gymnasium.error.ResetNeeded`` on a step before the first reset or after the episode ended
-(terminated or truncated), as the episode must be reset to go on.
+(terminated or truncated), as the episode must be reset to go on; after :meth:`Episode.close`
+(the environment's ``close()``) a step or a reset raises ``gymnasium.error.ClosedEnvironmentError``.
 """
 from __future__ import annotations
 
@@ -94,7 +95,18 @@ class Episode:
         self.why = ""
 
     def start(self) -> None:
+        self.check_open("reset")
         self.state = "running"
+
+    def close(self) -> None:
+        self.state = "closed"
+
+    def check_open(self, call: str) -> None:
+        """``gymnasium.error.ClosedEnvironmentError`` once the environment is closed."""
+        from gymnasium.error import ClosedEnvironmentError
+        if self.state == "closed":
+            raise ClosedEnvironmentError(f"{call}() after close(): the environment is closed; make another "
+                                         "with gymnasium.make")
 
     def end(self, terminated: bool, truncated: bool, why: str) -> None:
         if terminated or truncated:
@@ -102,6 +114,7 @@ class Episode:
 
     def check_step(self) -> None:
         from gymnasium.error import ResetNeeded
+        self.check_open("step")
         if self.state == "new":
             raise ResetNeeded("step() before reset(): call reset() to start an episode")
         if self.state == "ended":

@@ -18,7 +18,8 @@ Episode
     integration fails (``info["failure"]`` says why). The setpoint is drawn uniformly from
     ``setpoint_range`` [bar gauge] by :meth:`reset` (seeded), unless ``setpoint`` fixes it or
     ``reset(options={"setpoint": x})`` gives it for one episode. A step before the first reset or
-    after the episode ended raises ``gymnasium.error.ResetNeeded``.
+    after the episode ended raises ``gymnasium.error.ResetNeeded``; a step or a reset after
+    ``close()`` raises ``gymnasium.error.ClosedEnvironmentError``.
 Arguments (checked before anything is built; ValueError naming the argument, value and range)
     ``duration`` (0, 1e6] s and at least one control period; ``control_period`` > 0 s, a whole
     multiple of the controller period; ``switch_price`` >= 0; ``noise_std`` >= 0 bar;
@@ -34,6 +35,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from frogsim._words import count
 from frogsim.circuit import layout as CL
 from frogsim.envs import checks
 from frogsim.envs.plant import PneumaticPlant
@@ -102,6 +104,7 @@ class HipPressureEnv(gym.Env):
         return np.concatenate([p, [raw[-1], self.setpoint]]).astype(np.float32)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        self.episode.check_open("reset")
         super().reset(seed=seed)
         options = checks.options(options, ("setpoint",))
         if "setpoint" in options:
@@ -115,6 +118,12 @@ class HipPressureEnv(gym.Env):
         self.steps = 0
         self.episode.start()
         return self._obs(raw), {"setpoint_bar_gauge": self.setpoint}
+
+    def close(self):
+        """End the environment: a later step() or reset() raises
+        ``gymnasium.error.ClosedEnvironmentError`` (calling close() again does nothing)."""
+        self.episode.close()
+        super().close()
 
     def step(self, action):
         """One control period (module docstring); ResetNeeded once the episode has ended."""
@@ -135,7 +144,7 @@ class HipPressureEnv(gym.Env):
         info = {"error_bar": float(error), "switches": self.plant.last_switches,
                 "time_s": self.plant.t}
         truncated = self.steps >= self.max_steps
-        self.episode.end(False, truncated, f"truncated after {self.steps} steps, {self.plant.t:g} s")
+        self.episode.end(False, truncated, f"truncated after {count(self.steps, 'step')}, {self.plant.t:g} s")
         return self._obs(raw), float(reward), False, truncated, info
 
 

@@ -18,7 +18,8 @@ Episode
     ``duration`` [s] (default 4 s: two of the paper's 2 s strokes), then truncated; terminated
     when the simulation goes unstable (``info["failure"]``). Deterministic: no randomness unless
     ``noise_std`` [bar] adds sensor noise to the pressures (seeded by reset). A step before the
-    first reset or after the episode ended raises ``gymnasium.error.ResetNeeded``.
+    first reset or after the episode ended raises ``gymnasium.error.ResetNeeded``; a step or a reset
+    after ``close()`` raises ``gymnasium.error.ClosedEnvironmentError``.
 Arguments (checked before anything is built; ValueError naming the argument, value and range)
     ``steps_per_action`` a whole number in [1, 100000]; ``duration`` (0, 1e6] s and at least one
     action period; ``air_price`` >= 0; ``noise_std`` >= 0 bar; ``reset`` takes no options. An
@@ -34,6 +35,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from frogsim._words import count
 from frogsim.circuit import layout as CL
 from frogsim.envs import checks
 from frogsim.envs.plant import ACTIONS
@@ -97,6 +99,7 @@ class SwimEnv(gym.Env):
         return float(d[0] * math.cos(self.h0) + d[1] * math.sin(self.h0))
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        self.episode.check_open("reset")
         super().reset(seed=seed)
         checks.options(options, ())
         self.stepper.reset()
@@ -107,6 +110,12 @@ class SwimEnv(gym.Env):
         self.charged = 0.0
         self.episode.start()
         return self._obs(), {}
+
+    def close(self):
+        """End the environment: a later step() or reset() raises
+        ``gymnasium.error.ClosedEnvironmentError`` (calling close() again does nothing)."""
+        self.episode.close()
+        super().close()
 
     def step(self, action):
         """One action period (module docstring); ResetNeeded once the episode has ended."""
@@ -127,5 +136,5 @@ class SwimEnv(gym.Env):
         info = {"progress_m": progress, "air_L_std": air_L, "distance_m": dist,
                 "switches": switches, "time_s": self.stepper.t}
         truncated = self.steps >= self.max_steps
-        self.episode.end(False, truncated, f"truncated after {self.steps} steps, {self.stepper.t:g} s")
+        self.episode.end(False, truncated, f"truncated after {count(self.steps, 'step')}, {self.stepper.t:g} s")
         return self._obs(), float(reward), False, truncated, info

@@ -374,11 +374,7 @@ def _noise(raw, kind: str, where: str) -> float:
     [K] for a temperature signal (degC is a temperature, 273.15 K from zero: refused here)."""
     if kind != "temperature":
         return to_si(raw, "pressure", where)
-    try:
-        return to_si(raw, "temperature", where)
-    except ScenarioError:
-        raise ScenarioError(where, raw, 'expected a temperature difference such as "1 K" or "500 mK" '
-                                        "(degC is an offset unit: write K)") from None
+    return to_si(raw, "temperature_difference", where)
 
 
 def _current(scenario: Scenario, path: str) -> float | None:

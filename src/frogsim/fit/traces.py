@@ -11,7 +11,8 @@ and ``exhaust temperature`` (the model's T = p V/(m R), :meth:`frogsim.Result.te
 pressure unit must say whether it is ``gauge`` or ``abs`` (``absolute``); gauge values are made
 absolute with the scenario's atmospheric pressure. A temperature unit is a temperature, never
 gauge or abs: K, or an offset unit such as degC (20 degC is 293.15 K); a difference unit
-(delta_degC) is refused. Every unit goes through frogsim's own unit parser
+(delta_degC) is refused, and so is a value outside the air temperatures the model holds (150 K to
+1000 K, as in a scenario). Every unit goes through frogsim's own unit parser
 (:mod:`frogsim.scenario.units`). Columns the fit is not to use (a joint angle, a temperature
 measured somewhere the model has none) are named in the experiment's ``ignore_columns``; the other
 columns frogsim simulate writes (volumes, flows, valve states) are left out without being named;
@@ -34,6 +35,7 @@ import numpy as np
 from frogsim.errors import UNKNOWN, ScenarioError
 from frogsim.scenario.files import read_text
 from frogsim.scenario.motion import output_times
+from frogsim.scenario.schema import TEMPERATURE_MAX, TEMPERATURE_MIN
 from frogsim.scenario.tables import model_columns, read_table, split_header
 from frogsim.scenario.units import TemperatureDifference, parse_quantity, temperature_scale_offset
 
@@ -162,9 +164,21 @@ def _temperature_unit(fname: str, col: str, unit: str) -> tuple[float, float]:
         return temperature_scale_offset(unit)
     except TemperatureDifference:
         raise _col_error(fname, col, f"unit [{unit}] is a temperature difference: a temperature column "
-                                     "is written in [K] or [degC]") from None
+                                     "is written in [K], [degC] or [degF]") from None
     except Exception:  # pint raises several error types for bad text or dimensions
         raise _col_error(fname, col, f"unit [{unit}] is not a temperature unit such as K or degC") from None
+
+
+def _check_temperatures(fname: str, col: str, kelvin: np.ndarray) -> None:
+    """Refuse a temperature column with a value outside the gas temperatures the model holds
+    (:data:`frogsim.scenario.schema.TEMPERATURE_MIN` to ``TEMPERATURE_MAX``), naming the first."""
+    slack = 1e-9        # K: the rounding of an offset unit's sum (-123.15 degC is 149.99999999999997 K)
+    bad = np.flatnonzero((kelvin < TEMPERATURE_MIN - slack) | (kelvin > TEMPERATURE_MAX + slack))
+    if bad.size:
+        k = bad[0]
+        raise _col_error(fname, col, f"{kelvin[k]:g} K in data row {k + 1} ({bad.size} in all) is not an air "
+                                     f"temperature the model holds (allowed: {TEMPERATURE_MIN:g} K to "
+                                     f"{TEMPERATURE_MAX:g} K)")
 
 
 def _read_table(path: Path, what: str = "trace"):
@@ -191,7 +205,7 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
 
     Refused, each with a one-line ScenarioError naming file and column: a header without a unit, a
     unit of the wrong kind, a pressure neither gauge nor abs, a temperature with gauge or abs or in
-    a difference unit, a column for a signal the model does
+    a difference unit, a temperature outside 150 K to 1000 K, a column for a signal the model does
     not have (all such columns listed), no time column, non-numeric or missing values (NaN), time
     not strictly increasing, a gap (a step more than 5 times the median step), a trace that does not
     cover the scenario's run from 0 to its duration, a trace running on past
@@ -269,6 +283,9 @@ def read_trace(path, scenario, ignore_columns=()) -> Trace:
                                              f"scenario's {scenario.duration:g} s: a trace of another run, "
                                              "or a wrong time unit (ms written as s)?")
     signals = {name: numbers(col) * scale + offset for name, (col, scale, offset) in cols.items()}
+    for name, x in signals.items():
+        if signal_kind(name) == "temperature":
+            _check_temperatures(fname, cols[name][0], x)
     return Trace(path=str(path), time=t, signals=signals, columns={n: c[0] for n, c in cols.items()},
                  ignored=tuple(ignored), median_step=med)
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from frogsim.scenario.fields import build, choice, flag, quantity, unwrap
+from frogsim.scenario.fields import build, choice, flag, quantity, shown, unwrap
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.motion import whole_steps
 from frogsim.scenario.schema import Motion, Muscle, Program
@@ -137,6 +137,70 @@ def check_joint_setpoints(sc: Scenario, robot: RobotParams) -> None:
                                 f"(joints.{c.joint.split('_')[0]}.range)")
 
 
+#: a joint-angle gain may span the pressure range for no less than this fraction of the joint's range
+#: (see :func:`check_joint_gains`)
+GAIN_RANGE_FRACTION = 1e-3
+
+
+def joint_gain_limits(sc: Scenario, robot: RobotParams, joint: str) -> dict:
+    """The largest Kp [Pa/rad], Kd [Pa s/rad] and Ki [Pa/(rad s)] of a joint-angle controller on
+    ``joint`` ("hip_left"), by setting name.
+
+    The targets p0 ± Δp/2 stay within [atmosphere, source] only while |Δp| is at most the source's
+    gauge pressure P (at p0 = P/2; less elsewhere). With e* = GAIN_RANGE_FRACTION times the
+    joint's range R (0.04 deg at the hip) and T the controller period, each term alone reaches P
+    no sooner than at an angle error of e* (Kp e* <= P), a rate of e* per sample (Kd e*/T <= P)
+    or an error of e* integrated over one sample (Ki e* T <= P). A larger gain makes its term a
+    relay on errors the joint crosses within a MuJoCo step at about 1 rad/s: a PID no longer."""
+    p = _top_pressure(sc)
+    e = GAIN_RANGE_FRACTION * robot.joints[joint.split("_")[0]].range
+    dt = 1.0 / sc.controller.rate
+    return {"proportional_gain": p / e, "derivative_gain": p * dt / e, "integral_gain": p / (e * dt)}
+
+
+def _top_pressure(sc: Scenario) -> float:
+    """The highest source pressure [Pa gauge]: the start's, or the pump's upper switch when it runs."""
+    p = sc.source.initial_pressure_gauge
+    if sc.pump.enabled and sc.pump.displacement > 0:
+        p = max(p, sc.pump.off_above_gauge)
+    return p
+
+
+def check_joint_gains(sc: Scenario, robot: RobotParams) -> None:
+    """Each gain of a joint-angle controller within :func:`joint_gain_limits`, refused in one line
+    with the allowed range and why."""
+    for cname, c in sc.controllers.items():
+        if c.NAMED != "joint" or _top_pressure(sc) <= 0.0:
+            continue
+        limits = joint_gain_limits(sc, robot, c.joint)
+        for key, top in limits.items():
+            x = getattr(c, key)
+            if x > top:
+                meta = c.settings()[key].metadata
+                top_shown = shown(top, meta)
+                rng = math.degrees(robot.joints[c.joint.split("_")[0]].range)
+                per = {"proportional_gain": "an angle error of",
+                       "derivative_gain": "a change per controller period of",
+                       "integral_gain": "an error held for one controller period of"}[key]
+                raise ScenarioError(f"controllers.{cname}.{key}", shown(x, meta),
+                                    f"allowed: 0 to {top_shown}: a larger gain alone spans the pressure range "
+                                    f"[atmosphere, source] ({_top_pressure(sc) / 1e5:g} bar) for {per} "
+                                    f"{GAIN_RANGE_FRACTION * 100:g} % of the joint's range ({rng:.4g} deg; controller "
+                                    f"at {sc.controller.rate:g} Hz): a relay, not a PID")
+
+
+def check_controller_rate(rate: float, timestep: float) -> None:
+    """The controller's period must be a whole number of MuJoCo steps: the coupled engine reads the
+    joints and applies the gait's commands at its steps, so a sample between two steps would
+    read an angle as old as a step and a rate of 1/timestep is the fastest the robot can mean."""
+    if whole_steps(1.0 / rate, timestep) is None:
+        top = 1.0 / timestep
+        raise ScenarioError("controller.rate", f"{rate:g} Hz",
+                            f"its period {1e3 / rate:g} ms must be a whole number of robot.timestep steps "
+                            f"({timestep * 1e3:g} ms): allowed {top:g} Hz / n ({top:g} Hz, {top / 2:g} Hz, "
+                            f"{top / 3:.6g} Hz, ...)")
+
+
 def check_step_grid(output_interval: float, period: float, timestep: float) -> None:
     """The coupled engine records whole MuJoCo steps (t_k = k robot.timestep): the output interval
     and the gait's period (so the run's duration) must be whole numbers of steps, or a recorded
@@ -148,13 +212,16 @@ def check_step_grid(output_interval: float, period: float, timestep: float) -> N
                                                              f"recorded at its MuJoCo steps")
 
 
-def load_robot_scenario(source, cycles: int | None = None) -> RobotScenario:
+def load_robot_scenario(source, cycles: int | None = None, output_interval: float | None = None) -> RobotScenario:
     """Load and validate a robot scenario (a TOML path, a shipped name such as "swim", or a dict).
 
-    ``cycles`` overrides ``gait.cycles``. Raises ScenarioError naming field, value and what is
+    ``cycles`` overrides ``gait.cycles``, ``output_interval`` [s] the scenario's output interval
+    (checked as if written in the file). Raises ScenarioError naming field, value and what is
     allowed; nothing is run.
     """
     raw, base_dir = merged_raw(source)
+    if output_interval is not None:
+        raw["output_interval"] = f"{output_interval!r} s"
     if raw.get("muscles"):
         raise ScenarioError("muscles", "(a table)", "a robot scenario makes its muscles from "
                                                     "[joints] and [gait]: remove [muscles]")
@@ -175,6 +242,8 @@ def load_robot_scenario(source, cycles: int | None = None) -> RobotScenario:
                for name, (joint, _, _) in names.items()}
     pneumatic = scenario_from_raw(raw, base_dir, duration=gait.duration, muscles=muscles, joints=pairs)
     check_joint_setpoints(pneumatic, robot)
+    check_joint_gains(pneumatic, robot)
+    check_controller_rate(pneumatic.controller.rate, options.timestep)
     check_step_grid(pneumatic.output_interval, gait.period, options.timestep)
     lay = layout(robot, pneumatic.muscle_types)
     return RobotScenario(name=pneumatic.name, pneumatic=pneumatic, robot=robot, options=options,

@@ -70,13 +70,29 @@ def _fmt_bound(x: float, meta: dict) -> str:
 _BOUNDS = (("gt", operator.gt, ">"), ("ge", operator.ge, ">="), ("lt", operator.lt, "<"), ("le", operator.le, "<="))
 
 
+def _allowed_range(meta: dict) -> str:
+    """" (allowed: 150 K to 1000 K)" for a field bounded on both sides ("" otherwise); an open end
+    is marked ("above 0 Hz, up to 76923.1 Hz")."""
+    lo = next((k for k in ("gt", "ge") if meta.get(k) is not None), None)
+    hi = next((k for k in ("lt", "le") if meta.get(k) is not None), None)
+    if lo is None or hi is None:
+        return ""
+    a, b = _fmt_bound(meta[lo], meta), _fmt_bound(meta[hi], meta)
+    if lo == "ge" and hi == "le":
+        return f" (allowed: {a} to {b})"
+    return f" (allowed: {'above' if lo == 'gt' else 'from'} {a}, {'up to' if hi == 'le' else 'below'} {b})"
+
+
 def check_bounds(x: float, meta: dict, path: str, raw) -> None:
     """Raise ScenarioError unless x lies within the metadata bounds. ``raw`` is the value shown in
-    the message (a callable is called for it, only when the check fails)."""
+    the message (a callable is called for it, only when the check fails). A field bounded on both
+    sides names its whole range, and one whose metadata has a ``why`` says it."""
     for key, ok, word in _BOUNDS:
         bound = meta.get(key)
         if bound is not None and not ok(x, bound):
-            raise ScenarioError(path, raw() if callable(raw) else raw, f"must be {word} {_fmt_bound(bound, meta)}")
+            why = f": {meta['why']}" if meta.get("why") else ""
+            raise ScenarioError(path, raw() if callable(raw) else raw,
+                                f"must be {word} {_fmt_bound(bound, meta)}{_allowed_range(meta)}{why}")
 
 
 def parse_field(raw, meta: dict, path: str):

@@ -7,6 +7,7 @@ or a fit iterate is refused exactly as the same values written in a file would b
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import TYPE_CHECKING
 
 from frogsim._budget import ASK_ABOVE, Need, check as check_size
@@ -113,7 +114,30 @@ def _check_muscles(sc) -> None:
             if c / 100.0 > mt.max_contraction:
                 raise ScenarioError(f"{path}.motion.contraction_percent", c,
                                     f"must be <= the muscle's max_contraction ({mt.max_contraction:.0%})")
-    # program steps after the end of the run are allowed: they simply never happen
+    # program steps after the end of the run are allowed: they simply never happen (but a program
+    # of several cycles must end within the run, _check_programs)
+
+
+def _check_programs(sc) -> None:
+    """A cycle program of several cycles must end within the run: the cycles past its end would be
+    dropped without a word. (One cycle may outlast the run: a run of part of a stroke.)"""
+    seen = set()
+    for mname, m in sc.muscles.items():
+        prog = m.program
+        if not prog.is_cycle or (prog.cycles or 1) <= 1:
+            continue
+        path = f"programs.{m.program_ref}.cycles" if m.program_ref else f"muscles.{mname}.program.cycles"
+        if path in seen:
+            continue
+        seen.add(path)
+        start, period, n = prog.start or 0.0, prog.pressurise + prog.release, prog.cycles
+        end = start + n * period
+        if end > sc.duration * (1.0 + 1e-12) + 1e-12:
+            whole = max(0, math.floor((sc.duration - start) / period + 1e-9))
+            raise ScenarioError(path, n, f"{n} cycles of {period:g} s from {start:g} s end at {end:g} s, after "
+                                         f"the run (duration {sc.duration:g} s), which holds {whole} of them: "
+                                         f"allowed {'1' if whole <= 1 else f'1 to {whole}'} in this run, or a "
+                                         f"duration of at least {end:g} s")
 
 
 def _check_motions(sc) -> None:
@@ -154,11 +178,29 @@ def check_controllers(sc: Scenario) -> None:
             raise _err(f"{path}.settle", c, "settle", f"must be shorter than the run (duration "
                                                      f"{sc.duration:g} s): the metrics count from it on")
         c.check(sc, path, p_top)
+        if c.kind == "pwm":
+            _check_pwm_period(sc, c, path)
     for mname, m in sc.muscles.items():
         if not m.program.steps and mname not in driven:
             raise ScenarioError(f"muscles.{mname}.program", MISSING,
                                 "required setting is missing (or put the muscle under a closed-loop "
                                 "[controllers] section)")
+
+
+def _check_pwm_period(sc: Scenario, c, path: str) -> None:
+    """A PWM's period must lie within the run (a longer one never ends its first pulse); with the
+    kind's own checks (at least twice the larger valve dead time, the valves' switching time, and
+    two controller samples) the message names the whole allowed range."""
+    period = 1.0 / c.frequency
+    if period <= sc.duration:
+        return
+    dead = max(sc.valves.charge.dead_time, sc.valves.discharge.dead_time)
+    hi = min(sc.controller.rate / 2.0, 1.0 / (2.0 * dead) if dead > 0 else float("inf"),
+             _meta(c, "frequency")["le"])
+    raise err(f"{path}.frequency", c, "frequency",
+              f"its period {period:g} s must lie within the run (duration {sc.duration:g} s): allowed "
+              f"{1.0 / sc.duration:g} Hz to {hi:g} Hz (the top: a period of at least twice the valve dead "
+              f"time, {dead * 1e3:g} ms, and two controller samples)")
 
 
 def check_pressure_setpoint(sc: Scenario, sp, path: str, p_top: float) -> None:
@@ -194,6 +236,7 @@ RULES = (
     (("valves",), _check_valves),
     (("muscle_types",), _check_muscle_types),
     (("muscles", "muscle_types"), _check_muscles),
+    (("muscles", "duration"), _check_programs),
     (("valves", "controller", "source", "pump", "controllers", "muscles", "air", "joints", "duration"),
      check_controllers),
     (("controller", "muscles", "muscle_types", "base_dir"), _check_motions),

@@ -15,6 +15,7 @@ from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, 
                                      unwrap)
 from frogsim.errors import MISSING, ScenarioError, Shown
 from frogsim.scenario.files import read_text
+from frogsim.components.atmega2560 import conversion_time
 from frogsim.physics.heat import cylinder_wall_area
 from frogsim.physics.muscle import braid_parameters, muscle_volume
 
@@ -26,6 +27,22 @@ GAUGE_MAX = 16.0 * BAR
 # tan^2(theta0) >= 1e-8 that difference stands clear of the rounding of b0^2 (2.2e-16 b0^2), so
 # the volume keeps 7 good digits; below it the volume becomes noise (even negative)
 MIN_BRAID_ANGLE = math.atan(1e-4)    # 0.0057 deg
+# gas and wall temperatures: air stays an ideal gas of constant k from about 150 K (it liquefies
+# near 80 K at 1 bar, and its c_p rises well before) to about 1000 K (c_p up by 10 % and k down to
+# 1.34 there, dissociation and the tubes' plastics long before); outside it the model's constant
+# R and k mean nothing
+# the controller is the Arduino Mega's loop (paper, Sec. 4): each sample reads a sensor, and one
+# ADC conversion takes 13 ADC clocks, at the fastest recommended ADC clock (1 MHz, 16 MHz / 16)
+# 13 µs: 76.9 kHz at most ([firmware] checks the whole plan against the real budget)
+CONTROLLER_RATE_MAX = 1.0 / conversion_time(16)
+TEMPERATURE_MIN = 150.0
+TEMPERATURE_MAX = 1000.0
+
+
+def gas_temperature(doc: str = "", **kw):
+    """A gas or wall temperature [K], within TEMPERATURE_MIN to TEMPERATURE_MAX."""
+    return quantity("temperature", ge=TEMPERATURE_MIN, le=TEMPERATURE_MAX, display="K", doc=doc,
+                    why="where air is an ideal gas of constant R and k, as the model has it", **kw)
 
 
 def gauge_pressure(doc: str = "", default=None):
@@ -41,8 +58,8 @@ class Air:
     atmospheric_pressure_abs: float = quantity("pressure", gt=0, display="kPa")
     reference_pressure_abs: float = quantity("pressure", gt=0, display="kPa",
                                              doc="ISO 8778 standard state for 'standard' volumes")
-    reference_temperature: float = quantity("temperature", gt=0, display="K")
-    ambient_temperature: float = quantity("temperature", gt=0, display="K")
+    reference_temperature: float = gas_temperature("ISO 8778 standard state for 'standard' volumes")
+    ambient_temperature: float = gas_temperature("the air's and every wall's temperature at rest")
 
     @property
     def reference_density(self) -> float:
@@ -69,9 +86,8 @@ class Chamber:
                                        doc="inner wall area (none: a cylinder of length_over_diameter)")
     length_over_diameter: float = quantity("dimensionless", gt=0.0, le=100.0, default=1.0,
                                            doc="the cylinder's shape when wall_area is not given")
-    initial_temperature: float | None = quantity("temperature", gt=0.0, display="K", default=None,
-                                                 doc="the air's temperature at t = 0 (none: the ambient "
-                                                     "temperature), e.g. a run started mid-way")
+    initial_temperature: float | None = gas_temperature("the air's temperature at t = 0 (none: the ambient "
+                                                        "temperature), e.g. a run started mid-way", default=None)
 
     @property
     def inner_wall_area(self) -> float:
@@ -392,8 +408,13 @@ class Muscle:
 
 @dataclass(frozen=True)
 class Controller:
-    """The microcontroller loop that samples commands: valve states change only at its samples."""
-    rate: float = quantity("frequency", gt=0.0, le=1e6, display="Hz", default=1000.0)
+    """The microcontroller loop that samples commands: valve states change only at its samples.
+
+    Its rate is at most CONTROLLER_RATE_MAX, the board's: the loop reads its sensors each sample,
+    and one conversion of the ATmega2560's ADC at its fastest recommended clock takes 13 µs."""
+    rate: float = quantity("frequency", gt=0.0, le=CONTROLLER_RATE_MAX, display="Hz", default=1000.0,
+                           why="the board's loop reads a sensor each sample, and one ADC conversion takes 13 µs "
+                               "(13 clocks at the fastest recommended ADC clock, 1 MHz)")
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,8 @@ SI_UNITS = {
     "length": ("m", "a length such as \"4 mm\""),
     "time": ("s", "a time such as \"1 s\" or \"2 ms\""),
     "frequency": ("Hz", "a frequency such as \"1 kHz\""),
-    "temperature": ("K", "an absolute temperature such as \"293.15 K\""),
+    "temperature": ("K", "an absolute temperature such as \"293.15 K\", \"20 degC\" or \"68 degF\""),
+    "temperature_difference": ("K", "a temperature difference such as \"1 K\", \"500 mK\" or \"2 delta_degC\""),
     "angle": ("rad", "an angle such as \"25 deg\""),
     "velocity": ("m/s", "a velocity such as \"343 m/s\""),
     "volume_flow": ("m**3/s", "a volume flow such as \"45 L/min\""),
@@ -85,13 +86,52 @@ def _kind_angle_power(kind: str) -> int:
     return angle_power(registry().Unit(unit)._units) if unit else 0
 
 
+class TemperatureDifference(ValueError):
+    """A temperature-difference unit (delta_degC, delta_degF) where a temperature is meant."""
+
+
+class AbsoluteTemperature(ValueError):
+    """An offset temperature unit (degC, degF) where a temperature difference is meant."""
+
+
+_NUMBER = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
+
+
+def _absolute_temperature(text: str) -> float:
+    """An absolute temperature in K from "293.15 K", "20 degC" or "68 degF" (T = scale x + offset:
+    pint refuses "20 degC" as a product of a number and an offset unit). A difference unit
+    (delta_degC) raises :class:`TemperatureDifference`; a text that is not a number and a
+    temperature unit, ValueError."""
+    m = _NUMBER.fullmatch(text)
+    if not m or not m.group(2):
+        raise ValueError(text)
+    scale, offset = temperature_scale_offset(m.group(2))
+    kelvin = scale * float(m.group(1)) + offset
+    # an offset unit's sum rounds ("-123.15 degC" gives 149.99999999999997 K): kept to 1e-9 K
+    return round(kelvin, 9) if offset else kelvin
+
+
+def _is_offset(units) -> bool:
+    ureg = registry()
+    return any(not ureg._units[ureg.get_name(name)].is_multiplicative for name in units)
+
+
 @functools.lru_cache(maxsize=4096)
 def parse_quantity(text: str, kind: str) -> float:
     """Parse text such as "6 bar" into an SI float of the given kind; raise ValueError if not.
 
     Units are checked by dimension, the angle counted as one (see :func:`angle_power`): a gain
-    in bar/rad refuses "30 bar", an angle refuses a plain "25", a percentage refuses "0.3 rad"."""
+    in bar/rad refuses "30 bar", an angle refuses a plain "25", a percentage refuses "0.3 rad".
+    A "temperature" is absolute: K, degC or degF, never a difference unit (delta_degC raises
+    :class:`TemperatureDifference`); a "temperature_difference" is K, mK or delta_degC, never an
+    offset unit (degC raises :class:`AbsoluteTemperature`)."""
+    if kind == "temperature":
+        return _absolute_temperature(text)
     unit, _ = SI_UNITS[kind]
+    if kind == "temperature_difference":
+        m = _NUMBER.fullmatch(text)
+        if m and m.group(2) and _is_offset(registry().Unit(m.group(2))._units):
+            raise AbsoluteTemperature(text)
     q = registry().Quantity(text)
     if angle_power(q._units) != _kind_angle_power(kind):
         raise AngleMismatch(text)
@@ -143,6 +183,12 @@ def to_si(value, kind: str, field: str) -> float:
         raise ScenarioError(field, value, f"expected {what}: {problem}")
     try:
         return parse_quantity(value.strip(), kind)
+    except TemperatureDifference:
+        raise ScenarioError(field, value, f"expected {what}: {value.strip()!r} is a temperature difference "
+                                          "(delta_degC, delta_degF), not a temperature") from None
+    except AbsoluteTemperature:
+        raise ScenarioError(field, value, f"expected {what}: degC and degF are absolute temperatures "
+                                          "(20 degC is 293.15 K); write a difference in K or delta_degC") from None
     except AngleMismatch:
         expected = _kind_angle_power(kind)
         need = {0: "must not hold an angle", 1: "must be an angle (rad, deg)",
@@ -156,10 +202,6 @@ def to_si(value, kind: str, field: str) -> float:
 def display_factor(unit: str, kind: str) -> float:
     """Size of one display unit in SI ("bar", "pressure" -> 1e5); "" -> 1."""
     return parse_quantity(f"1 {unit}", kind) if unit else 1.0
-
-
-class TemperatureDifference(ValueError):
-    """A temperature-difference unit (delta_degC, delta_degF) where a temperature is meant."""
 
 
 @functools.lru_cache(maxsize=256)

@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from frogsim._plotting import figure, save
+from frogsim._words import count
 from frogsim.scenario.tables import header
 from frogsim.studies.registry import StudyData, register
 
@@ -195,7 +196,7 @@ def _draw_controller(a, result, name: str, ctl, m: dict, outside: dict) -> None:
         h2, l2 = a2.get_legend_handles_labels()
         a.legend(h1 + h2, l1 + l2, **outside)
         unit, rms, mx = "deg", m.get("tracking_error_rms_deg"), m.get("tracking_error_max_deg")
-        extra = f", pressure target clipped at {m.get('samples_pressure_target_clipped', 0)} samples"
+        extra = f", pressure target clipped at {count(m.get('samples_pressure_target_clipped', 0), 'sample')}"
     else:
         i = result.muscle_names.index(ctl.muscle)
         a.plot(t, _gauge(result, result.setpoint(name)), "k--", lw=1.5, label=f"{ctl.muscle} setpoint")

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from frogsim._words import count
 from frogsim.errors import ScenarioError
 
 
@@ -296,7 +297,7 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
         if others:
             note.append("varying: " + ", ".join(others))
         if y is not None and n_missed:
-            note.append(f"{n_missed} of {n_ran} points not reached (not drawn)")
+            note.append(f"{n_missed} of {count(n_ran, 'point')} not reached (not drawn)")
     for on, axis, set_scale in ((xlog, a.xaxis, a.set_xscale), (ylog, a.yaxis, a.set_yscale)):
         if on:
             set_scale("log")
@@ -304,6 +305,6 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
     done = int(ds["completed"].sum())
     title = f"{ds.attrs.get('sweep_name', 'sweep')}: {metric} ({ds.attrs.get('muscle', '')})"
     if done < ds["completed"].size:
-        title += f" - {done} of {ds['completed'].size} points done"
+        title += f" - {done} of {count(ds['completed'].size, 'point')} done"
     a.set_title(title, fontsize=10)
     write_figure(out, lambda p: save(fig, p, "frogsim sweep; " + "; ".join(note) if note else "frogsim sweep"))

@@ -35,6 +35,7 @@ Units (docs/sweeps.md)
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import sys
@@ -50,6 +51,7 @@ import numpy as np
 from frogsim._budget import check as check_size
 from frogsim._files import atomic_write
 from frogsim._parallel import map_pieces
+from frogsim._words import count
 from frogsim.errors import ScenarioError, Shown, SimulationError
 from frogsim.scenario.core import Scenario
 from frogsim.sweep.metrics import STATES
@@ -629,8 +631,12 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
     of refusing.
 
     Everything is validated first (spec, every point's scenario, the scheduler, the output file);
-    a ScenarioError then means nothing was written.
+    a ScenarioError then means nothing was written. The Dataset's attribute ``n_points_read``
+    (not written to ``out``) counts the points read from ``out`` and its journal instead of run.
     """
+    if not (isinstance(connect_timeout, (int, float)) and not isinstance(connect_timeout, bool)
+            and math.isfinite(connect_timeout) and connect_timeout > 0):
+        raise ScenarioError("--connect-timeout", connect_timeout, "must be a finite time in seconds > 0")
     spec = load_spec(spec_or_path)
     out = Path(out) if out is not None else None
     check_size("record.timeseries" if spec.timeseries else "sweep", Shown(f"{spec.n_points} points"),
@@ -699,7 +705,8 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
         pending = [k for k, idx in enumerate(plan) if not store.completed[idx].all()]
         done = int(store.completed.sum())
         if progress and out is not None and done:
-            print(f"resuming {out}: {done} of {spec.n_points} points already done", file=sys.stderr, flush=True)
+            print(f"resuming {out}: {done} of {count(spec.n_points, 'point')} already done", file=sys.stderr,
+                  flush=True)
         last = [time.monotonic(), 0.0]
 
         def flush(force=False):
@@ -743,7 +750,9 @@ def run_sweep(spec_or_path, out=None, workers: int | None = None, scheduler=None
                 flush(force=True)
             journal.remove()
             journal = None
-        return to_dataset(spec, store)
+        result = to_dataset(spec, store)
+        result.attrs["n_points_read"] = done     # this call's only: the points it read, not ran
+        return result
     finally:
         if journal is not None:
             journal.close()

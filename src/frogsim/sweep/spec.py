@@ -56,7 +56,7 @@ from frogsim.scenario.fields import parse_field, unknown_key_error, unwrap
 from frogsim.errors import MISSING, UNKNOWN, ScenarioError, Shown
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.load import merged_raw, read_toml, scenario_from_raw, with_overrides
-from frogsim.scenario.units import SI_UNITS, display_factor
+from frogsim.scenario.units import SI_UNITS, display_factor, temperature_scale_offset
 
 METHODS = ("grid", "list", "random", "lhs")
 MAX_POINTS = 2_000_000
@@ -191,12 +191,22 @@ def _unit_of(value) -> str | None:
     return None
 
 
+def _offset_unit(unit: str, info: FieldInfo) -> bool:
+    """A temperature unit with an offset (degC, degF): its values are not multiples of one size,
+    so ranges and plot axes over it are made in K."""
+    return info.kind == "temperature" and bool(unit) and temperature_scale_offset(unit)[1] != 0.0
+
+
 def _range_value(text, unit, info: FieldInfo, where: str) -> tuple[float, str]:
-    """A range end as (number in its written unit, that unit); checks it is the right kind."""
+    """A range end as (number in its written unit, that unit); checks it is the right kind. A
+    temperature in degC or degF is given in K (a range of offset units is made in K)."""
     value = _with_unit(text, unit, info, where)
-    _to_si(value, info, where)
+    si = _to_si(value, info, where)
     if isinstance(value, (int, float)):
         return float(value), ""
+    split = _split_unit(value)
+    if split is not None and _offset_unit(split[1], info):
+        return si, "K"
     split = _split_unit(value)
     if split is None:
         raise ScenarioError(where, text, "expected a number followed by its unit, such as \"3 bar\"")
@@ -241,7 +251,7 @@ def _display(written: tuple, si: tuple, info: FieldInfo) -> tuple[str, float]:
     units = {_unit_of(w) for w in written}
     if len(units) == 1:
         unit = units.pop()
-        if unit:
+        if unit and not _offset_unit(unit, info):
             return unit, display_factor(unit, info.kind)
     return info.si_unit, 1.0
 
