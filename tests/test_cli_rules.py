@@ -151,7 +151,7 @@ def test_scenarios_lists_every_shipped_scenario(capsys):
     import tomllib
     assert main(["scenarios"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
-    files = sorted(SCENARIOS_DIR.glob("*.toml"))
+    files = sorted(SCENARIOS_DIR.glob("*.toml"), key=lambda p: p.stem)      # listed by name
     assert len(lines) == len(files)
     for line, f in zip(lines, files):
         raw = tomllib.loads(f.read_text())
