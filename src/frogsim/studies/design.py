@@ -193,8 +193,10 @@ def _air_per_stroke_at(base, source_gauge_bar: float) -> float:
     """Air [kg] one stroke of all muscles takes with the source held at the given pressure above an
     atmospheric exhaust (a 1000 L source, pump off, one 2 s cycle)."""
     from frogsim.engine.pneumatic import simulate
+    one = {f"programs.{p.split('.')[1]}.cycles": 1 for p in base.variable_paths()
+           if p.startswith("programs.") and p.endswith(".cycles")}
     sc = base.replace({"source.volume": 1000 * LITRE, "pump.enabled": False,
-                       "source.initial_pressure_gauge": source_gauge_bar * BAR, "duration": 2.0})
+                       "source.initial_pressure_gauge": source_gauge_bar * BAR, "duration": 2.0, **one})
     r = simulate(sc)
     return float(sum(r.charged_mass(n)[-1] for n in r.names))
 
