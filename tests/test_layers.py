@@ -16,7 +16,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "src" / "frogsim"
 
 #: lowest first; a module may import its own layer and those before it
 LAYERS = (
-    ("errors", "_jit", "_parallel", "_plotting", "_files", "_budget"),
+    ("errors", "_jit", "_parallel", "_plotting", "_files", "_budget", "_words"),
     ("physics",),
     ("components",),
     ("scenario",),

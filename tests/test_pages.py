@@ -132,12 +132,16 @@ def test_a_program_whose_cycles_outrun_the_run_is_refused(tmp_path, capsys):
     with pytest.raises(ScenarioError) as exc:
         frogsim.load_scenario(raw)
     msg = str(exc.value)
-    assert msg.startswith("programs.stroke.cycles = 3: 3 cycles of 2 s from 0 s end at 6 s") and "\n" not in msg
-    assert "holds 1 of them" in msg and "duration of at least 6 s" in msg, msg
+    # the third cycle would begin at 4 s, after the 2 s run, which begins one of them
+    assert msg.startswith("programs.stroke.cycles = 3: 3 cycles of 2 s from 0 s: the last would begin at 4 s") \
+        and "\n" not in msg
+    assert "begins 1 of them" in msg and "duration over 4 s" in msg, msg
     raw["duration"] = "6 s"
     assert len(frogsim.load_scenario(raw).muscles["hip"].program.steps) == 6
-    raw["duration"] = "5.9 s"                                                          # the last vent cut
-    with pytest.raises(ScenarioError, match=r"holds 2 of them: allowed 1 to 2"):
+    raw["duration"] = "4.5 s"                    # the third begins at 4 s and is cut: it runs in part
+    assert frogsim.load_scenario(raw).duration == 4.5
+    raw["duration"] = "4 s"                      # the third would begin as the run ends
+    with pytest.raises(ScenarioError, match=r"begins 2 of them: allowed 1 to 2"):
         frogsim.load_scenario(raw)
     # the same through a variant and in a muscle's own program
     sc = frogsim.load_scenario(dict(raw, duration="6 s"))

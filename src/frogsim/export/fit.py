@@ -10,7 +10,8 @@ Two sources for the interrupt's cycles:
 * ``estimate``: a cycle count from the plan without building: each conversion's ADC clocks
   (datasheet Table 26-1: 25 for the first after enabling, 13 after; times the prescaler), each
   law's cycles per call on the AVR (:data:`LAW_CYCLES`, measured by
-  ``benchmarks/bench_fw_laws.py`` on the emulated chip, the largest per kind), the runtime's own
+  ``benchmarks/bench_fw_laws.py`` on the emulated chip, the largest per kind with the sensors
+  within their lines), the runtime's own
   work (:data:`RUNTIME_CYCLES`, :data:`VALVE_CYCLES`), and the log's formatting and sending
   (:data:`FORMAT_CYCLES_PER_DIGIT`, :data:`UART_CYCLES_PER_BYTE`) at its rate.
 
@@ -25,8 +26,11 @@ import math
 from frogsim.components import atmega2560 as chip
 from frogsim.errors import ScenarioError
 
-#: AVR cycles per call of each kind's law, the largest measured (benchmarks/bench_fw_laws.py)
-LAW_CYCLES = {"program": 140, "bang_bang": 500, "pwm": 1150, "sliding_mode": 2340, "joint_angle": 2180}
+#: AVR cycles per call of each kind's law, the largest measured on a sensor within its line
+#: (benchmarks/bench_fw_laws.py, "typical": the joint-angle law's 16-bit path with a generated sine
+#: setpoint). An angle count jumping across its range every sample sends the joint-angle law down
+#: its int64 path (up to 2175 cycles): --build's timing on random counts shows that case.
+LAW_CYCLES = {"program": 140, "bang_bang": 500, "pwm": 1150, "sliding_mode": 2340, "joint_angle": 1360}
 #: the control interrupt's own cycles: entry and exit, the busy pin, the encoders' copy, the call
 #: of frogsim_sample, the log record's bookkeeping (measured: an interrupt with one program law
 #: and no channel, less the law)

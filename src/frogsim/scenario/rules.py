@@ -119,8 +119,10 @@ def _check_muscles(sc) -> None:
 
 
 def _check_programs(sc) -> None:
-    """A cycle program of several cycles must end within the run: the cycles past its end would be
-    dropped without a word. (One cycle may outlast the run: a run of part of a stroke.)"""
+    """Every cycle of a cycle program must begin within the run: a cycle that would start at or
+    after the run's end would be dropped without a word (the README's one-hip example once had 3
+    cycles of 2 s in a 2 s run and ran one). A last cycle that begins but is cut by the end runs
+    in part, as any program step after the end simply never happens."""
     seen = set()
     for mname, m in sc.muscles.items():
         prog = m.program
@@ -131,13 +133,13 @@ def _check_programs(sc) -> None:
             continue
         seen.add(path)
         start, period, n = prog.start or 0.0, prog.pressurise + prog.release, prog.cycles
-        end = start + n * period
-        if end > sc.duration * (1.0 + 1e-12) + 1e-12:
-            whole = max(0, math.floor((sc.duration - start) / period + 1e-9))
-            raise ScenarioError(path, n, f"{n} cycles of {period:g} s from {start:g} s end at {end:g} s, after "
-                                         f"the run (duration {sc.duration:g} s), which holds {whole} of them: "
-                                         f"allowed {'1' if whole <= 1 else f'1 to {whole}'} in this run, or a "
-                                         f"duration of at least {end:g} s")
+        last = start + (n - 1) * period
+        if last >= sc.duration * (1.0 - 1e-12) - 1e-12:
+            begun = max(1, math.ceil((sc.duration - start) / period - 1e-9))
+            raise ScenarioError(path, n, f"{n} cycles of {period:g} s from {start:g} s: the last would begin at "
+                                         f"{last:g} s, after the run (duration {sc.duration:g} s), which begins "
+                                         f"{begun} of them: allowed {'1' if begun <= 1 else f'1 to {begun}'} in "
+                                         f"this run, or a duration over {last:g} s")
 
 
 def _check_motions(sc) -> None:
