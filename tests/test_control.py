@@ -80,6 +80,10 @@ def test_commands_change_on_the_grid_and_act_one_dead_time_later(dead_ms):
     assert not np.any((r.u[:, 0] > 0) & (r.u[:, 1] > 0))      # never both open
     # and the valves do change (the test is not vacuous): charge, then vent after the step down
     assert r.switchings["hip"][0] >= 2 and r.switchings["hip"][1] >= 1
+    # samples lie just outside each edge of the band, within a band of it: a relay whose
+    # thresholds sat at target +- band (not +- band / 2) would hold there, and fail above
+    assert np.any((p[k] > target[k] + band / 2) & (p[k] <= target[k] + band))
+    assert np.any((p[k] < target[k] - band / 2) & (p[k] >= target[k] - band))
 
 
 def test_valve_changes_fall_on_the_grid_plus_dead_time_on_a_fine_output_grid():

@@ -98,6 +98,9 @@ def test_animation_renders_offscreen(tmp_path):
     try:
         path = render_animation(r, tmp_path / "a.gif", fps=8, width=160, height=120)
     except RenderUnavailable as exc:
+        import os
+        if os.environ.get("CI"):              # CI has what the README's install gives: a failure there
+            pytest.fail(f"no offscreen OpenGL: {exc}")
         pytest.skip(f"no offscreen OpenGL here: {exc}")
     from PIL import Image
     with Image.open(path) as im:
