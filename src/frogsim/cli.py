@@ -293,7 +293,14 @@ def _swim_into(args, folder, out: Path, rs) -> int:
         _progress("first run: compiling the engine (cached afterwards)")
     _progress(f"running {rs.name!r}: {_count(len(rs.muscles), 'muscle')} in {rs.options.environment}, "
               f"{_count(rs.gait.cycles, 'cycle')} of {rs.gait.period:g} s ...")
-    result = swim(rs)
+    last = [time.perf_counter()]
+
+    def tick(fraction):                  # a sign of life every 2 s on a long run
+        now = time.perf_counter()
+        if now - last[0] >= 2.0:
+            last[0] = now
+            _progress(f"      {100 * fraction:.0f} % ({fraction * rs.duration:.1f} s of {rs.duration:g} s simulated)")
+    result = swim(rs, progress=tick)
     _progress(f"      {result.stats['mujoco_steps']} MuJoCo steps in {result.wall_s:.2f} s "
               f"({result.t[-1] / result.wall_s:.3g} x real time; compiling {result.compile_s:.2f} s "
               "before them, not counted)")
