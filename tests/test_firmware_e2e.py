@@ -30,12 +30,13 @@ def _cli(*argv) -> int:
     return main([*map(str, argv), "--quiet"])
 
 
-def _export_and_sil(scenario, tmp: Path, *extra, timing: str = "grid") -> tuple[dict, dict]:
+def _export_and_sil(scenario, tmp: Path, *extra, timing: str = "grid", allow_overrun: bool = False) -> tuple[dict, dict]:
     """Export, build and run SIL; ``timing`` "grid" (each sample's decision at its own time, as the
     compiled model has it: the runs must then agree) or "cycle" (the board's own timing)."""
     fw, out = tmp / "fw", tmp / f"sil-{timing}"
     if not (fw / "firmware.json").exists():
-        assert _cli("firmware", scenario, *extra, "--out", fw, "--build") == 0
+        assert _cli("firmware", scenario, *extra, *(["--allow-overrun"] if allow_overrun else []), "--out", fw,
+                    "--build") == 0
     assert _cli("sil", scenario, *extra, "--firmware", fw, "--timing", timing, "--out", out, *(
         ["--no-animation"] if "swim" in str(scenario) or "hip-angle" in str(scenario) or "robot" in str(scenario)
         else [])) == 0
@@ -230,7 +231,9 @@ def test_every_kind_on_the_robot_commands_the_same_valves(tmp_path):
     need_avr_tools()
     from frogsim.scenario.load import with_firmware
     scenario = HERE / "robot-every-kind.toml"
-    rec, s = _export_and_sil(scenario, tmp_path)
+    # at the edge of the board: its worst interrupt on random counts (95 %) and its log (7 %) do not
+    # fit the period, so the export refuses it; written anyway, SIL measures it on the run
+    rec, s = _export_and_sil(scenario, tmp_path, allow_overrun=True)
     assert s["sil"]["mismatched_samples"] == 0 and s["sil"]["samples"] == 601
     assert s["sil"]["adc_read_differs_samples"] == 0
     kinds = {entry["kind"] for name, entry in s["control"].items() if isinstance(entry, dict) and "kind" in entry}

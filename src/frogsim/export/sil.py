@@ -317,8 +317,9 @@ class BoardRun:
 
 def interrupt_timing(rec: dict, elf, samples: int = 200, seed: int = 0) -> dict:
     """The built firmware's interrupt timed on the emulated board before any plant is attached:
-    ``samples`` periods whose channels read counts drawn uniformly over the ADC's range (a seeded
-    generator: the same firmware gives the same figures), the busy pin's high time in AVR cycles.
+    ``samples`` periods whose channels read counts drawn uniformly over each sensor's line (its
+    fault limits: outside them the laws would not run; a seeded generator: the same firmware gives
+    the same figures), the busy pin's high time in AVR cycles.
 
     The export's fit check (:func:`frogsim.components.atmega2560.plan_adc`) counts the ADC's
     conversions only; the laws' own arithmetic (a joint-angle law's 64-bit products take about a
@@ -328,9 +329,14 @@ def interrupt_timing(rec: dict, elf, samples: int = 200, seed: int = 0) -> dict:
     run = BoardRun(rec, elf)
     rng = np.random.default_rng(seed)
     top = (1 << int(rec["adc"]["bits"])) - 1
+    # each channel's counts within its sensor's line (its fault limits): a reading outside them
+    # puts its laws in the safe state without running them, which would time the cheaper path
+    lo = np.array([ch.get("fault_limits", [0, top])[0] for ch in rec["channels"]], np.int64)
+    hi = np.array([ch.get("fault_limits", [0, ch.get("count_range", [0, top])[1]])[1] for ch in rec["channels"]],
+                  np.int64)
     try:
         for _ in range(samples):
-            run.frame(rng.integers(0, top + 1, len(run.inputs)).astype(np.int64))
+            run.frame(rng.integers(lo, hi + 1).astype(np.int64))
         b = run.board
         run.overruns = int.from_bytes(b.read_ram(run.overrun_address, 2), "little")
         awake = 1.0 - (b.sleep_cycles - run.sleep0) / max(1, b.cycle - run.s0)

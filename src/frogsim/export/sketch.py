@@ -85,6 +85,18 @@ def _channel(ch, bits: int) -> dict:
     return out
 
 
+def _fault_limits(plan, i: int) -> dict:
+    """{"fault_limits": [lo, hi]} of channel i (the counts outside which a law reading it faults),
+    or {} when no law checks it (an encoder, a hand-written plan)."""
+    for law in getattr(plan, "laws", None) or []:
+        plo, phi, alo, ahi = getattr(law, "faults", (-1, 0, -1, 0))
+        if law.pressure == i and plo >= 0:
+            return {"fault_limits": [int(plo), int(phi)]}
+        if law.angle == i and alo >= 0:
+            return {"fault_limits": [int(alo), int(ahi)]}
+    return {}
+
+
 def channel_token(ch) -> str:
     """A channel in the log's header line: SIGNAL@A<input> (analog) or SIGNAL@D<A pin> (encoder)."""
     pins = getattr(ch, "pins", ())
@@ -104,7 +116,7 @@ def plan_record(plan) -> dict:
         "period_cycles": int(plan.period_cycles),
         "muscles": list(plan.muscles),
         "valve_pins": [[int(c), int(d)] for c, d in plan.valve_pins],
-        "channels": [_channel(ch, adc.bits) for ch in plan.channels],
+        "channels": [dict(_channel(ch, adc.bits), **_fault_limits(plan, i)) for i, ch in enumerate(plan.channels)],
         "adc": {"prescaler": int(adc.prescaler), "bits": int(adc.bits),
                 "adc_clocks_first": int(adc.first_cycles), "adc_clocks": int(adc.cycles),
                 "conversion_cpu_cycles": int(adc.cycles) * int(adc.prescaler)},
