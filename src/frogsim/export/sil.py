@@ -1,28 +1,31 @@
 """Software in the loop: the built firmware's own machine code on the emulated ATmega2560
-(:mod:`frogsim.export.emulator`), in lockstep with frogsim's plant.
+(:mod:`frogsim.export.emulator`), in lockstep with frogsim's plant, on the board's own timing.
 
-At every controller sample t_k the plant's state gives each channel's ADC count (the plan's
-``adc_counts``, the function the model's own sensing uses); the emulated board's analog inputs are
-set to the voltage simavr reads as that count (:func:`frogsim.export.emulator.millivolts_for_count`),
-and the AVR runs until the end of sample k's interrupt (its busy pin falls). The valve pins then
-hold the firmware's commands of sample k: charge pin high -> charge, discharge pin high -> vent,
-both low -> hold. They go to the plant through the driver's own dead-time queue, exactly as a
-compiled law's commands do (the Python-controller drivers with every muscle driven from outside:
+The clocks are tied at sample 0: the cycle of Timer1's first compare match is plant time 0, and
+sample k's period is the cycles [s0 + k P, s0 + (k + 1) P). For each period (:class:`BoardRun`):
+the plant's state at t_k gives each analog channel's count (the plan's ``adc_counts``, the
+function the model's own sensing uses), the emulated inputs are set to the voltage simavr reads
+as that count (:func:`frogsim.export.emulator.millivolts_for_count`), quadrature encoders are
+fed their edges, and the AVR runs to the period's end whatever the firmware does in it (an
+interrupt that ends late ends in a later period). Every valve pin change goes to the plant at
+the cycle the firmware made it, through the driver's own dead-time queue as a compiled law's
+commands do (the Python-controller drivers with every muscle driven from outside:
 :func:`frogsim.engine.pneumatic.run_python_controller` for the pneumatics alone,
-:func:`frogsim.engine.coupled_python.run_coupled_python` for the robot), and the plant runs on to
-the next sample. The robot's palms keep the gait's commands (their steering motors are not on the
-valve board).
+:func:`frogsim.engine.coupled_python.run_coupled_python` for the robot); ``timing="grid"`` gives
+each sample's decision at the sample's time instead (a check of the harness). With encoders the
+plant runs a period ahead (the edges of period k need the angle at t_k+1). The robot's palms
+keep the gait's commands (their steering motors are not on the valve board).
 
-The shadow check: the model's compiled law runs beside the firmware on the same states (its own
-controller memory, started as the engines start it: :func:`frogsim.control.sampled.start_controllers`,
-then :func:`frogsim.control.sampled.sample_controllers` at each sample, with
-:func:`frogsim.control.sampled.observe_joints` first on the robot), and a muscle with an
-open-loop program or gait is compared against its program's state at the sample. A sample where
-any muscle's command differs is a mismatched sample.
+The checks, per execution of the control interrupt: its decision against the model's integer
+twin of ``frogsim_sample`` on the counts it read (copied from the emulated RAM at its busy pin's
+fall): ``mismatched_samples``; and against the model's compiled law on the plant at its own
+sample (:class:`Shadow`: a late board reads later counts): ``samples_off_the_on_time_model``.
 
-What is measured on the emulated AVR, in its cycles: the busy pin's high time in each period (the
-interrupt's work from its first to its last instruction: the CPU load), the firmware's overrun
-counter (read from its RAM after the last sample, at the address avr-nm gives), and the bytes it sends on its serial port (the log).
+What is measured on the emulated AVR, in its cycles: the busy pin's high time of each interrupt
+(the CPU load), its response and valve-write latency from the compare match that started it,
+late and skipped samples, the sleep cycles (the chip's awake share), the firmware's overrun and
+dropped counters (read from its RAM at the end), and the bytes it sends on its serial port (the
+log: records made, received, dropped, unsent, fault bits).
 """
 from __future__ import annotations
 
@@ -321,9 +324,9 @@ def interrupt_timing(rec: dict, elf, samples: int = 200, seed: int = 0) -> dict:
     fault limits: outside them the laws would not run; a seeded generator: the same firmware gives
     the same figures), the busy pin's high time in AVR cycles.
 
-    The export's fit check (:func:`frogsim.components.atmega2560.plan_adc`) counts the ADC's
-    conversions only; the laws' own arithmetic (a joint-angle law's 64-bit products take about a
-    quarter of a 1 ms period) is measured here, on the machine code itself. Returns the period
+    The ADC's plan (:func:`frogsim.components.atmega2560.plan_adc`) counts the conversions only;
+    the laws' own arithmetic (a joint-angle row takes some 1000-2200 AVR cycles) is measured
+    here, on the machine code itself (:mod:`frogsim.export.fit` judges the fit). Returns the period
     [cycles], the mean and largest share of it the interrupt took [%], the samples over the
     period, the firmware's overrun counter and the share of the time the chip was awake [%]."""
     run = BoardRun(rec, elf)

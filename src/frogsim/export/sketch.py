@@ -18,24 +18,28 @@ The runtime. Timer1 in CTC mode (WGM12) with the smallest prescaler whose compar
 16 bits interrupts at exactly F_CPU / (N (1 + OCR1A)) = the controller rate (datasheet Sec.
 17.9.2). Its interrupt (sample k):
 
-1. raises the busy pin;
-2. converts each channel in turn (single conversions, AVcc reference, the plan's ADC prescaler;
-   with an 8-bit plan the result is left adjusted and ADCH read: Sec. 26.8);
-3. calls ``frogsim_sample(k, adc, modes)`` (integer arithmetic only, see the plan);
-4. writes the valve pins: first every valve that closes, then every valve that opens
+1. raises the busy pin and, interrupts still off, copies the quadrature encoders' counters;
+2. masks its own interrupt and enables the others (encoder edges, the serial port) for its work;
+3. converts each analog channel in turn (single conversions, AVcc reference, the plan's ADC
+   prescaler; with an 8-bit plan the result is left adjusted and ADCH read: Sec. 26.8);
+4. calls ``frogsim_sample(k, adc, modes)`` (each law's channels checked for a sensor fault,
+   then the laws, integer arithmetic only, see the plan);
+5. writes the valve pins: first every valve that closes, then every valve that opens
    (mode +1: charge pin high, discharge low; -1 the other way round; 0 both low);
-5. every ``log_every`` samples copies (k, counts, valve bits, overruns) into a ring of records;
-6. counts an overrun when Timer1's compare flag OCF1A is already set again (the next period began
-   before this one's work ended; the flag is cleared on entry to the interrupt);
-7. lowers the busy pin.
+6. every ``log_every`` samples copies (k, counts, valve bits, fault bits, the overrun and dropped
+   counters) into a ring of records; a record that finds the ring full is counted in the dropped
+   counter, which the next record carries;
+7. unmasks its interrupt (interrupts off), counts an overrun when Timer1's compare flag OCF1A is
+   already set again (the next period began before this one's work ended; the flag is cleared
+   on entry to the interrupt; the counters saturate at 65535), and lowers the busy pin.
 
-``loop()`` formats the queued records as text lines
-``k,count_0,...,count_n-1,valvebits,overruns`` (valve bit 2j: muscle j's charge valve, 2j+1 its
-discharge valve) and writes them to Serial, then sleeps (idle mode: timers and the serial port
-keep running) until the next interrupt. A record that finds the ring full is dropped and counted
-in a ``# dropped N`` line. The first line sent is ``# frogsim NAME rate=... channels=...``.
-Timer0's overflow interrupt (Arduino's millis) is switched off so that it never delays the
-control interrupt; the sketch uses neither millis nor delay.
+``loop()`` formats the queued records as text lines ``k,count_0,...,count_n-1,valvebits,
+faultbits,overruns,dropped`` (valve bit 2j: muscle j's charge valve, 2j+1 its discharge valve;
+decimal digits by subtraction, no division) and writes them to Serial, then sleeps (idle mode:
+timers and the serial port keep running) until the next interrupt. The first line sent is
+``# frogsim NAME rate=... channels=... muscles=... log_every=... format=2 plan=...``. Timer0's
+overflow interrupt (Arduino's millis) is switched off so that it never delays the control
+interrupt; the sketch uses neither millis nor delay.
 
 Where the fixed-point arithmetic lives: the laws' C source (the plan's); this runtime only moves
 counts and modes.
