@@ -165,7 +165,8 @@ def test_sine_setpoints_generated_on_the_board_command_the_valves_the_model_comm
     scenario = tmp_path / "robot-sines.toml"
     scenario.write_text(text)
     fw, out = tmp_path / "fw", tmp_path / "sil"
-    assert main(["firmware", str(scenario), "--out", str(fw), "--build", "--quiet"]) == 0
+    # robot-every-kind is at the board's edge (docs/firmware.md, the timing table): written anyway
+    assert main(["firmware", str(scenario), "--out", str(fw), "--build", "--allow-overrun", "--quiet"]) == 0
     from frogsim.scenario.load import with_firmware
     plan = fwm.firmware_plan(frogsim.load_robot_scenario(with_firmware(str(scenario))))
     generated = [law for law in plan.laws if law.module is not fwm.program and law.P[law.module.P_SINE] >= 0]
