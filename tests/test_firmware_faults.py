@@ -131,3 +131,37 @@ def test_a_dead_hip_sensor_on_the_board(tmp_path):
     assert faults["hip pressure"]["first_sample"] == 1000
     assert faults["hip pressure"]["records"] == len(range(1000, 2001, 10))
     assert any("fault" in w for w in s["sil"]["warnings"])
+
+
+def test_a_dead_sensor_on_one_muscle_of_the_swimming_robot_on_the_board(tmp_path):
+    """swim-board with hip_left's transducer dead from 1 s, one gait cycle in SIL (the plan does
+    not fit the board yet: written with --allow-overrun, the board takes every other sample): the
+    firmware decides as the integer twin on the counts it read, logs the fault, and hip_left
+    vents instead of charging towards the source pressure (6 bar gauge at the start)."""
+    need_avr_tools()
+    text = (SHIPPED / "swim-board.toml").read_text()
+    assert text.rstrip().splitlines()[-1].startswith("angle_encoder")     # [firmware] is the file's last section
+    path = tmp_path / "dead.toml"
+    path.write_text(text.rstrip() + '\nsensor_faults = [ { signal = "hip_left pressure", at = "1 s", '
+                                   'voltage = "0 V" } ]\n')
+    fw, out = tmp_path / "fw", tmp_path / "sil"
+    assert main(["firmware", str(path), "--cycles", "1", "--out", str(fw), "--build", "--allow-overrun",
+                 "--quiet"]) == 0
+    assert main(["sil", str(path), "--cycles", "1", "--firmware", str(fw), "--out", str(out), "--no-animation",
+                 "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())["sil"]
+    assert s["mismatched_samples"] == 0
+    assert s["log_records"]["faults"]["hip_left pressure"]["records"] > 0
+    import pandas as pd
+    ts = pd.read_csv(out / "timeseries.csv")
+    late = ts["time [s]"] >= 1.2
+    p = ts["hip_left pressure [bar gauge]"][late]
+    p_e = ts["exhaust pressure [bar gauge]"][late]
+    p_s = ts["source pressure [bar gauge]"][late]
+    # vented: its discharge valve open to the exhaust chamber, whose pressure it follows (the
+    # robot's exhaust is a closed chamber the vents fill; the valve's conductance lets the
+    # muscle, whose volume the moving joint changes, lag it by a fifth of a bar), far below the
+    # source's (a dead sensor read as "far below the setpoint" would have charged it towards it)
+    assert (ts["hip_left discharge valve [1 = open]"][late] == 1).all()
+    assert (ts["hip_left charge valve [1 = open]"][late] == 0).all()
+    assert (p - p_e).abs().max() < 0.2 and (p_s - p).min() > 1.5
