@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from frogsim._files import user_cache_folder
+from frogsim._jit import jit
 from frogsim.circuit.layout import pressure_index
 from frogsim.components import atmega2560 as chip
 from frogsim.control import fixed
@@ -371,19 +372,74 @@ def firmware_modes(plan: FirmwarePlan, k: int, adc, mem: np.ndarray) -> np.ndarr
     """The model's integer twin of ``frogsim_sample``: every muscle's mode (int8, -1 vent, 0 hold,
     1 charge) at sample k from the channels' counts ``adc``: each channel the law reads checked
     for a fault (:func:`frogsim.control.signals.fw_fault`), then each law's ``fw_law`` on its
-    memory (``mem`` from :func:`firmware_memory`, updated in place as the board's)."""
-    modes = np.zeros(len(plan.laws), np.int8)
-    for j, law in enumerate(plan.laws):
-        cp = int(adc[law.pressure]) if law.pressure >= 0 else 0
-        ca = int(adc[law.angle]) if law.angle >= 0 else 0
-        plo, phi, alo, ahi = law.faults
+    memory (``mem`` from :func:`firmware_memory`, updated in place as the board's), all in one
+    compiled call (:func:`_plan_modes`, the plan's numbers packed once)."""
+    packed = _packed(plan)
+    out = np.zeros(len(plan.laws), np.int8)
+    _plan_modes(*packed, float(plan.fault_mode), float(plan.fault_resume), mem, int(k),
+                np.asarray(adc, np.float64).reshape(-1), out)
+    return out
+
+
+_PACKED: dict = {}
+#: the kind code of a program law in the packed plan (the others are their modules' CODE)
+PROGRAM_CODE = 0.0
+
+
+def _packed(plan: FirmwarePlan) -> tuple:
+    """(codes, P_all, P_off, T_all, T_off, pressure channel, angle channel, fault limits) of the
+    plan's laws as flat arrays, made once per plan."""
+    hit = _PACKED.get(id(plan))
+    if hit is not None and hit[0] is plan:
+        return hit[1]
+    laws = plan.laws
+    codes = np.array([PROGRAM_CODE if law.module is program else law.module.CODE for law in laws], np.float64)
+    P_off = np.cumsum([0] + [len(law._Pf) for law in laws]).astype(np.int64)
+    T_off = np.cumsum([0] + [len(law._Tf) for law in laws]).astype(np.int64)
+    P_all = np.concatenate([law._Pf for law in laws]) if laws else np.zeros(0)
+    T_all = np.concatenate([law._Tf for law in laws]) if laws else np.zeros(0)
+    p_ch = np.array([law.pressure for law in laws], np.int64)
+    a_ch = np.array([law.angle for law in laws], np.int64)
+    faults = np.array([law.faults for law in laws], np.float64).reshape(len(laws), 4)
+    packed = (codes, P_all, P_off, T_all, T_off, p_ch, a_ch, faults)
+    if len(_PACKED) > 32:
+        _PACKED.clear()
+    _PACKED[id(plan)] = (plan, packed)
+    return packed
+
+
+@jit
+def _plan_modes(codes, P_all, P_off, T_all, T_off, p_ch, a_ch, faults, fault_mode, resume, mem, k, adc, out):
+    """:func:`firmware_modes`' loop, compiled: for each law its channels' fault checks (both
+    evaluated), then its kind's ``fw_law`` (the same dispatch as the model's compiled sample)."""
+    for j in range(codes.size):
+        cp = int(adc[p_ch[j]]) if p_ch[j] >= 0 else 0
+        ca = int(adc[a_ch[j]]) if a_ch[j] >= 0 else 0
+        m = mem[j]
         bad = False
-        if law.pressure >= 0 and plo >= 0:
-            bad = fw_fault(cp, plo, phi, mem[j], FW_MEM, plan.fault_resume)
-        if law.angle >= 0 and alo >= 0:
-            bad = fw_fault(ca, alo, ahi, mem[j], FW_MEM + 1, plan.fault_resume) or bad
-        modes[j] = plan.fault_mode if bad else law.module.fw_law(law._Pf, law._Tf, mem[j], int(k), cp, ca)
-    return modes
+        if p_ch[j] >= 0 and faults[j, 0] >= 0.0:
+            bad = fw_fault(cp, faults[j, 0], faults[j, 1], m, FW_MEM, resume)
+        if a_ch[j] >= 0 and faults[j, 2] >= 0.0:
+            if fw_fault(ca, faults[j, 2], faults[j, 3], m, FW_MEM + 1, resume):
+                bad = True
+        if bad:
+            out[j] = int(fault_mode)
+            continue
+        P = P_all[P_off[j]:P_off[j + 1]]
+        T = T_all[T_off[j]:T_off[j + 1]]
+        code = codes[j]
+        mode = 0
+        if code == bang_bang.CODE:
+            mode = bang_bang.fw_law(P, T, m, k, cp, ca)
+        elif code == pwm.CODE:
+            mode = pwm.fw_law(P, T, m, k, cp, ca)
+        elif code == sliding_mode.CODE:
+            mode = sliding_mode.fw_law(P, T, m, k, cp, ca)
+        elif code == joint_angle.CODE:
+            mode = joint_angle.fw_law(P, T, m, k, cp, ca)
+        else:
+            mode = program.fw_law(P, T, m, k, cp, ca)
+        out[j] = mode
 
 
 def host_library(plan_or_source) -> ctypes.CDLL:
