@@ -36,6 +36,7 @@ from frogsim.circuit.layout import pressure_index
 from frogsim.components import atmega2560 as chip
 from frogsim.control import fixed
 from frogsim.control.kinds import bang_bang, joint_angle, program, pwm, sliding_mode
+from frogsim.control.sampled import fw_dispatch
 from frogsim.control.signals import FW_MEM, SINE_N, adc_count, fw_fault
 from frogsim.control.table import (L_FAULT_AHI, L_FAULT_ALO, L_FAULT_PHI, L_FAULT_PLO, L_FW, L_JOINT1, L_KIND,
                                    L_MUSCLE, L_PATM)
@@ -411,7 +412,8 @@ def _packed(plan: FirmwarePlan) -> tuple:
 @jit
 def _plan_modes(codes, P_all, P_off, T_all, T_off, p_ch, a_ch, faults, fault_mode, resume, mem, k, adc, out):
     """:func:`firmware_modes`' loop, compiled: for each law its channels' fault checks (both
-    evaluated), then its kind's ``fw_law`` (the same dispatch as the model's compiled sample)."""
+    evaluated), then its program's or its kind's ``fw_law`` (the model's compiled sample's
+    dispatch, :func:`frogsim.control.sampled.fw_dispatch`)."""
     for j in range(codes.size):
         cp = int(adc[p_ch[j]]) if p_ch[j] >= 0 else 0
         ca = int(adc[a_ch[j]]) if a_ch[j] >= 0 else 0
@@ -427,19 +429,10 @@ def _plan_modes(codes, P_all, P_off, T_all, T_off, p_ch, a_ch, faults, fault_mod
             continue
         P = P_all[P_off[j]:P_off[j + 1]]
         T = T_all[T_off[j]:T_off[j + 1]]
-        code = codes[j]
-        mode = 0
-        if code == bang_bang.CODE:
-            mode = bang_bang.fw_law(P, T, m, k, cp, ca)
-        elif code == pwm.CODE:
-            mode = pwm.fw_law(P, T, m, k, cp, ca)
-        elif code == sliding_mode.CODE:
-            mode = sliding_mode.fw_law(P, T, m, k, cp, ca)
-        elif code == joint_angle.CODE:
-            mode = joint_angle.fw_law(P, T, m, k, cp, ca)
+        if codes[j] == PROGRAM_CODE:
+            out[j] = program.fw_law(P, T, m, k, cp, ca)
         else:
-            mode = program.fw_law(P, T, m, k, cp, ca)
-        out[j] = mode
+            out[j] = fw_dispatch(codes[j], P, T, m, k, cp, ca)
 
 
 def host_library(plan_or_source) -> ctypes.CDLL:

@@ -321,17 +321,26 @@ def firmware_mode(laws, c, cs, b, y, k, ts):
     P = laws[c, at + 2:at + 2 + n_p]
     T = laws[c, at + 2 + n_p:at + 2 + n_p + n_t]
     mem = cs[b + B_FW0:b + B_FW0 + FW_MEM]
-    mode = 0
-    if kind == bang_bang.CODE:
-        mode = bang_bang.fw_law(P, T, mem, k, cp, ca)
-    elif kind == pwm.CODE:
-        mode = pwm.fw_law(P, T, mem, k, cp, ca)
-    elif kind == sliding_mode.CODE:
-        mode = sliding_mode.fw_law(P, T, mem, k, cp, ca)
-    elif kind == joint_angle.CODE:
-        mode = joint_angle.fw_law(P, T, mem, k, cp, ca)
+    mode = fw_dispatch(kind, P, T, mem, k, cp, ca)
+    if kind == joint_angle.CODE:
         cs[b + B_CLIPS] = mem[3]
     return float(mode)
+
+
+@jit
+def fw_dispatch(kind, P, T, mem, k, cp, ca):
+    """The integer twin's law of kind code ``kind`` (each kind module's ``fw_law``) on its block
+    (P, T) and memory: the one dispatch the model's compiled sample and the firmware plan's twin
+    (:func:`frogsim.control.firmware.firmware_modes`) share; 0 (hold) for a kind without a twin."""
+    if kind == bang_bang.CODE:
+        return bang_bang.fw_law(P, T, mem, k, cp, ca)
+    if kind == pwm.CODE:
+        return pwm.fw_law(P, T, mem, k, cp, ca)
+    if kind == sliding_mode.CODE:
+        return sliding_mode.fw_law(P, T, mem, k, cp, ca)
+    if kind == joint_angle.CODE:
+        return joint_angle.fw_law(P, T, mem, k, cp, ca)
+    return 0
 
 
 @jit_alloc
