@@ -149,7 +149,7 @@ static void run(fs_law_t law, fs_law_t law2, int32_t *mem, int32_t *mem2, const 
     fs_law_t volatile f = law, f2 = law2;
     uint32_t k;
     uint8_t i;
-    for (i = 0; i < 5; i++) mem[i] = mem2[i] = 0;
+    for (i = 0; i < FS_BENCH_MEM; i++) mem[i] = mem2[i] = 0;
     for (k = 0; k < %(calls)d; k++) {
         uint16_t c_p = pgm_read_word(&cp[k]), c_a = pgm_read_word(&ca[k]);
         fs_law_t g = f;
@@ -183,12 +183,14 @@ def harness(plan) -> tuple:
     calls = {}
     for line in plan.c_source.splitlines():
         # "modes[j] = fs_kind(k, cp, ca, M, P, T);", behind the fault check's "bad ? FS_FAULT_MODE : "
-        m = re.match(r"\s*modes\[(\d+)\] = (?:bad \? FS_FAULT_MODE : )?(\w+)\(k, [^,]+, [^,]+, (\w+), (\w+), (\w+)\);",
-                     line)
+        # (a joint's second row: "(pairN ? fs_joint_angle_follow(...) : fs_joint_angle(k, ...))", its own law timed)
+        m = re.match(r"\s*modes\[(\d+)\] = (?:bad \? FS_FAULT_MODE : )?(?:\(pair\d+ \? \w+\([^)]*\) : )?"
+                     r"(\w+)\(k, [^,]+, [^,]+, (\w+), (\w+), (\w+)\)\)?;", line)
         if m:
             calls[int(m.group(1))] = m.groups()[1:]
     inputs, runs, labels = [], [], []
-    mem = "static int32_t fs_bench_mem[8], fs_bench_mem2[8];\n"
+    from frogsim.control.signals import FW_MEM
+    mem = f"#define FS_BENCH_MEM {FW_MEM}\nstatic int32_t fs_bench_mem[FS_BENCH_MEM], fs_bench_mem2[FS_BENCH_MEM];\n"
     for n, (label, rows, cp, ca) in enumerate(jobs(plan)):
         fn, _, P, T = calls[rows[0]]
         fn2, P2, T2 = (calls[rows[1]][0], calls[rows[1]][2], calls[rows[1]][3]) if len(rows) > 1 else ("0", P, T)

@@ -6,8 +6,9 @@ Run:  python benchmarks/bench_sil.py [--cycles N]          # default 5 gait cycl
 Workloads:
 
 * ``swim-board`` (the shipped scenario): the swimming robot free in water, pump on, 12 muscles, a
-  joint-angle controller on each of its six joints following the gait's angle profile, twelve
-  pressures on the ADC and six quadrature encoders, 1 kHz, serial log at 100 Hz;
+  joint-angle controller on each of its six joints following the gait's angle profile (PD angle
+  loops at 250 Hz, staggered; pressure relays at 1 kHz), twelve pressures on the ADC and six
+  quadrature encoders of 8000 counts per revolution, serial log at 50 Hz;
 * ``earlier robot``: the robot as this benchmark ran it before ``swim-board`` existed (the robot
   with antagonistic muscles, five joint-angle controllers on potentiometers holding constant
   angles, the sixth joint on its gait: 15 analog inputs), the firmware that overran every sample.

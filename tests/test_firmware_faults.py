@@ -134,19 +134,18 @@ def test_a_dead_hip_sensor_on_the_board(tmp_path):
 
 
 def test_a_dead_sensor_on_one_muscle_of_the_swimming_robot_on_the_board(tmp_path):
-    """swim-board with hip_left's transducer dead from 1 s, one gait cycle in SIL (the plan does
-    not fit the board yet: written with --allow-overrun, the board takes every other sample): the
-    firmware decides as the integer twin on the counts it read, logs the fault, and hip_left
-    vents instead of charging towards the source pressure (6 bar gauge at the start)."""
+    """swim-board with hip_left's transducer dead from 1 s, one gait cycle in SIL: the firmware
+    decides as the integer twin on the counts it read (the hip's two laws, which share one run of
+    the joint's loop while both run, part there), logs the fault, and hip_left vents instead of
+    charging towards the source pressure (6 bar gauge at the start)."""
     need_avr_tools()
     text = (SHIPPED / "swim-board.toml").read_text()
-    assert text.rstrip().splitlines()[-1].startswith("angle_encoder")     # [firmware] is the file's last section
+    assert text.rstrip().splitlines()[-1].startswith("velocity_window")   # [firmware] is the file's last section
     path = tmp_path / "dead.toml"
     path.write_text(text.rstrip() + '\nsensor_faults = [ { signal = "hip_left pressure", at = "1 s", '
                                    'voltage = "0 V" } ]\n')
     fw, out = tmp_path / "fw", tmp_path / "sil"
-    assert main(["firmware", str(path), "--cycles", "1", "--out", str(fw), "--build", "--allow-overrun",
-                 "--quiet"]) == 0
+    assert main(["firmware", str(path), "--cycles", "1", "--out", str(fw), "--build", "--quiet"]) == 0
     assert main(["sil", str(path), "--cycles", "1", "--firmware", str(fw), "--out", str(out), "--no-animation",
                  "--quiet"]) == 0
     s = json.loads((out / "summary.json").read_text())["sil"]

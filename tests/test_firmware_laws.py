@@ -158,7 +158,7 @@ def test_pwm_twins_agree(lib, data, k, cp, how):
     T = data.draw(st.lists(st.integers(0, N) if how == 2 else Q4S, min_size=1, max_size=20))
     P = [N, how, data.draw(st.integers(0, N)), pb, nmin, data.draw(st.integers(0, 1)), len(T)]
     P += _sine_or_table(data) if how == 0 else fixed.NO_SINE
-    mem = [data.draw(st.integers(0, N - 1)), data.draw(st.integers(-N, N)), 0, 0, 0][:FW_MEM]
+    mem = [data.draw(st.integers(0, N - 1)), data.draw(st.integers(-N, N))] + [0] * (FW_MEM - 2)
     c, n = _both(lib, pwm, P, T, mem, k, cp, 0)
     assert c == n
 
@@ -178,7 +178,7 @@ def test_sliding_mode_twins_agree(lib, data, k, cp, last, seed):
         sine[6] = data.draw(st.integers(0, 2**16 - 1))
         n, sp, dsp = 0, [], []
     P = [data.draw(st.integers(0, 2**20)), data.draw(st.integers(0, 2**20)), rho * rho, n, 1024] + sine
-    c, nb = _both(lib, sliding_mode, P, sp + dsp + list(rates), [last, 0, 0, 0, 0][:FW_MEM], k, cp, 0)
+    c, nb = _both(lib, sliding_mode, P, sp + dsp + list(rates), [last] + [0] * (FW_MEM - 1), k, cp, 0)
     assert c == nb
 
 
@@ -228,11 +228,19 @@ def _joint_case(data, sine: bool):
          data.draw(GAINS, label="Kp"), data.draw(GAINS, label="Kd"), data.draw(GAINS, label="Ki"),
          data.draw(st.integers(0, 2000)), n, shift]
     P += list(data.draw(SINE_BLOCKS, label="sine")) if sine else fixed.NO_SINE
+    # the angle loop's schedule: every N samples from its phase; mem[5] the samples left (0: first)
+    every = data.draw(st.one_of(st.integers(1, 8), st.sampled_from((0, -3, 2**31 - 1))), label="N")
+    phase = data.draw(st.one_of(st.integers(0, 8), st.sampled_from((-1, 2**31 - 1))), label="phase")
+    window = data.draw(st.one_of(st.integers(0, 9), st.sampled_from((-1, 2**31 - 1))), label="W")
+    P += [every, phase, window]
+    mem += [data.draw(st.one_of(st.integers(0, 9), st.sampled_from((-5, 2**31 - 1))), label="left"),
+            data.draw(Q4S, label="held target"), data.draw(INTEGRALS, label="half difference")]
     if sine:
         sp, dsp = fw_sine(np.array(P, float), joint_angle.P_SINE, k)
     else:
         sp, dsp = T[kk], T[n + kk]
-    return P, T, mem, k, data.draw(COUNTS, label="cp"), ca, _fast(P, sp - aq, dsp - vf)
+    due = (phase if mem[5] <= 0 else mem[5] - 1) <= 0           # the loop runs at this sample
+    return P, T, mem, k, data.draw(COUNTS, label="cp"), ca, (not due) or _fast(P, sp - aq, dsp - vf)
 
 
 @needs_gcc
@@ -267,8 +275,8 @@ def _edge_cases() -> list:
             for kp, kd, ki in ((2**29 - 1, 2**29 - 1, 0xFFFF), (-2**29, -2**29, 0), (2**29, 1, 1), (1, -2**29 - 1, 1),
                                (0, 0, 0x10000), (0x10000, 0xFFFF, -1), (0, 0, 0), (2**31 - 1, 2**31 - 1, 2**31 - 1)):
                 for integral in (-2**30, 2**30 - 1, 0):
-                    mem = [integral, aq, 1, 0, 0]            # vf stays 0: dsp = r
-                    P = [1, 20000, 0, 2**30, kp, kd, ki, 100, 1, 3] + fixed.NO_SINE
+                    mem = [integral, aq, 1, 0, 0, 0, 0, 0]   # vf stays 0: dsp = r; the loop's first run
+                    P = [1, 20000, 0, 2**30, kp, kd, ki, 100, 1, 3] + fixed.NO_SINE + [1, 0, 0]
                     out.append((P, [aq + e, r], mem, ca, _fast(P, e, r)))
     return out
 
@@ -739,3 +747,48 @@ def test_ten_seconds_of_sine_joint_setpoints_fit_the_boards_flash():
                                                              "gait": {**raw["gait"], "period": "2 s", "cycles": 1}}))
     # the same laws for 2 s: the generator's parameters do not depend on the run's length
     assert [law.P for law in shorter.laws if law.module is joint_angle] == [law.P for law in laws]
+
+
+@needs_gcc
+@pytest.mark.parametrize("seed", [5, 6])
+def test_swim_boards_staggered_and_shared_loops_in_c_equal_the_twin(seed):
+    """swim-board's firmware: six joints' angle loops every 4 samples, staggered, each joint's
+    second law taking the first's run (fs_joint_angle_follow) while their memories agree, against
+    the twin (each law its own memory, firmware_modes) sample by sample. The pressures and angles
+    wander; now and then a pressure channel reads a count outside its fault limits for a few
+    samples, which stops that law (not its pair's), so the pair's memories part and each law runs
+    its own loop from then on: both paths are checked."""
+    plan = fwm.firmware_plan(frogsim.load_robot_scenario("swim-board", cycles=1))
+    names = fwm._table_names(plan.laws)
+    assert len(fwm._joint_pairs(plan.laws, names)) == 6
+    assert {int(law.P[joint_angle.P_EVERY]) for law in plan.laws} == {4}
+    h = fwm.host_library(plan)
+    h.frogsim_reset()
+    rng = np.random.default_rng(seed)
+    n_ch, n_m = len(plan.channels), len(plan.muscles)
+    mem = fwm.firmware_memory(plan)
+    modes = (ctypes.c_int8 * n_m)()
+    adc = (ctypes.c_uint16 * n_ch)()
+    enc = [i for i, ch in enumerate(plan.channels) if ch.pins]
+    counts = np.array([32768 if ch.pins else 120 for ch in plan.channels], np.int64)
+    dead = np.zeros(n_ch, np.int64)
+    for k in range(3000):
+        step = rng.integers(-3, 4, n_ch)
+        counts = counts + step
+        counts[enc] = np.clip(counts[enc], 32768 - 300, 32768 + 600)
+        analog = [i for i in range(n_ch) if i not in enc]
+        counts[analog] = np.clip(counts[analog], 20, 235)
+        if rng.random() < 0.01:
+            dead[rng.choice(analog)] = rng.integers(1, 15)
+        read = counts.copy()
+        read[dead > 0] = 2                       # below every pressure channel's fault limit
+        dead = np.maximum(dead - 1, 0)
+        for j in range(n_ch):
+            adc[j] = int(read[j])
+        h.frogsim_sample(k, adc, modes)
+        want = fwm.firmware_modes(plan, k, read, mem)
+        assert list(modes) == list(want), f"sample {k}"
+    lead = [j for j in fwm._joint_pairs(plan.laws, names).values()]
+    follow = list(fwm._joint_pairs(plan.laws, names))
+    parted = sum(1 for j, f in zip(lead, follow) if not np.array_equal(np.delete(mem[j, :8], 6), np.delete(mem[f, :8], 6)))
+    assert parted > 0                            # some pair's memories parted: the unshared path ran too

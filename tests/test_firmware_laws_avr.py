@@ -118,6 +118,9 @@ def _joint_cases(rng, n: int, sine: bool):
         else:
             P += fixed.NO_SINE
             k = int(rng.integers(0, 5))
+        every = int(rng.integers(1, 7))                  # the angle loop's schedule, its memory
+        P += [every, int(rng.integers(0, every)), int(rng.integers(0, every + 2))]
+        mem += [int(rng.integers(0, every + 1)), int(rng.integers(0, 30001)), int(rng.integers(-2**20, 2**20))]
         T = [max(-2**31 + 1, min(2**31 - 1, aq + diff())), max(-2**31 + 1, min(2**31 - 1, vf + diff()))]
         cases.append((P, T, mem, k, int(rng.integers(0, 1024)), ca))
     return cases

@@ -232,7 +232,9 @@ def c_source(name: str, laws: list, fault_mode: int = -1, fault_resume: int = 10
            "#include <stdint.h>\n\n",
            "#ifndef FS_TABLE\n#define FS_TABLE\n#endif\n",
            "#ifndef FS_READ16\n#define FS_READ16(p) (*(p))\n#endif\n",
-           "#ifndef FS_READ32\n#define FS_READ32(p) (*(p))\n#endif\n\n",
+           "#ifndef FS_READ32\n#define FS_READ32(p) (*(p))\n#endif\n",
+           "/* channel i's count (the board defines FS_CH to wait for its conversion) */\n"
+           "#ifndef FS_CH\n#define FS_CH(i) (adc[i])\n#endif\n\n",
            "void frogsim_sample(uint32_t k, const uint16_t *adc, int8_t *modes);\nvoid frogsim_reset(void);\n"
            "uint32_t frogsim_faults(void);\n",
            "".join(f"int8_t {mod.C_NAME}(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P, "
@@ -249,9 +251,9 @@ def c_source(name: str, laws: list, fault_mode: int = -1, fault_resume: int = 10
                "static uint32_t fs_fault_bits;   /* bit i: channel i in fault at the last sample */\n"
                "uint32_t frogsim_faults(void) { return fs_fault_bits; }\n\n"
                "/* twin of frogsim.control.signals.fw_fault */\n"
-               "static uint8_t fs_fault(uint16_t c, uint16_t lo, uint16_t hi, uint16_t *left) "
-               "__attribute__((unused));\n"
-               "static uint8_t fs_fault(uint16_t c, uint16_t lo, uint16_t hi, uint16_t *left) {\n"
+               "static inline uint8_t fs_fault(uint16_t c, uint16_t lo, uint16_t hi, uint16_t *left) "
+               "__attribute__((unused, always_inline));\n"
+               "static inline uint8_t fs_fault(uint16_t c, uint16_t lo, uint16_t hi, uint16_t *left) {\n"
                "    if (c < lo || c > hi) { *left = FS_FAULT_RESUME; return 1; }\n"
                "    if (*left > 0) { (*left)--; return 1; }\n"
                "    return 0;\n}\n")
@@ -259,12 +261,22 @@ def c_source(name: str, laws: list, fault_mode: int = -1, fault_resume: int = 10
     for j in range(len(laws)):
         out.append(f"    for (i = 0; i < {FW_MEM}; i++) fs_M{j}[i] = 0;\n    fs_F{j}[0] = fs_F{j}[1] = 0;\n")
     out.append("}\n\nvoid frogsim_sample(uint32_t k, const uint16_t *adc, int8_t *modes) {\n"
-               "    uint32_t faults = 0;\n    uint8_t bad;\n")
-    if not any(law.pressure >= 0 or law.angle >= 0 for law in laws):
-        out.append("    (void)adc;\n    (void)bad;\n")
+               "    uint32_t faults = 0;\n    uint8_t bad = 0;\n    uint16_t cp = 0, ca = 0;\n"
+               "    (void)adc;\n    (void)bad;\n    (void)cp;\n    (void)ca;\n")
+    followers = _joint_pairs(laws, tables)
+    leaders = {j: f for f, j in followers.items()}
     for j, law in enumerate(laws):
-        cp = f"adc[{law.pressure}]" if law.pressure >= 0 else "0"
-        ca = f"adc[{law.angle}]" if law.angle >= 0 else "0"
+        if j in leaders:
+            f = leaders[j]
+            out.append(f"    uint8_t pair{f} = fs_joint_angle_pair(fs_M{j}, fs_M{f}, fs_P{f});   /* one joint's "
+                       f"loop, laws {j} and {f} */\n")
+        cp = ca = "0"
+        if law.pressure >= 0:
+            out.append(f"    cp = FS_CH({law.pressure});\n")
+            cp = "cp"
+        if law.angle >= 0:
+            out.append(f"    ca = FS_CH({law.angle});\n")
+            ca = "ca"
         plo, phi, alo, ahi = law.faults
         checks = []
         if law.pressure >= 0 and plo >= 0:
@@ -272,12 +284,38 @@ def c_source(name: str, laws: list, fault_mode: int = -1, fault_resume: int = 10
         if law.angle >= 0 and alo >= 0:
             checks.append(f"    if (fs_fault({ca}, {alo}u, {ahi}u, &fs_F{j}[1])) {{ bad = 1; faults |= 1UL << {law.angle}; }}\n")
         call = f"{law.module.C_NAME}(k, {cp}, {ca}, fs_M{j}, fs_P{j}, {tables[j]})"
+        if j in followers:
+            call = (f"(pair{j} ? fs_joint_angle_follow({cp}, {ca}, fs_M{followers[j]}, fs_M{j}, fs_P{j}) : {call})")
         if checks:
             out.append("    bad = 0;\n" + "".join(checks) + f"    modes[{j}] = bad ? FS_FAULT_MODE : {call};\n")
         else:
             out.append(f"    modes[{j}] = {call};\n")
+        if j in leaders:
+            out.append(f"    pair{leaders[j]} = pair{leaders[j]} && !bad;   /* the leader ran its law */\n")
     out.append("    fs_fault_bits = faults;\n}\n")
     return "".join(out)
+
+
+def _joint_pairs(laws: list, tables: list) -> dict:
+    """{follower j: leader i < j}: the joint-angle laws that run one joint's loop, the same
+    parameters but the sign (extensor +1, flexor -1), one setpoint table and one angle channel.
+    The C runs the loop once for both while their memories agree (``fs_joint_angle_follow``: the
+    follower's result is the one its own law would give, exactly: the same numbers in, the same
+    arithmetic); after a fault that let one law run without the other, each runs its own."""
+    out = {}
+    taken = set()
+    for j, law in enumerate(laws):
+        if law.module is not joint_angle or j in taken:
+            continue
+        for f in range(j + 1, len(laws)):
+            other = laws[f]
+            if (other.module is joint_angle and f not in taken and f not in out and other.angle == law.angle
+                    and tables[f] == tables[j] and len(other.P) == len(law.P)
+                    and tuple(other.P[1:]) == tuple(law.P[1:])):
+                out[f] = j
+                taken.update((j, f))
+                break
+    return out
 
 
 def _table_names(laws: list) -> list:

@@ -37,7 +37,8 @@ B_SW_C = 3       # switchings of the charge valve so far (applied)
 B_SW_D = 4       # switchings of the discharge valve
 B_FILT = 5       # sensor lag: filtered gauge pressure [Pa]
 B_FILT_ON = 6    # 1 once the filter holds a value
-B_PHASE = 7      # pwm: sample index within the period
+B_PHASE = 7      # pwm: sample index within the period; joint-angle: samples until its angle loop
+                 # runs again plus one (0: not started), see frogsim.control.kinds.joint_angle
 B_PULSE = 8      # pwm: this period's pulse, samples (sign: +charge, -vent)
 B_QC_HEAD = 9    # charge queue: first entry, number of entries
 B_QC_N = 10
@@ -57,10 +58,10 @@ B_INT = 22       # integral of the angle error [rad s]
 B_TARGET = 23    # this muscle's pressure target at the last sample [Pa abs]
 B_CLIPS = 24     # samples at which the pair's targets p0 +- dp/2 were clipped to [atmosphere, source]
 B_FW0 = 25       # [firmware]: the integer twin's memory (FW_MEM slots, whole numbers; the C
-FW_MEM = 5       # twin's int32_t mem[FW_MEM]), see frogsim.control.fixed
-B_FAULT_P = 30   # [firmware]: good samples still needed after a fault of the pressure channel (0: none)
-B_FAULT_A = 31   # ... of the angle channel
-B_Q0 = 32        # queues: charge (due, state) x Q, then discharge (due, state) x Q
+FW_MEM = 8       # twin's int32_t mem[FW_MEM]), see frogsim.control.fixed
+B_FAULT_P = 33   # [firmware]: good samples still needed after a fault of the pressure channel (0: none)
+B_FAULT_A = 34   # ... of the angle channel
+B_Q0 = 35        # queues: charge (due, state) x Q, then discharge (due, state) x Q
 TOL = 1e-9       # [s] a due time this close to a sample is that sample
 
 

@@ -112,7 +112,11 @@ L_INJ_P_AT = 60    # a fault put into the plant (SensorFault): from this time [s
 L_INJ_P_COUNT = 61  # ... the pressure channel reads this count
 L_INJ_A_AT = 62    # the same for the angle channel
 L_INJ_A_COUNT = 63
-L_SIZE = 64
+# joint-angle: the angle loop's schedule (frogsim.control.kinds.joint_angle): it runs every
+# L_A_EVERY samples (0 or 1: every sample), first at sample L_A_PHASE; between runs its targets hold
+L_A_EVERY = 64
+L_A_PHASE = 65
+L_SIZE = 66
 L_SP0 = L_SIZE   # knots (t_j, p_j) from here on; the firmware block after them
 
 

@@ -8,11 +8,14 @@ Two sources for the interrupt's cycles:
   largest high time), and the share of the time the chip was awake outside the interrupt, which
   is the log's (its formatting in ``loop()`` and the serial port's byte interrupts);
 * ``estimate``: a cycle count from the plan without building: each conversion's ADC clocks
-  (datasheet Table 26-1: 25 for the first after enabling, 13 after; times the prescaler), each
-  law's cycles per call on the AVR (:data:`LAW_CYCLES`, measured by
-  ``benchmarks/bench_fw_laws.py`` on the emulated chip, the largest per kind with the sensors
-  within their lines), the runtime's own
-  work (:data:`RUNTIME_CYCLES`, :data:`VALVE_CYCLES`), and the log's formatting and sending
+  (datasheet Table 26-1: 25 for the first after enabling, 13 after; times the prescaler) and
+  its interrupt, converted in the background while the laws run; each law's cycles per call on
+  the AVR (:data:`LAW_CYCLES`, measured by ``benchmarks/bench_fw_laws.py`` on the emulated chip,
+  the largest per kind with the sensors within their lines; a joint-angle law between its angle
+  loop's runs :data:`JOINT_HOLD_CYCLES`, a joint's second law following the first's run
+  :data:`JOINT_FOLLOW_CYCLES`; each with :data:`LAW_OVERHEAD_CYCLES`), each law starting when its
+  channels are converted, the ADC's interrupts (:data:`ADC_INTERRUPT_CYCLES`) taken from them; the runtime's
+  own work (:data:`RUNTIME_CYCLES`, :data:`VALVE_CYCLES`), and the log's formatting and sending
   (:data:`FORMAT_CYCLES_PER_DIGIT`, :data:`UART_CYCLES_PER_BYTE`) at its rate.
 
 A plan fits when the interrupt's worst case plus the log's share is at most the period
@@ -28,12 +31,23 @@ from frogsim.errors import ScenarioError
 
 #: AVR cycles per call of each kind's law, the largest measured on a sensor within its line
 #: (benchmarks/bench_fw_laws.py, "typical": the joint-angle law's 16-bit path with a generated sine
-#: setpoint). An angle count jumping across its range every sample sends the joint-angle law down
-#: its int64 path (up to 2175 cycles): --build's timing on random counts shows that case.
-LAW_CYCLES = {"program": 140, "bang_bang": 500, "pwm": 1150, "sliding_mode": 2340, "joint_angle": 1360}
-#: the control interrupt's own cycles: entry and exit, the busy pin, the encoders' copy, the call
-#: of frogsim_sample, the log record's bookkeeping (measured: an interrupt with one program law
-#: and no channel, less the law)
+#: setpoint, a run of its angle loop). An angle count jumping across its range every sample sends the
+#: joint-angle law down its int64 path (up to 2300 cycles): --build's timing on random counts shows
+#: that case.
+LAW_CYCLES = {"program": 140, "bang_bang": 500, "pwm": 1150, "sliding_mode": 2340, "joint_angle": 1500}
+#: a joint-angle law at a sample its angle loop does not run (the schedule, the velocity window's
+#: angle, the relay on the held target, the fault check and the channels' reads), and the second law
+#: of a joint following the first's run (fs_joint_angle_follow): measured in the interrupt of
+#: swim-board on the emulated chip (200 to 370 and 400 to 470 cycles)
+JOINT_HOLD_CYCLES = 400
+JOINT_FOLLOW_CYCLES = 500
+#: the ADC-complete interrupt: entry, the count stored, the next input started, exit
+ADC_INTERRUPT_CYCLES = 90
+#: per law, in frogsim_sample: its channels read, their fault checks, the call
+LAW_OVERHEAD_CYCLES = 100
+#: the control interrupt's own cycles: entry and exit, the busy pin, the encoders' copy, the first
+#: conversion's start, the call of frogsim_sample, the log record's bookkeeping (measured: an
+#: interrupt with one program law and no channel, less the law)
 RUNTIME_CYCLES = 300
 #: per muscle: its two valve pins written (closing first, then opening) and its bits in a record
 VALVE_CYCLES = 16
@@ -47,18 +61,65 @@ def _law_key(law) -> str:
     return law.module.__name__.rsplit(".", 1)[-1]
 
 
+def _law_cycles(plan) -> list:
+    """[[cycles of law j at sample s] for each law] over the samples in which every joint-angle
+    law's schedule runs its course twice (the first sample included): a joint-angle law costs a
+    run of its loop at the samples its schedule gives (:func:`frogsim.control.kinds.joint_angle.
+    angle_loop_due`), a hold at the others, and the second law of a joint (the C's pairs,
+    :func:`frogsim.control.firmware._joint_pairs`) a follow where the first runs."""
+    from frogsim.control import firmware as fwm
+    from frogsim.control.kinds import joint_angle
+    laws = plan.laws
+    every = [max(1, int(law.P[joint_angle.P_EVERY])) if law.module is joint_angle else 1 for law in laws]
+    samples = 2 * max(every, default=1) + 1
+    followers = fwm._joint_pairs(laws, fwm._table_names(laws))
+    out = []
+    for j, law in enumerate(laws):
+        key = _law_key(law)
+        if law.module is not joint_angle:
+            out.append([LAW_CYCLES.get(key, max(LAW_CYCLES.values()))] * samples)
+            continue
+        row, left = [], 0
+        for _ in range(samples):
+            due, left = joint_angle.angle_loop_due(law.P[joint_angle.P_EVERY], law.P[joint_angle.P_PHASE], left)
+            row.append((JOINT_FOLLOW_CYCLES if j in followers else LAW_CYCLES[key]) if due else JOINT_HOLD_CYCLES)
+        out.append(row)
+    return out
+
+
 def estimate(plan, line_bytes: int) -> dict:
     """The plan's worst interrupt [CPU cycles] and the log's share of the CPU, from the cycle
-    counts above (module docstring); ``line_bytes`` the longest log line."""
-    n_analog = sum(1 for ch in plan.channels if not getattr(ch, "pins", ()))
-    conv = n_analog * plan.adc.cycles * plan.adc.prescaler
+    counts above (module docstring); ``line_bytes`` the longest log line.
+
+    The analog channels are converted in the background, one after the other in the order the
+    laws read them (the first 25 ADC clocks, the others 13, each followed by the ADC interrupt);
+    each law starts when the conversions it reads are done and the law before it has ended. The
+    worst sample of the laws' schedules is the estimate's."""
+    from frogsim.export.sketch import _conversion_order
+    order = [i for i, _ in _conversion_order(plan)]
+    n_analog = len(order)
+    one = plan.adc.cycles * plan.adc.prescaler + ADC_INTERRUPT_CYCLES
     first = (plan.adc.first_cycles - plan.adc.cycles) * plan.adc.prescaler if n_analog else 0
-    laws = sum(LAW_CYCLES.get(_law_key(law), max(LAW_CYCLES.values())) for law in plan.laws)
-    interrupt = RUNTIME_CYCLES + conv + first + laws + VALVE_CYCLES * len(plan.muscles)
+    done = {i: first + (q + 1) * one for q, i in enumerate(order)}          # [cycles] each channel's count
+    chain = first + n_analog * one
+    per_law = _law_cycles(plan)
+    worst_laws, worst = 0, 0.0
+    for s in range(len(per_law[0]) if per_law else 1):
+        t, total = 0, 0
+        for j, law in enumerate(plan.laws):
+            ready = max(done.get(law.pressure, 0), done.get(law.angle, 0))
+            t = max(t, ready) + per_law[j][s] + LAW_OVERHEAD_CYCLES
+            total += per_law[j][s] + LAW_OVERHEAD_CYCLES
+        # the ADC's interrupts take their cycles from the laws' (none waits for them but the chain)
+        t = max(t + n_analog * ADC_INTERRUPT_CYCLES, chain)
+        if t >= worst:
+            worst, worst_laws = t, total
+    interrupt = RUNTIME_CYCLES + worst + VALVE_CYCLES * len(plan.muscles)
     log_rate = plan.rate / plan.log_every
     log_cycles_per_s = log_rate * line_bytes * (FORMAT_CYCLES_PER_DIGIT + UART_CYCLES_PER_BYTE)
     return {"method": "estimate", "period_cycles": int(plan.period_cycles), "interrupt_max_cycles": int(interrupt),
-            "conversion_cycles": int(conv + first), "law_cycles": int(laws),
+            "conversion_cycles": int(n_analog * plan.adc.cycles * plan.adc.prescaler + first),
+            "law_cycles": int(worst_laws),
             "interrupt_max_percent": 100.0 * interrupt / plan.period_cycles,
             "log_percent": 100.0 * log_cycles_per_s / chip.F_CPU}
 

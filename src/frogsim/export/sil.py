@@ -29,6 +29,8 @@ log: records made, received, dropped, unsent, fault bits).
 """
 from __future__ import annotations
 
+import bisect
+
 import time
 from dataclasses import dataclass, field
 
@@ -313,6 +315,14 @@ class BoardRun:
                 "lag_behind_the_nominal_sample_us": stat(lag, us),
                 "samples_late": int((response > P).sum())}
 
+    def sample_of(self, j: int) -> int:
+        """The sample (plant frame) execution j belongs to: that of the compare match that started
+        it, the last before its busy pin rose. After a skipped sample it is no longer j."""
+        start = self.starts[j]
+        i = bisect.bisect_right(self.ticks, start) - 1
+        tick = self.ticks[max(i, 0)]
+        return int(round((tick - self.s0) / self.period))     # the matches come every period, to a cycle
+
     def load(self, samples: int) -> np.ndarray:
         """The busy pin's high time of executions 0..samples-1 as a share of the period."""
         return (np.array(self.ends[:samples], float) - np.array(self.starts[:samples], float)) / self.period
@@ -511,12 +521,13 @@ class _Loop:
                     self.first_mismatch = {"sample": j, "time_s": j / float(self.rec["rate_hz"]),
                                            "counts_read": b.counts_read[j].tolist(),
                                            "firmware": got.tolist(), "twin": np.asarray(want).tolist()}
-            if j < len(self.shadow_modes) and not np.array_equal(got, self.shadow_modes[j]):
+            f = b.sample_of(j)            # the sample it belongs to (j until a sample is skipped)
+            if f < len(self.shadow_modes) and not np.array_equal(got, self.shadow_modes[f]):
                 self.off_model += 1
                 if self.first_off_model is None:
-                    self.first_off_model = {"sample": j, "counts_fed": b.fed[j].tolist(),
+                    self.first_off_model = {"sample": f, "execution": j, "counts_fed": b.fed[f].tolist(),
                                             "counts_read": b.counts_read[j].tolist(),
-                                            "firmware": got.tolist(), "model": self.shadow_modes[j].tolist()}
+                                            "firmware": got.tolist(), "model": self.shadow_modes[f].tolist()}
             self.checked += 1
 
     def summary(self, rec) -> dict:
@@ -578,8 +589,13 @@ class _Loop:
         plant gave at their sample: a check of the emulation itself, 0 (a late execution reads a
         later frame's counts, as on the board)."""
         b = self.board
-        n = min(len(b.counts_read), len(b.fed), len(response))
-        return sum(1 for j in range(n) if response[j] <= period and not np.array_equal(b.counts_read[j], b.fed[j]))
+        n = min(len(b.counts_read), len(response))
+        out = 0
+        for j in range(n):
+            f = b.sample_of(j)
+            if response[j] <= period and f < len(b.fed) and not np.array_equal(b.counts_read[j], b.fed[f]):
+                out += 1
+        return out
 
 
 def warnings_of(s: dict, rec: dict) -> list:

@@ -146,6 +146,9 @@ class Firmware:
                                doc="serial log lines per second (a divisor of controller.rate)")
     velocity_filter: int = integer(ge=1, le=64, default=8,
                                    doc="samples of the joint-angle laws' velocity filter (a power of two)")
+    velocity_window: int | None = integer(ge=1, le=64, default=None,
+                                          doc="samples the joint-angle laws' velocity difference spans (at most "
+                                              "the angle loop's period; default: that period)")
     fault: str = choice(FAULT_MODES, default="vent",
                         doc="what a muscle's valves do while a sensor its law reads is in fault")
     fault_resume: int = integer(ge=0, le=60000, default=10,
@@ -186,7 +189,8 @@ class Firmware:
             raise ScenarioError(f"{path}.name", name, "expected text: the sketch's name, a C identifier")
         fw = build(cls, raw, path)
         return cls(name=name, vref=fw.vref, transducer=fw.transducer, angle_sensor=fw.angle_sensor,
-                   angle_encoder=fw.angle_encoder, velocity_filter=fw.velocity_filter, fault=fw.fault, fault_resume=fw.fault_resume,
+                   angle_encoder=fw.angle_encoder, velocity_filter=fw.velocity_filter,
+                   velocity_window=fw.velocity_window, fault=fw.fault, fault_resume=fw.fault_resume,
                    sensor_faults=faults, busy_pin=fw.busy_pin, baud=fw.baud, log_rate=fw.log_rate, **tables)
 
 
@@ -360,6 +364,14 @@ def check_firmware(sc) -> None:
     if fw.velocity_filter & (fw.velocity_filter - 1):
         raise ScenarioError(f"{path}.velocity_filter", fw.velocity_filter,
                             "must be a power of two (1, 2, 4, 8, 16, 32 or 64 samples: the filter is a shift)")
+    if fw.velocity_window is not None:
+        for cname, ctl in sc.controllers.items():
+            n = ctl.angle_every(sc.controller.rate) if hasattr(ctl, "angle_every") else None
+            if n is not None and fw.velocity_window > n:
+                raise ScenarioError(f"{path}.velocity_window", fw.velocity_window,
+                                    f"must be at most the angle loop's period of controllers.{cname} ({n} "
+                                    f"sample{'s' if n != 1 else ''}: the controller rate over its angle_rate): the "
+                                    "difference is taken between two of its runs at the most")
     if fw.encoder_pins and not encoders:
         raise ScenarioError(f"{path}.encoder_pins", dict(fw.encoder_pins),
                             "needs firmware.angle_encoder (the encoders' counts per revolution)")

@@ -1,7 +1,13 @@
 """Kind "joint-angle": a cascade on an antagonistic pair (robot scenarios): PID on the joint angle
-giving the pair's pressure targets, each muscle's pressure following its target by a relay."""
+giving the pair's pressure targets, each muscle's pressure following its target by a relay.
+
+The angle loop (the PID) may run at a lower rate than the pressure relays (``angle_rate``, the
+controller rate divided by a whole number N): it runs at every N-th sample, the joints' loops
+staggered over the N samples (:func:`angle_schedule`), and its targets hold in between. A board
+then computes a few PIDs a sample instead of every one (docs/firmware.md)."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -10,11 +16,11 @@ from frogsim._jit import jit
 from frogsim.circuit.layout import Y_PS
 from frogsim.control import fixed
 from frogsim.control.kinds.common import SensedLoop
-from frogsim.control.signals import (B_CLIPS, B_INT, B_SP, B_TARGET, CS_DT, CS_SAMPLE, bang_bang, fw_relay,
-                                     fw_sine, sense_joint, setpoint)
-from frogsim.control.table import (L_A_BITS, L_A_FS, L_A_LAG, L_A_NOISE, L_A_SEED, L_BAND, L_GAIN, L_JOINT1,
-                                   L_KD, L_KI, L_KP, L_MUSCLE, L_P0, L_PATM, L_SIGN, L_STREAM, valve_row,
-                                   with_setpoint)
+from frogsim.control.signals import (SN_SIZE, B_CLIPS, B_INT, B_PHASE, B_SP, B_TARGET, CS_DT, CS_SAMPLE, bang_bang,
+                                     fw_relay, fw_sine, sense_joint, setpoint)
+from frogsim.control.table import (L_A_BITS, L_A_EVERY, L_A_FS, L_A_LAG, L_A_NOISE, L_A_PHASE, L_A_SEED, L_BAND,
+                                   L_GAIN, L_JOINT1, L_KD, L_KI, L_KP, L_MUSCLE, L_P0, L_PATM, L_SIGN, L_STREAM,
+                                   valve_row, with_setpoint)
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.fields import quantity
 from frogsim.scenario.kinds import register
@@ -44,7 +50,17 @@ class JointAngleSettings(SensedLoop):
                                     doc="pressure difference per rad*s of integrated error")
     band: float = quantity("pressure", gt=0.0, le=GAUGE_MAX, display="bar", default=0.1 * BAR,
                            doc="the inner relay's hold band")
+    angle_rate: float | None = quantity("frequency", gt=0.0, display="Hz", default=None,
+                                        doc="the angle loop's rate: the controller rate divided by a whole "
+                                            "number (default: the controller rate, every sample)")
     angle_sensor: AngleSensor = field(default_factory=AngleSensor)
+
+    def angle_every(self, rate: float) -> int:
+        """N: the angle loop runs every N samples of a controller at ``rate`` [Hz] (the rules
+        checked that rate / angle_rate is a whole number)."""
+        if self.angle_rate is None:
+            return 1
+        return max(1, int(round(rate / self.angle_rate)))
 
     def driven(self) -> tuple:
         return (self.muscle, self.antagonist)
@@ -72,6 +88,14 @@ class JointAngleSettings(SensedLoop):
             raise ScenarioError(f"{path}.setpoint", MISSING, "required for kind 'joint-angle'")
         self.setpoint.check_complete(f"{path}.setpoint")
         check_below_source(self, "co_contraction", f"{path}.co_contraction", p_top)
+        if self.angle_rate is not None:
+            rate = sc.controller.rate
+            ratio = rate / self.angle_rate
+            if self.angle_rate > rate * (1.0 + 1e-9) or abs(ratio - round(ratio)) > 1e-6 * ratio:
+                below = [rate / n for n in range(max(1, math.ceil(ratio - 1e-6)), max(1, math.ceil(ratio - 1e-6)) + 3)]
+                raise ScenarioError(f"{path}.angle_rate", f"{self.angle_rate:g} Hz",
+                                    f"must be the controller rate ({rate:g} Hz) divided by a whole number: the angle "
+                                    f"loop runs every N samples (e.g. {', '.join(f'{r:.6g} Hz' for r in below)})")
 
     def write_rows(self, name: str, ctx) -> list:
         """Two rows, the extensor's then the flexor's: each drives one muscle's valves from the same
@@ -81,6 +105,7 @@ class JointAngleSettings(SensedLoop):
         row[L_JOINT1] = 1 + list(ctx.sc.joints).index(self.joint)
         row[L_P0] = ctx.patm + self.co_contraction
         row[L_KP], row[L_KD], row[L_KI] = self.proportional_gain, self.derivative_gain, self.integral_gain
+        row[L_A_EVERY], row[L_A_PHASE] = angle_schedule(ctx.sc, name)
         a = self.angle_sensor
         row[L_A_NOISE], row[L_A_SEED], row[L_A_BITS], row[L_A_FS], row[L_A_LAG] = (
             a.noise, a.seed, a.bits or 0, a.full_scale, a.lag)
@@ -100,12 +125,14 @@ class JointAngleSettings(SensedLoop):
         counts of the transducer, angles in Q4 counts of the angle sensor, gains in Q16:
         P = [sign (+1 extensor, -1 flexor), p0, atmosphere, source pressure (the targets' clip
         limits; the firmware does not measure the source: its pressure at the start), Kp
-        (pressure Q4 per angle Q4, Q16), Kd / dt (per Q12 angle counts per sample, Q16),
+        (pressure Q4 per angle Q4, Q16), Kd / dt (per Q12 angle counts per run, Q16),
         Ki dt (Q16), half band, setpoint table length n, the velocity filter's shift
-        (log2 of [firmware] velocity_filter, VELOCITY_SHIFT by default), then the sine block (P_SINE.., :func:`frogsim.control.fixed.sine_block`)].
+        (log2 of [firmware] velocity_filter, VELOCITY_SHIFT by default), then the sine block
+        (P_SINE.., :func:`frogsim.control.fixed.sine_block`), then the angle loop's schedule N and
+        phase (P_EVERY, P_PHASE, :func:`angle_schedule`)], dt the angle loop's period N / rate.
         A sine setpoint is generated by the sine block (T holds nothing); any other (or a sine
         the generator cannot hold) is tabulated, the sine block's first slot -1: T = the angle
-        setpoint at each sample (Q4), then its rate at each sample (Q12 counts per sample)."""
+        setpoint at each sample (Q4), then its rate at each sample (Q12 counts per run)."""
         sc = ctx.sc
         fw = sc.firmware
         full = fixed.adc_full(sc)
@@ -113,18 +140,21 @@ class JointAngleSettings(SensedLoop):
         aline, afull = fixed.angle_line(sc)
         per_pa = fixed.q4_per_unit(pline, fw, full)
         per_rad = fixed.q4_per_unit(aline, fw, afull)
-        dt = 1.0 / sc.controller.rate
-        sine = fixed.sine_block(row, sc, aline, afull, 0.0, dt * 256.0)
+        every, phase = max(1, int(row[L_A_EVERY])), int(row[L_A_PHASE])
+        window = every if fw.velocity_window is None else int(fw.velocity_window)   # at most N: the rules
+        dt = every / sc.controller.rate                  # the angle loop's period
+        dt_v = window / sc.controller.rate               # the velocity difference's span
+        sine = fixed.sine_block(row, sc, aline, afull, 0.0, dt_v * 256.0)
         if sine is None:
             sp, dsp = fixed.setpoint_series(row, sc, 0.0)
             sp_q, dsp_q = fixed.trimmed(fixed.q4(aline, fw, sp, afull),
-                                        np.clip(np.floor(dsp * dt * per_rad * 256.0 + 0.5), -2**24, 2**24)
+                                        np.clip(np.floor(dsp * dt_v * per_rad * 256.0 + 0.5), -2**24, 2**24)
                                         .astype(np.int64))
             sine = fixed.NO_SINE
         else:
             sp_q = dsp_q = np.zeros(0, np.int64)
         ratio = per_pa / per_rad * fixed.Q16            # Pa/rad gain -> pressure Q4 per angle Q4, Q16
-        gains = [self.proportional_gain * ratio, self.derivative_gain / dt / 256.0 * ratio,
+        gains = [self.proportional_gain * ratio, self.derivative_gain / dt_v / 256.0 * ratio,
                  self.integral_gain * dt * ratio]
         gains = [int(round(x)) for x in gains]
         if max(gains) > fixed.INT32_MAX:
@@ -134,9 +164,21 @@ class JointAngleSettings(SensedLoop):
         P = [int(row[L_SIGN]), fixed.q4(pline, fw, self.co_contraction, full), fixed.q4(pline, fw, 0.0, full),
              fixed.q4(pline, fw, fixed.top_pressure(sc), full)] + gains + [
             int(round(0.5 * self.band * per_pa)), max(1, sp_q.size),
-            int(fw.velocity_filter).bit_length() - 1] + list(sine)
+            int(fw.velocity_filter).bit_length() - 1] + list(sine) + [every, phase, window]
         T = np.concatenate([sp_q, dsp_q])
         return fixed.firmware_row(row, sc, P, T)
+
+
+def angle_schedule(sc, name: str) -> tuple:
+    """(N, phase) of joint-angle controller ``name``'s angle loop: it runs every N samples
+    (:meth:`JointAngleSettings.angle_every`), first at its phase-th sample (0..N - 1) and then
+    every N. The scenario's joint-angle controllers with the same N are staggered: the i-th of
+    them (in the scenario's order) takes phase i mod N, so that the N samples share the loops
+    evenly (six joints at N = 4: two loops at samples 0 and 1 of every four, one at 2 and 3)."""
+    rate = sc.controller.rate
+    n = sc.controllers[name].angle_every(rate)
+    same = [c for c, s in sc.controllers.items() if isinstance(s, JointAngleSettings) and s.angle_every(rate) == n]
+    return n, same.index(name) % n
 
 
 @jit
@@ -147,91 +189,139 @@ def law(laws, c, cs, b, y, p, ts):
 
 
 @jit
+def angle_loop_due(every, phase, left):
+    """The angle loop's schedule, both twins. ``left`` is the samples until its next run (0 before
+    the first sample). Returns (runs at this sample, the new ``left``): at the first sample the
+    count starts from the phase, at the others from left - 1; the loop runs when it is 0 (or
+    less) and left becomes N (every; N <= 1: every sample), else left is the count. Counted in
+    samples the law ran, not in sample indices: on the board a law in fault does not run and
+    its schedule waits with it."""
+    n = max(1, int(every))
+    s = int(phase) if left <= 0 else int(left) - 1
+    if s <= 0:
+        return True, n
+    return False, s
+
+
+@jit
 def joint_angle_mode(laws, c, cs, b, y, p, ts, th, w):
     """One muscle of an antagonistic pair under the joint-angle cascade (docs/control.md).
 
     Outer loop, PID on the joint angle read th [rad] (velocity w [rad/s]) against the angle
     setpoint sp(t): dp = Kp e + Kd (dsp/dt - w) + Ki integral(e dt), e = sp - th. The pair's
     pressure targets are p0 + dp/2 (extensor, L_SIGN = +1: its pressure raises the angle) and
-    p0 - dp/2 (flexor), each clipped to [atmosphere, source pressure]; a sample at which either is
+    p0 - dp/2 (flexor), each clipped to [atmosphere, source pressure]; a run at which either is
     clipped counts in cs[b + B_CLIPS] and adds nothing to the integral (anti-windup; both rows
-    decide the same, as they see the same inputs). Inner loop: this muscle's sensed pressure p
-    follows its target through :func:`frogsim.control.signals.bang_bang` with the row's band."""
+    decide the same, as they see the same inputs). The outer loop runs every N samples
+    (:func:`angle_loop_due`; its integral steps N dt); between its runs, and before its first,
+    the target holds (p0 before the first). Inner loop, every sample: this muscle's sensed
+    pressure p follows its target through :func:`frogsim.control.signals.bang_bang` with the
+    row's band."""
     sp, dsp = setpoint(laws, c, ts)
     cs[b + B_SP] = sp
-    e = sp - th
-    dt = cs[CS_DT]
-    integral = cs[b + B_INT] + e * dt
-    dp = laws[c, L_KP] * e + laws[c, L_KD] * (dsp - w) + laws[c, L_KI] * integral
-    p0 = laws[c, L_P0]
-    lo = laws[c, L_PATM]
-    hi = y[Y_PS]
-    up = p0 + 0.5 * dp
-    down = p0 - 0.5 * dp
-    clipped = up > hi or up < lo or down > hi or down < lo
-    if clipped:
-        cs[b + B_CLIPS] += 1.0
-    else:
-        cs[b + B_INT] = integral
-    target = up if laws[c, L_SIGN] > 0.0 else down
-    target = min(max(target, lo), hi)
-    cs[b + B_TARGET] = target
-    return bang_bang(p, target, laws[c, L_BAND])
+    if cs[b + B_PHASE] <= 0.0:
+        cs[b + B_TARGET] = laws[c, L_P0]
+    due, left = angle_loop_due(laws[c, L_A_EVERY], laws[c, L_A_PHASE], cs[b + B_PHASE])
+    cs[b + B_PHASE] = left
+    if due:
+        e = sp - th
+        dt = cs[CS_DT] * max(1.0, laws[c, L_A_EVERY])
+        integral = cs[b + B_INT] + e * dt
+        dp = laws[c, L_KP] * e + laws[c, L_KD] * (dsp - w) + laws[c, L_KI] * integral
+        p0 = laws[c, L_P0]
+        lo = laws[c, L_PATM]
+        hi = y[Y_PS]
+        up = p0 + 0.5 * dp
+        down = p0 - 0.5 * dp
+        clipped = up > hi or up < lo or down > hi or down < lo
+        if clipped:
+            cs[b + B_CLIPS] += 1.0
+        else:
+            cs[b + B_INT] = integral
+        target = up if laws[c, L_SIGN] > 0.0 else down
+        cs[b + B_TARGET] = min(max(target, lo), hi)
+    return bang_bang(p, cs[b + B_TARGET], laws[c, L_BAND])
 
 
 LIMIT = 2**30           # the integral and the pressure difference are clipped to +-LIMIT
 VELOCITY_SHIFT = 3      # the firmware's velocity filter: 2^3 = 8 samples (8 ms at 1 kHz)
 P_SINE = 10             # P[P_SINE:P_SINE + SN_SIZE]: the sine block (P[P_SINE] < 0: the table)
+P_EVERY = P_SINE + SN_SIZE   # the angle loop runs every P[P_EVERY] samples (angle_loop_due) ...
+P_PHASE = P_EVERY + 1        # ... first at sample P[P_PHASE]
+P_WINDOW = P_PHASE + 1       # the velocity's difference spans P[P_WINDOW] samples (velocity_window)
+
+
+@jit
+def velocity_window(P):
+    """W: the samples the firmware's velocity difference spans, 1..N (N the angle loop's period;
+    W = N, every sample since the last run, when P[P_WINDOW] is 0 or not in 1..N)."""
+    n = max(1, int(P[P_EVERY]))
+    w = int(P[P_WINDOW])
+    return w if 1 <= w <= n else n
 SINE = True             # the C twin calls the sine generator (its table is linked)
 
 
 @jit
 def fw_law(P, T, mem, k, cp, ca):
     """The integer twin of :func:`joint_angle_mode` (memory: mem[0] the integral of the error, sum
-    of Q4 errors; mem[1] the last angle (Q4); mem[2] 1 once it holds one; mem[3] the samples
-    with clipped targets; mem[4] the filtered velocity). The setpoint sp (Q4) and its rate dsp
-    (Q12 counts per sample) come from the sine block (:func:`frogsim.control.signals.fw_sine`)
-    or the table T[min(k, n - 1)], T[n + min(k, n - 1)]. The angle is the count ca's middle
-    16 ca + 8, e = sp - angle; the rate term is Kd (dsp - w): the board has no velocity sensor,
-    its w is the backward difference of the angle (zero at the first sample) through a
-    first-order filter of 2^P[9] samples, vf += (256 dtheta - vf) >> P[9] (Q12 counts per
-    sample; one count a sample is 3.8 rad/s at 1 kHz, too coarse to use raw).
-    dp = (Kp e + Kd' (dsp - vf) + Ki' integral) >> 16 (int64 products here; the C twin takes
-    32-bit products where the ranges allow, with the same result); targets p0 +- dp >> 1,
-    clipped to [atmosphere, source]; a clip counts and keeps the integral (anti-windup); the
-    muscle's relay on its count cp against its target."""
-    if P[P_SINE] >= 0:
-        sp, dsp = fw_sine(P, P_SINE, k)
-    else:
-        n = int(P[8])
-        kk = k if k < n else n - 1
-        sp = int(T[kk])
-        dsp = int(T[n + kk])
-    aq = 16 * ca + 8
-    e = sp - aq
-    dth = aq - int(mem[1]) if mem[2] > 0 else 0
-    mem[1] = aq
-    mem[2] = 1
-    vf = int(mem[4])
-    vf = vf + ((256 * dth - vf) >> int(P[9]))
-    mem[4] = vf
-    integ = min(max(int(mem[0]) + e, -LIMIT), LIMIT)
-    acc = int(P[4]) * e + int(P[5]) * (dsp - vf) + int(P[6]) * integ
-    dp = min(max(acc >> 16, -LIMIT), LIMIT)
-    half = dp >> 1
-    p0 = int(P[1])
-    lo = int(P[2])
-    hi = int(P[3])
-    up = p0 + half
-    down = p0 - half
-    if up > hi or up < lo or down > hi or down < lo:
-        if mem[3] < 2**31 - 1:
-            mem[3] = mem[3] + 1
-    else:
-        mem[0] = integ
-    target = up if P[0] > 0 else down
-    target = min(max(target, lo), hi)
-    return fw_relay(16 * cp + 8, target, int(P[7]))
+    of Q4 errors; mem[1] the angle at the last run (Q4); mem[2] 1 once it holds one; mem[3] the
+    runs with clipped targets; mem[4] the filtered velocity; mem[5] the angle loop's schedule
+    (:func:`angle_loop_due` on P[P_EVERY], P[P_PHASE]; 0 before the first sample); mem[6] this
+    muscle's target (Q4), held between the runs, p0 before the first; mem[7] the pair's half
+    difference dp >> 1 at the last run). At a run: the setpoint sp (Q4) and its rate dsp
+    (Q12 counts per run) come from the sine block (:func:`frogsim.control.signals.fw_sine`) or the
+    table T[min(k, n - 1)], T[n + min(k, n - 1)]. The angle is the count ca's middle 16 ca + 8,
+    e = sp - angle; the rate term is Kd (dsp - w): the board has no velocity sensor, its w is the
+    backward difference of the angle since the last run (zero at the first) through a first-order
+    filter of 2^P[9] runs, vf += (256 dtheta - vf) >> P[9] (Q12 counts per run; one count a
+    sample is 3.8 rad/s at 1 kHz, too coarse to use raw). dp = (Kp e + Kd' (dsp - vf) + Ki'
+    integral) >> 16 (int64 products here; the C twin takes 32-bit products where the ranges
+    allow, with the same result); targets p0 +- dp >> 1, clipped to [atmosphere, source]; a clip
+    counts and keeps the integral (anti-windup). Every sample: the muscle's relay on its count cp
+    against its target."""
+    if mem[5] <= 0:
+        mem[6] = P[1]
+    due, left = angle_loop_due(P[P_EVERY], P[P_PHASE], mem[5])
+    mem[5] = left
+    window = velocity_window(P)
+    if not due and left == window:            # the velocity's window opens: the angle now
+        mem[1] = 16 * ca + 8
+        mem[2] = 1
+    if due:
+        if P[P_SINE] >= 0:
+            sp, dsp = fw_sine(P, P_SINE, k)
+        else:
+            n = int(P[8])
+            kk = k if k < n else n - 1
+            sp = int(T[kk])
+            dsp = int(T[n + kk])
+        aq = 16 * ca + 8
+        e = sp - aq
+        dth = aq - int(mem[1]) if mem[2] > 0 else 0
+        if window >= max(1, int(P[P_EVERY])):     # the window is the loop's period: it opens now
+            mem[1] = aq
+            mem[2] = 1
+        vf = int(mem[4])
+        vf = vf + ((256 * dth - vf) >> int(P[9]))
+        mem[4] = vf
+        integ = min(max(int(mem[0]) + e, -LIMIT), LIMIT)
+        acc = int(P[4]) * e + int(P[5]) * (dsp - vf) + int(P[6]) * integ
+        dp = min(max(acc >> 16, -LIMIT), LIMIT)
+        half = dp >> 1
+        mem[7] = half
+        p0 = int(P[1])
+        lo = int(P[2])
+        hi = int(P[3])
+        up = p0 + half
+        down = p0 - half
+        if up > hi or up < lo or down > hi or down < lo:
+            if mem[3] < 2**31 - 1:
+                mem[3] = mem[3] + 1
+        else:
+            mem[0] = integ
+        target = up if P[0] > 0 else down
+        mem[6] = min(max(target, lo), hi)
+    return fw_relay(16 * cp + 8, int(mem[6]), int(P[7]))
 
 
 C_NAME = "fs_joint_angle"
@@ -302,10 +392,39 @@ FS_COLD int32_t fs_joint_angle_dp64(int32_t sp, int32_t aq, int32_t dsp, int32_t
     return (int32_t)acc;
 }
 
-int8_t fs_joint_angle(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P,
-                      const int32_t *T) {
-    int32_t aq = (int32_t)fs_muluu(ca, 16) + 8;
-    int32_t sp, dsp, vf, e, r, integ = mem[0], dp, up, down, lo, hi;
+/* W: the samples the velocity difference spans (velocity_window): P[19] within 1..N, else N */
+FS_INLINE int32_t fs_ja_window(const int32_t *P) {
+    int32_t n = P[17] > 1 ? P[17] : 1, w = P[19];
+    return (w >= 1 && w <= n) ? w : n;
+}
+
+/* the angle loop's schedule (angle_loop_due) at this sample: 1 when the loop runs; else 0, the
+ * schedule counted down and, W samples before the next run, the angle kept for the velocity */
+FS_INLINE uint8_t fs_ja_due(uint16_t ca, int32_t *mem, const int32_t *P) {
+    int32_t s;
+    if (mem[5] <= 0) {
+        mem[6] = P[1];
+        s = P[18];
+    } else {
+        s = mem[5] - 1;
+    }
+    if (s <= 0) return 1;
+    mem[5] = s;
+    if (s == fs_ja_window(P)) {
+        mem[1] = (int32_t)fs_muluu(ca, 16) + 8;
+        mem[2] = 1;
+    }
+    return 0;
+}
+
+/* a run of the angle loop: the PID, the pair's targets, this muscle's relay (fs_joint_angle calls
+ * it at the samples the loop's schedule gives; out of line, so that the samples between stay short) */
+FS_COLD int8_t fs_joint_angle_run(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P,
+                                  const int32_t *T) {
+    int32_t aq, sp, dsp, vf, e, r, integ, dp, up, down, lo, hi;
+    mem[5] = P[17] > 1 ? P[17] : 1;
+    aq = (int32_t)fs_muluu(ca, 16) + 8;
+    integ = mem[0];
     if (P[10] >= 0) {
         sp = fs_sine(k, &P[10], &dsp);
     } else {
@@ -316,8 +435,10 @@ int8_t fs_joint_angle(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const 
     }
     vf = mem[4];
     vf += (((mem[2] > 0 ? aq - mem[1] : 0) * 256) - vf) >> P[9];
-    mem[1] = aq;
-    mem[2] = 1;
+    if (fs_ja_window(P) >= (P[17] > 1 ? P[17] : 1)) {     /* the window is the loop's period: it opens now */
+        mem[1] = aq;
+        mem[2] = 1;
+    }
     mem[4] = vf;
     e = (int32_t)((uint32_t)sp - (uint32_t)aq);
     r = (int32_t)((uint32_t)dsp - (uint32_t)vf);
@@ -366,6 +487,7 @@ int8_t fs_joint_angle(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const 
         dp = fs_joint_angle_dp64(sp, aq, dsp, vf, P, &integ);
     }
     dp >>= 1;
+    mem[7] = dp;
     up = P[1] + dp;
     down = P[1] - dp;
     lo = P[2];
@@ -378,6 +500,42 @@ int8_t fs_joint_angle(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const 
     if (P[0] <= 0) up = down;
     if (up < lo) up = lo;
     if (up > hi) up = hi;
+    mem[6] = up;
     return fs_relay((int32_t)fs_muluu(cp, 16) + 8, up, P[7]);
+}
+
+int8_t fs_joint_angle(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P,
+                      const int32_t *T) {
+    if (!fs_ja_due(ca, mem, P))                 /* between the loop's runs its target holds */
+        return fs_relay((int32_t)fs_muluu(cp, 16) + 8, mem[6], P[7]);
+    return fs_joint_angle_run(k, cp, ca, mem, P, T);
+}
+
+/* The other muscle of a joint whose loop law `lead` (the same parameters but the sign, the same
+ * table) has just run on a memory that was this one's: the loop's run would compute what the
+ * leader's did, so its memory is copied and this muscle's target taken from the pair's half
+ * difference (frogsim_sample calls it only while the two memories agree, before the leader's
+ * call; the result is fs_joint_angle's, exactly) */
+int8_t fs_joint_angle_follow(uint16_t cp, uint16_t ca, const int32_t *lead, int32_t *mem, const int32_t *P) {
+    int32_t t;
+    uint8_t i;
+    if (!fs_ja_due(ca, mem, P))
+        return fs_relay((int32_t)fs_muluu(cp, 16) + 8, mem[6], P[7]);
+    for (i = 0; i < 6; i++) mem[i] = lead[i];
+    mem[7] = lead[7];
+    t = P[0] > 0 ? P[1] + mem[7] : P[1] - mem[7];
+    if (t < P[2]) t = P[2];
+    if (t > P[3]) t = P[3];
+    mem[6] = t;
+    return fs_relay((int32_t)fs_muluu(cp, 16) + 8, t, P[7]);
+}
+
+/* whether law b (memory b, parameters P) runs its angle loop at this sample and the memory a of
+ * the other law of its joint agrees with b's in everything but the muscle's own target (mem[6]):
+ * then b may follow a's run (fs_joint_angle_follow); at the other samples b holds, cheaply */
+uint8_t fs_joint_angle_pair(const int32_t *a, const int32_t *b, const int32_t *P) {
+    if ((b[5] <= 0 ? P[18] : b[5] - 1) > 0) return 0;
+    return a[0] == b[0] && a[1] == b[1] && a[2] == b[2] && a[3] == b[3] && a[4] == b[4] && a[5] == b[5]
+        && a[7] == b[7];
 }
 """
