@@ -38,6 +38,29 @@ def legend_in(lax, *axes, **kw):
     return lax.legend(handles, labels, **{"loc": "upper left", "frameon": False, "borderaxespad": 0.0, **kw})
 
 
+def away_from(ax, xy, other):
+    """Unit directions (display frame, x right, y up) in which to write a label beside each point of
+    the curve ``xy`` (data coordinates, in order along the curve): across the curve, on the side
+    away from the nearest point of ``other`` (data coordinates; the points of the curves the labels
+    must not land on). Use after the axes' scales and limits are set."""
+    import numpy as np
+    ax.autoscale_view()
+    p = ax.transData.transform(np.asarray(xy, float))
+    q = ax.transData.transform(np.asarray(other, float)) if len(other) else np.empty((0, 2))
+    out = []
+    for i in range(len(p)):
+        d = p[min(i + 1, len(p) - 1)] - p[max(i - 1, 0)]
+        n = np.array([-d[1], d[0]]) / (np.hypot(*d) or 1.0)
+        if len(q):
+            near = q[np.argmin(np.hypot(*(q - p[i]).T))] - p[i]
+            if np.dot(n, near) > 0:
+                n = -n
+        elif n[1] < 0:
+            n = -n
+        out.append((float(n[0]), float(n[1])))
+    return out
+
+
 def shade_valve_phases(ax, t_open: float, t_close: float) -> None:
     """Shade the pressurise phase (charge valve open) on a time axis."""
     ax.axvspan(t_open, t_close, color="tab:orange", alpha=0.08, lw=0, label="charge valve open")
@@ -53,6 +76,7 @@ def layout_problems(fig, pad: float = 0.5) -> list[str]:
     * a text written in an axes (``ax.text``, annotations, contour labels) whose box holds a piece of
       a data line or a scatter marker, that overlaps another text of the figure, or that reaches
       out of its axes (across the frame, the tick labels or the title);
+    * tick labels of one axis (major and minor) that overlap each other;
     * a text or legend not wholly inside the figure.
 
     ``pad`` [px] shrinks each box before the test, so that touching at the edge is not overlap.
@@ -167,6 +191,18 @@ def layout_problems(fig, pad: float = 0.5) -> list[str]:
             if u is not t and box.overlaps(shrunk(u.get_window_extent(renderer))):
                 if not any(u is v for _, v in written) or id(u) > id(t):   # each written pair once
                     problems.append(f"{name(t)} {where(ax)} overlaps {name(u)}")
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            labels = [t for t in axis_texts(axis)[:-2] if shown(t)]
+            labels += [t for tk in axis.get_minor_ticks() for t in (tk.label1, tk.label2)
+                       if shown(t) and tk.get_visible() and axis.get_view_interval().min()
+                       <= tk.get_loc() <= axis.get_view_interval().max()]
+            boxes = [shrunk(t.get_window_extent(renderer)) for t in labels]
+            for i in range(len(labels)):
+                for j in range(i + 1, len(labels)):
+                    if boxes[i].overlaps(boxes[j]):
+                        problems.append(f"tick labels {labels[i].get_text()!r} and {labels[j].get_text()!r} "
+                                        f"{where(ax)} overlap")
     for t in all_texts:
         box = shrunk(t.get_window_extent(renderer))
         if not inside(box, fbox):
