@@ -85,9 +85,13 @@ def _draw_leg(data: StudyData, path: str) -> None:
         delay = data.extras["delays"][f"{j}_left"]
         a.plot(d[TIME], d[_angle(j)], color=JOINT_COLORS[j], lw=2,
                label=f"{j}: delay {delay * 1e3:.0f} ms")
-    for x, lab in ((data.extras["command_s"], "charge command"), (data.extras["release_s"], "vent command")):
+    # the valve commands named on a top axis of their own: written inside, their text met the curves
+    commands = {data.extras["command_s"]: "charge command", data.extras["release_s"]: "vent command"}
+    for x in commands:
         a.axvline(x, color="0.4", ls=":", lw=1)
-        a.text(x + 0.01, a.get_ylim()[1] * 0.97, lab, fontsize=8, va="top", color="0.3")
+    top = a.secondary_xaxis("top")
+    top.set_xticks(list(commands), list(commands.values()), fontsize=8, color="0.3")
+    top.tick_params(length=3, color="0.4")
     a.set_ylabel("joint angle from flexed stop [deg]")
     a.set_title("Leg in air, body fixed: joint angles (cf. paper Fig. 12)")
     a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)     # outside: hides no curve
