@@ -145,6 +145,8 @@ def layout_problems(fig, pad: float = 0.5) -> list[str]:
         return t.get_visible() and bool(t.get_text().strip())
 
     def axis_texts(axis) -> list:
+        if not (axis.axes.axison and axis.get_visible()):
+            return []                                # axis("off"): nothing of it is drawn
         try:                                         # the ticks drawn: those inside the view
             ticks = axis._update_ticks()
         except AttributeError:                       # pragma: no cover (older matplotlib)
@@ -193,6 +195,8 @@ def layout_problems(fig, pad: float = 0.5) -> list[str]:
                     problems.append(f"{name(t)} {where(ax)} overlaps {name(u)}")
     for ax in fig.axes:
         for axis in (ax.xaxis, ax.yaxis):
+            if not axis_texts(axis):
+                continue
             labels = [t for t in axis_texts(axis)[:-2] if shown(t)]
             labels += [t for tk in axis.get_minor_ticks() for t in (tk.label1, tk.label2)
                        if shown(t) and tk.get_visible() and axis.get_view_interval().min()
