@@ -306,10 +306,13 @@ def _swim_into(args, folder, out: Path, rs) -> int:
               "before them, not counted)")
     files, s = write_outputs(result, out, animation=not args.no_animation, progress=_progress)
     files["manifest"] = folder.finish(extra_files=[Path(p).name for p in files.values()])
-    _progress(f"mean speed {s['mean_speed_m_per_s']:.3f} m/s ({s['mean_speed_body_lengths_per_s']:.2f} "
-              f"body lengths/s), {s['distance_per_cycle_m']:.3f} m and {s['air_used_per_cycle_L_std']:.3f} L "
-              f"(standard) of air per cycle, source {s['source_pressure_after_cycles_bar_gauge']:.2f} bar gauge "
-              f"after {_count(s['cycles'], 'cycle')}")
+    if s["base"] == "fixed":             # nothing moves: a speed of zero would read as a measured one
+        motion = f"base fixed in {s['environment']}: no swimming speed; {s['air_used_per_cycle_L_std']:.3f} L "
+    else:
+        motion = (f"mean speed {s['mean_speed_m_per_s']:.3f} m/s ({s['mean_speed_body_lengths_per_s']:.2f} "
+                  f"body lengths/s), {s['distance_per_cycle_m']:.3f} m and {s['air_used_per_cycle_L_std']:.3f} L ")
+    _progress(motion + f"(standard) of air per cycle, source {s['source_pressure_after_cycles_bar_gauge']:.2f} "
+                       f"bar gauge after {_count(s['cycles'], 'cycle')}")
     if "animation_skipped" in s:
         _warn(f"animation skipped: {s['animation_skipped']}")
     _progress("wrote " + ", ".join(str(p) for p in files.values()))

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from frogsim._files import atomic_write, out_folder, write_figure, write_json
-from frogsim._plotting import figure, save
+from frogsim._plotting import figure, legend_in, save
 from frogsim.fit.core import FitResult
 from frogsim.fit.traces import signal_kind
 from frogsim.scenario.load import PARAM_SECTIONS, load_parameter_set
@@ -120,7 +120,10 @@ def draw_experiment(res: FitResult, k: int, path: str) -> None:
     e = res.spec.experiments[k]
     patm = e.scenario.air.atmospheric_pressure_abs
     sigs = list(c["signals"])
-    fig, axes = figure(2 * len(sigs), 1, width=8.0, height=2.6 * 2 * len(sigs), sharex=True)
+    # the legends in a column of their own: measured points and residuals fill their panels
+    fig, grid = figure(2 * len(sigs), 2, width=10.5, height=2.6 * 2 * len(sigs), sharex=True,
+                       gridspec_kw={"width_ratios": [1, 0.3]})
+    axes, legends = grid[:, :1], grid[:, 1]
     t = c["t"]
     for i, s in enumerate(sigs):
         d = c["signals"][s]
@@ -136,14 +139,14 @@ def draw_experiment(res: FitResult, k: int, path: str) -> None:
         ax.plot(t, shown(d["before"]), "--", color="tab:blue", lw=1.2, label="model, start values")
         ax.plot(t, shown(d["after"]), "-", color="tab:red", lw=1.4, label="model, fitted")
         ax.set_ylabel(f"{s} [{unit}]")
-        ax.legend(fontsize=8, loc="best")
+        legend_in(legends[2 * i], ax, fontsize=8)
         ax.set_title(f"{e.name}: {s}", fontsize=10)
         axr.plot(t, diff(d["after"] - d["measured"]), ".", ms=2, color="tab:red", label="fitted - measured")
         axr.axhline(0.0, color="k", lw=0.8)
         noise = diff(res.spec.noise[s])
         axr.axhspan(-2 * noise, 2 * noise, color="tab:green", alpha=0.1, lw=0, label="+-2 x stated noise")
         axr.set_ylabel(f"residual [{runit}]")
-        axr.legend(fontsize=8, loc="best")
+        legend_in(legends[2 * i + 1], axr, fontsize=8)
     axes[-1, 0].set_xlabel("time [s]")
     save(fig, path, source_note=f"trace {e.trace.name}; scenario {e.scenario.name}")
 

@@ -119,7 +119,8 @@ def same_curves(t, curves, tol: float = SAME_PA) -> list:
 
 
 def plot_run(result, path: str) -> None:
-    """Pressures of source, exhaust and every muscle, and the valve states, against time."""
+    """Pressures of source, exhaust and every muscle (a closed-loop controller's setpoint dashed in
+    its muscle's colour), and the valve states, against time."""
     from frogsim._plotting import figure, save
     patm = result.atmospheric_pressure
     n = result.n
@@ -134,6 +135,14 @@ def plot_run(result, path: str) -> None:
         label = names[0] if len(names) == 1 else \
             ",\n".join(", ".join(names[k:k + 2]) for k in range(0, len(names), 2)) + f"\n(one curve, within {SAME_PA:g} Pa)"
         a.plot(result.t, (p - patm) / 1e5, color=c, label=label)
+    # each closed-loop controller's setpoint, dashed in its muscle's colour (PWM without one: none)
+    from frogsim.engine.result import label_and_setpoint
+    for name in result._law_rows():
+        ctl = result.model.scenario.controllers[name]
+        kind, sp = label_and_setpoint(ctl, result.python_law, result.t, lambda name=name: result.setpoint(name))
+        if sp is not None and np.isfinite(sp).any():
+            a.plot(result.t, (sp - patm) / 1e5, color=colors[result.names.index(ctl.muscle)], ls="--", lw=1.2,
+                   label=f"{ctl.muscle} setpoint ({name}, {kind})")
     a.set_ylabel("pressure [bar gauge]")
     a.set_title(f"Scenario {result.model.scenario.name!r}")
     a.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))     # outside: hides no curve

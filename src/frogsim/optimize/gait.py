@@ -373,7 +373,11 @@ def plot_trials(table, search: Search, baseline: float, path, steady: dict | Non
 
     def draw(p):
         import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(figsize=(7, 4.4 if steady and "warning" in steady else 4))
+        from frogsim._plotting import legend_in
+        # the legend in an axes of its own at the right: the trials fill the panel (loc "lower
+        # right" hid a trial)
+        fig, (ax, lax) = plt.subplots(1, 2, figsize=(8.5, 4.4 if steady and "warning" in steady else 4),
+                                      gridspec_kw={"width_ratios": [1, 0.28]})
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ok = np.isfinite(table[col].to_numpy(float))
         ax.plot(table["trial"][ok], table[col][ok], "o", ms=4, color="0.5", label="trial")
@@ -383,7 +387,7 @@ def plot_trials(table, search: Search, baseline: float, path, steady: dict | Non
         ax.set_ylabel(f"{name} [{unit}]")
         ax.set_title(f"gait search: {search.rs.name}, objective over the first {search.cycles} cycle(s) "
                      f"of {search.period:g} s", fontsize=10)
-        ax.legend(loc="lower right")
+        legend_in(lax, ax, fontsize=9)
         if steady and "warning" in steady:
             fig.text(0.01, 0.01, f"not a steady gait: source pressure {steady['source_change_last_cycle_percent']:+.1f} % "
                                  f"over the last evaluated cycle (steady below {100 * STEADY_CHANGE:g} %); "

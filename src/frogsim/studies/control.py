@@ -10,9 +10,11 @@ worse RMS error.
 """
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
+from matplotlib.ticker import LogLocator, NullFormatter, StrMethodFormatter
 
-from frogsim._plotting import figure, save
+from frogsim._plotting import away_from, figure, legend_in, save
 from frogsim.engine.pneumatic import simulate
 from frogsim.scenario.load import load_scenario
 from frogsim.scenario.tables import header
@@ -143,16 +145,28 @@ def _draw(data: StudyData, path: str) -> None:
         b.set_xlabel("time [s]")
         b.set_title("valves: up = charge open, dotted down = vent open", fontsize=9)
     c = ax[0, 2]
+    # log axes: the settings span a decade and more of both, and the middle ones crowd on linear axes
+    curves = {}
     for ctl, key in (("bang-bang", "band_bar"), ("sliding-mode", "penalty_bar")):
         pts = data.extras["trade"][ctl]
-        c.plot([p["switchings_per_s"] for p in pts], [p["tracking_error_rms_bar"] * 1e3 for p in pts], "o-",
-               color=colors[ctl], label=f"{ctl} ({key.split('_')[0]} swept)")
-        for p in pts:
-            c.annotate(f"{p[key]:g}", (p["switchings_per_s"], p["tracking_error_rms_bar"] * 1e3), fontsize=7,
-                       xytext=(3, 3), textcoords="offset points")
-    c.set_xlabel("valve switchings per second")
-    c.set_ylabel("RMS tracking error [mbar]")
+        xy = np.array([[p["switchings_per_s"], p["tracking_error_rms_bar"] * 1e3] for p in pts])
+        c.plot(xy[:, 0], xy[:, 1], "o-", color=colors[ctl], label=f"{ctl} ({key.split('_')[0]} swept, bar)")
+        curves[ctl] = (xy, [f"{p[key]:g}" for p in pts])
+    c.set_xscale("log")
+    c.set_yscale("log")
+    c.margins(x=0.15, y=0.1)
+    for ctl, (xy, texts) in curves.items():
+        other = np.vstack([v[0] for k, v in curves.items() if k != ctl])
+        for (x, y), text, (dx, dy) in zip(xy, texts, away_from(c, xy, other)):
+            c.annotate(text, (x, y), xytext=(7 * dx, 7 * dy), textcoords="offset points", fontsize=7,
+                       color=colors[ctl], ha="left" if dx > 0.3 else "right" if dx < -0.3 else "center",
+                       va="bottom" if dy > 0.3 else "top" if dy < -0.3 else "center")
+    for axis in (c.xaxis, c.yaxis):
+        axis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        axis.set_major_formatter(StrMethodFormatter("{x:g}"))
+        axis.set_minor_formatter(NullFormatter())
+    c.set_xlabel("valve switchings per second (log scale)")
+    c.set_ylabel("RMS tracking error [mbar] (log scale)")
     c.set_title("sine: error against switching (labels: bar)", fontsize=10)
-    c.legend(fontsize=8)
-    ax[1, 2].axis("off")
+    legend_in(ax[1, 2], c, fontsize=8)
     save(fig, path, "frogsim control-pressure; pressures gauge")

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from frogsim._plotting import figure, save
+from frogsim._plotting import figure, legend_in, save
 from frogsim.engine.swim import swim
 from frogsim.robot.scenario import load_robot_scenario
 from frogsim.scenario.load import merged_raw
@@ -149,7 +149,10 @@ def control_joint() -> StudyData:
 def _draw(data: StudyData, path: str) -> None:
     t = data.table
     colors = {LEVELS_BAR[0]: "tab:blue", LEVELS_BAR[1]: "tab:red"}
-    fig, ax = figure(2, 2, width=15.0, height=8.0, gridspec_kw={"height_ratios": [3, 2]})
+    # a third, narrow column holds the pressure panels' legend (the same entries for both): the
+    # pressures fill their panels, so a legend inside would cover a curve
+    fig, ax = figure(2, 3, width=17.0, height=8.0, gridspec_kw={"height_ratios": [3, 2], "width_ratios": [1, 1, 0.2]})
+    ax[0, 2].axis("off")
     runs = data.summary["control_joint"]["runs"]
     for col, exp in enumerate(EXPERIMENTS):
         a, b = ax[0, col], ax[1, col]
@@ -173,6 +176,6 @@ def _draw(data: StudyData, path: str) -> None:
         b.set_ylabel("pressure [bar gauge]")
         b.set_title("the pair's pressures (solid: extensor hip_left, dotted: flexor hip_left_recovery)",
                     fontsize=9)
-        b.legend(fontsize=7, ncol=2, loc="upper left")
+    legend_in(ax[1, 2], ax[1, 0], fontsize=8)
     save(fig, path, "frogsim control-joint; angles from the flexed stop, pressures gauge")
 

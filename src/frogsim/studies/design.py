@@ -22,7 +22,7 @@ from frogsim.scenario.load import load_scenario
 from frogsim.scenario.tables import header
 from frogsim.physics.flow import pump_mass_flow
 from frogsim.studies.paper import HIP, NOTE
-from frogsim._plotting import figure, save
+from frogsim._plotting import figure, legend_in, save
 from frogsim.studies.registry import StudyData, register
 from frogsim.sweep.metrics import evaluate
 
@@ -146,7 +146,9 @@ def design_tubes() -> StudyData:
 @design_tubes.draws
 def _draw_tubes(data: StudyData, path: str) -> None:
     d = data.table
-    fig, ax = figure(1, 2, width=11.5, height=4.8, sharey=True)
+    # each panel's legend in a row of its own below it: the dotted crossover lines run the panels'
+    # full height, so no corner inside them is free
+    fig, ax = figure(2, 2, width=11.5, height=5.8, sharey="row", gridspec_kw={"height_ratios": [4, 1]})
     vo = data.summary["design_tubes"]["valve_only_rise_time_90_s"]
     top = np.nanmax(d[RISE]) * 1.08
     for a, mode, title in ((ax[0, 0], "paper", "paper mode: Eq. (9) per-branch limit"),
@@ -167,7 +169,7 @@ def _draw_tubes(data: StudyData, path: str) -> None:
         a.axhline(vo, color="k", ls="--", lw=1, label=f"valves only: {format_rise(vo)}")
         a.set_xlabel("main tube inner diameter [mm]")
         a.set_title(title)
-        a.legend(fontsize=8, loc="upper right")
+        legend_in(ax[1, 0] if mode == "paper" else ax[1, 1], a, fontsize=8, loc="upper center")
     ax[0, 0].set_ylabel("hip muscle 90 % rise time [s]")
     fig.suptitle("Where does the valve, not the tube, limit the pressurising? (six muscles at once, 6 bar)")
     save(fig, path, NOTE + f"; dotted lines: diameter from which the rise time is within "
@@ -342,21 +344,37 @@ def design_valve() -> StudyData:
 
 @design_valve.draws
 def _draw_valve(data: StudyData, path: str) -> None:
+    """The rise time over (C, b) on a log colour scale and a log C axis: it falls as a power of C
+    (summary.json's exponent), so on linear scales most of the map would be one dark colour and the
+    slow valves' contours would crowd at the left; on log scales the contours of a 1-2-5 series are
+    evenly spaced."""
+    from matplotlib.colors import LogNorm
+    from matplotlib.ticker import LogLocator, NullLocator, StrMethodFormatter
     d = data.table
     grid = d.pivot(index=RATIO, columns=CONDUCTANCE, values=RISE)
     fig, ax = figure(width=7.5, height=5)
     a = ax[0, 0]
-    cs = a.contourf(grid.columns, grid.index, grid.values, levels=14, cmap="viridis")
-    lines = a.contour(grid.columns, grid.index, grid.values, levels=[0.05, 0.075, 0.1, 0.15, 0.2, 0.3],
+    values = grid.values[np.isfinite(grid.values)]
+    lo, hi = float(values.min()), float(values.max())
+    norm = LogNorm(lo, hi)
+    cs = a.contourf(grid.columns, grid.index, grid.values, levels=np.geomspace(lo, hi, 15), norm=norm,
+                    cmap="viridis")
+    series = [m * 10.0 ** e for e in range(-3, 2) for m in (1, 2, 5)]
+    lines = a.contour(grid.columns, grid.index, grid.values, levels=[v for v in series if lo < v < hi],
                       colors="w", linewidths=0.8)
-    a.clabel(lines, fmt="%.3g s", fontsize=8)
+    a.clabel(lines, fmt="%.3g s", fontsize=8, inline_spacing=4)
     miss = d[~np.isfinite(d[RISE])]
     if len(miss):
         a.plot(miss[CONDUCTANCE], miss[RATIO], "wx", ms=7, mew=2,
                label="90 % rise not reached in the 1 s pressurise")
     a.plot([0.4], [0.38], "r*", ms=12, label="MHJ9 (paper): C = 0.4, b = 0.38")
-    fig.colorbar(cs, ax=a, label="hip muscle 90 % rise time [s]")
-    a.set_xlabel("sonic conductance C [L/(s bar)]")
+    bar = fig.colorbar(cs, ax=a, label="hip muscle 90 % rise time [s] (log scale)")
+    bar.set_ticks([v for v in series if lo <= v <= hi], labels=[f"{v:g}" for v in series if lo <= v <= hi])
+    a.set_xscale("log")
+    a.xaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 3.0, 5.0)))
+    a.xaxis.set_major_formatter(StrMethodFormatter("{x:g}"))
+    a.xaxis.set_minor_locator(NullLocator())
+    a.set_xlabel("sonic conductance C [L/(s bar)] (log scale)")
     a.set_ylabel("critical pressure ratio b [-]")
     a.set_title("Valve characteristics vs response (valve-limited, 6 bar)")
     a.legend(loc="upper right", fontsize=8)

@@ -149,5 +149,6 @@ def _draw(data: StudyData, path: str) -> None:
         b.axhline(293.15, color="k", lw=0.6, ls=":")
         b.set_ylabel("air temperature [K]")
         b.set_xlabel("time [s]")
-        b.legend(fontsize=8, loc="upper right")
-    save(fig, path, "frogsim heat; pressures gauge; walls at 293.15 K (dotted)")
+        # no legend: the temperatures fill their panels; their colours are the pressures' above
+    save(fig, path, "frogsim heat; pressures gauge; temperatures coloured as the pressures above; "
+                    "walls at 293.15 K (dotted)")

@@ -240,8 +240,10 @@ def _draw(data: StudyData, path: str) -> None:
         a.plot(s[ANGLE], s[EXTENSOR_TENSION], color=colors[k], lw=1.1, label=labels[k])
     a.set_xlabel("hip angle [deg]")
     a.set_ylabel("extensor (hip_left) tension [N]")
-    a.set_title("sine, last period: the extensor's tension against the angle\n(a loop without hysteresis too: the controller moves the pressures)", fontsize=10)
-    a.legend(fontsize=8)
+    # no legend: the tension loops fill the panel (one would cover the 25 N/bar curve); the runs'
+    # colours are those of the panel at the left
+    a.set_title("sine, last period: the extensor's tension against the angle, runs coloured as at the left\n"
+                "(a loop without hysteresis too: the controller moves the pressures)", fontsize=10)
     # the published loop against the fitted one: height per pressure along the contraction
     loop = summ["published_loop"]
     a = ax[2, 0]

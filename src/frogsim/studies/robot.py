@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from frogsim._plotting import figure, save
+from frogsim._plotting import figure, legend_in, save
 from frogsim._words import count
 from frogsim.scenario.tables import header
 from frogsim.studies.registry import StudyData, register
@@ -85,9 +85,13 @@ def _draw_leg(data: StudyData, path: str) -> None:
         delay = data.extras["delays"][f"{j}_left"]
         a.plot(d[TIME], d[_angle(j)], color=JOINT_COLORS[j], lw=2,
                label=f"{j}: delay {delay * 1e3:.0f} ms")
-    for x, lab in ((data.extras["command_s"], "charge command"), (data.extras["release_s"], "vent command")):
+    # the valve commands named on a top axis of their own: written inside, their text met the curves
+    commands = {data.extras["command_s"]: "charge command", data.extras["release_s"]: "vent command"}
+    for x in commands:
         a.axvline(x, color="0.4", ls=":", lw=1)
-        a.text(x + 0.01, a.get_ylim()[1] * 0.97, lab, fontsize=8, va="top", color="0.3")
+    top = a.secondary_xaxis("top")
+    top.set_xticks(list(commands), list(commands.values()), fontsize=8, color="0.3")
+    top.tick_params(length=3, color="0.4")
     a.set_ylabel("joint angle from flexed stop [deg]")
     a.set_title("Leg in air, body fixed: joint angles (cf. paper Fig. 12)")
     a.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)     # outside: hides no curve
@@ -112,34 +116,45 @@ MAX_CONTROL_PANELS = 4      # closed-loop controllers drawn, one panel each (all
 
 
 def plot_swim(result, path: str, summary: dict | None = None) -> None:
-    """Panels against time: forward motion, water forces, joint angles (the palms' opening on a
-    0-1 axis of its own), pressures (driving muscles solid, recovery muscles dashed), then one
-    panel per closed-loop controller (:func:`_draw_controller`)."""
+    """Panels against time: forward motion (not for a fixed base: nothing moves), the medium's
+    forces (water or air), joint angles (the palms' opening on a 0-1 axis of its own), pressures
+    (driving muscles solid, recovery muscles dashed), then one panel per closed-loop controller
+    (:func:`_draw_controller`). Each panel's legend stands in a column of its own at the right, clear
+    of the curves and of the right-hand axes' labels."""
     s = summary or result.summary()
     t = result.t
+    fixed = result.rs.options.base == "fixed"
+    medium = result.rs.options.environment
     controllers = [(n, c) for n, c in result.rs.pneumatic.controllers.items() if c.kind != "program"]
     shown = controllers[:MAX_CONTROL_PANELS]
-    rows = 4 + len(shown)
-    fig, ax = figure(rows, 1, width=11.0, height=10.5 + 2.6 * len(shown), sharex=True)
-    a, b, c, e = (ax[k, 0] for k in range(4))
+    rows = (3 if fixed else 4) + len(shown)
+    fig, grid = figure(rows, 2, width=12.5, height=2.6 * rows + 0.3 * (not fixed), sharex=True,
+                       gridspec_kw={"width_ratios": [1, 0.2]})
+    ax, lax = grid[:, 0], grid[:, 1]
     for x0, x1 in result.extension_windows():
-        for axis in ax[:, 0]:
+        for axis in ax:
             axis.axvspan(x0, x1, color="tab:orange", alpha=0.07, lw=0)
-    a.plot(t, result.forward, color="k", lw=2, label="forward distance")
-    a.set_ylabel("distance [m]")
-    a2 = a.twinx()
-    a2.plot(t, result.forward_velocity, color="tab:blue", lw=1, label="forward velocity")
-    a2.set_ylabel("velocity [m/s]", color="tab:blue")
-    speed = s["mean_speed_m_per_s"]
-    a.set_title(f"{s['scenario']}: {speed:.2f} m/s ({s['mean_speed_body_lengths_per_s']:.2f} body "
-                f"lengths/s), {s['distance_per_cycle_m']:.2f} m and {s['air_used_per_cycle_L_std']:.2f} L "
-                "of air per cycle (shaded: extension)", fontsize=9)
+    air = f"{s['air_used_per_cycle_L_std']:.2f} L of air per cycle (shaded: extension)"
+    if fixed:
+        b, c, e = ax[:3]
+        lb, lc, le = lax[:3]
+        b.set_title(f"{s['scenario']}: base fixed in {medium}, no swimming; {air}", fontsize=9)
+    else:
+        a, b, c, e = ax[:4]
+        la, lb, lc, le = lax[:4]
+        la.axis("off")
+        a.plot(t, result.forward, color="k", lw=2, label="forward distance")
+        a.set_ylabel("distance [m]")
+        a2 = a.twinx()
+        a2.plot(t, result.forward_velocity, color="tab:blue", lw=1, label="forward velocity")
+        a2.set_ylabel("velocity [m/s]", color="tab:blue")
+        a.set_title(f"{s['scenario']}: {s['mean_speed_m_per_s']:.2f} m/s ({s['mean_speed_body_lengths_per_s']:.2f} "
+                    f"body lengths/s), {s['distance_per_cycle_m']:.2f} m and {air}", fontsize=9)
     b.plot(t, result.thrust, lw=1.2, label="legs (thrust)")
     b.plot(t, result.hull_force, lw=1.2, label="hull")
     b.axhline(0, color="0.5", lw=0.6)
-    b.set_ylabel("water force along heading [N]")
-    outside = {"loc": "upper left", "bbox_to_anchor": (1.07, 1.0), "fontsize": 8}   # hides no curve
-    b.legend(**outside)
+    b.set_ylabel(f"{medium} force along heading [N]")
+    legend_in(lb, b, fontsize=8)
     for j in ("hip", "knee", "ankle"):
         c.plot(t, np.degrees(result.joint_angles[:, result.joint_names.index(f"{j}_left")]),
                color=JOINT_COLORS[j], label=j)
@@ -149,9 +164,7 @@ def plot_swim(result, path: str, summary: dict | None = None) -> None:
     c2.set_ylim(-0.05, 1.6)
     c2.set_yticks([0, 1], ["fold", "open"])
     c2.set_ylabel("palm", color="0.45")
-    h1, l1 = c.get_legend_handles_labels()
-    h2, l2 = c2.get_legend_handles_labels()
-    c.legend(h1 + h2, l1 + l2, **outside)
+    legend_in(lc, c, c2, fontsize=8)
     e.plot(t, _gauge(result, result.source_pressure), "k", lw=2, label="source")
     e.plot(t, _gauge(result, result.exhaust_pressure), "k--", lw=1, label="exhaust")
     for j in ("hip", "knee", "ankle"):
@@ -162,21 +175,22 @@ def plot_swim(result, path: str, summary: dict | None = None) -> None:
             e.plot(t, _gauge(result, result.pressures[:, k]), color=JOINT_COLORS[j], lw=1, ls="--",
                    label=f"{j} recovery")
     e.set_ylabel("left leg, pressure [bar gauge]")
-    e.legend(**outside)
+    legend_in(le, e, fontsize=8)
+    first = rows - len(shown)
     for k, (name, ctl) in enumerate(shown):
-        _draw_controller(ax[4 + k, 0], result, name, ctl, s.get("control", {}).get(name, {}), outside)
-    ax[-1, 0].set_xlabel("time [s]")
+        _draw_controller(ax[first + k], lax[first + k], result, name, ctl, s.get("control", {}).get(name, {}))
+    ax[-1].set_xlabel("time [s]")
     note = NOTE
     if len(controllers) > len(shown):
         note += f"; {len(controllers) - len(shown)} more closed-loop controller(s) in summary.json"
     save(fig, path, note)
 
 
-def _draw_controller(a, result, name: str, ctl, m: dict, outside: dict) -> None:
+def _draw_controller(a, lax, result, name: str, ctl, m: dict) -> None:
     """One closed-loop controller: its setpoint and the tracked signal on one axis (a joint angle
     [deg] or a muscle pressure [bar gauge]), a joint-angle controller's muscle and antagonist
     pressures on the right axis, the time before ``settle`` hatched (not in the metrics) and the
-    tracking numbers of summary.json written in the panel."""
+    tracking numbers of summary.json written in the panel; its legend in ``lax``."""
     t = result.t
     settle = m.get("settle_s", ctl.settle_time(result.rs.duration))
     a.axvspan(t[0], settle, facecolor="none", edgecolor="0.75", hatch="//", lw=0)
@@ -192,9 +206,7 @@ def _draw_controller(a, result, name: str, ctl, m: dict, outside: dict) -> None:
             a2.plot(t, _gauge(result, result.pressures[:, i]), color="tab:red", ls=ls, lw=1,
                     label=f"{mu} ({role}) pressure, right axis")
         a2.set_ylabel("pressure [bar gauge]", color="tab:red")
-        h1, l1 = a.get_legend_handles_labels()
-        h2, l2 = a2.get_legend_handles_labels()
-        a.legend(h1 + h2, l1 + l2, **outside)
+        legend_in(lax, a, a2, fontsize=8)
         unit, rms, mx = "deg", m.get("tracking_error_rms_deg"), m.get("tracking_error_max_deg")
         extra = f", pressure target clipped at {count(m.get('samples_pressure_target_clipped', 0), 'sample')}"
     else:
@@ -202,7 +214,7 @@ def _draw_controller(a, result, name: str, ctl, m: dict, outside: dict) -> None:
         a.plot(t, _gauge(result, result.setpoint(name)), "k--", lw=1.5, label=f"{ctl.muscle} setpoint")
         a.plot(t, _gauge(result, result.pressures[:, i]), color="tab:red", lw=1.5, label=f"{ctl.muscle} pressure")
         a.set_ylabel(f"{name}: pressure [bar gauge]")
-        a.legend(**outside)
+        legend_in(lax, a, fontsize=8)
         unit, rms, mx = "bar", m.get("tracking_error_rms_bar"), m.get("tracking_error_max_bar")
         extra = ""
 

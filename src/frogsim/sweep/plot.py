@@ -148,7 +148,7 @@ def _mark_missed(a, xs, missed, label: str) -> None:
                clip_on=False, transform=a.get_xaxis_transform(), label=label)
 
 
-def _draw_partial(a, xv, r: dict) -> None:
+def _draw_partial(a, xv, r: dict, xlog: bool = False) -> None:
     """Open markers (mean of the points that reached it) and "k of n reached" where only some
     averaged points reached the metric; an "x" on the bottom edge where none did."""
     n_run, n_reached = np.asarray(r["n_run"]), np.asarray(r["n_reached"])
@@ -156,16 +156,33 @@ def _draw_partial(a, xv, r: dict) -> None:
     if some.any():
         a.plot(np.asarray(xv)[some], np.asarray(r["mean_reached"])[some], "o", mfc="none", color="tab:red",
                ms=8, label="mean of the points that reached it (k of n)")
-        for xk, yk, k, n in zip(np.asarray(xv)[some], np.asarray(r["mean_reached"])[some], n_reached[some],
-                                n_run[some]):
-            a.annotate(f"{k} of {n} reached", (xk, yk), textcoords="offset points", xytext=(6, 6),
-                       fontsize=7, color="tab:red")
+        ys = np.asarray(r["mean_reached"], float)           # every mean drawn: the y range
+        for xk, yk, k, n in zip(np.asarray(xv)[some], ys[some], n_reached[some], n_run[some]):
+            _count_label(a, f"{k} of {n} reached", (xk, yk), xv, ys, xlog)
     none = (n_reached == 0) & (n_run > 0)
     if none.any():
         _mark_missed(a, xv, none, "no averaged point reached it")
         for xk, n in zip(np.asarray(xv)[none], n_run[none]):
-            a.annotate(f"0 of {n} reached", (xk, 0.02), xycoords=a.get_xaxis_transform(),
-                       textcoords="offset points", xytext=(6, 6), fontsize=7, color="tab:red")
+            _count_label(a, f"0 of {n} reached", (xk, 0.02), xv, None, xlog)
+
+
+def _count_label(a, text: str, xy, xs, ys, xlog: bool) -> None:
+    """A count written beside its point, towards the middle of the data: to the left of a point in
+    the right half of the x values, below one in the upper half of ``ys`` (None: the point is on
+    the axes' bottom edge, the label above it), so that it never leaves the axes at an edge; the
+    middle of a log x axis (``xlog``) is the geometric one."""
+    xs = np.asarray(xs, float)
+    lo, hi = np.nanmin(xs), np.nanmax(xs)
+    mid = np.sqrt(lo * hi) if xlog and lo > 0 else 0.5 * (lo + hi)
+    left = xy[0] > mid
+    if ys is None:
+        below = False
+    else:
+        ys = np.asarray(ys, float)
+        below = bool(xy[1] > 0.5 * (np.nanmin(ys) + np.nanmax(ys)))
+    a.annotate(text, xy, xycoords="data" if ys is not None else a.get_xaxis_transform(),
+               textcoords="offset points", xytext=(-6 if left else 6, -6 if below else 6),
+               ha="right" if left else "left", va="top" if below else "bottom", fontsize=7, color="tab:red")
 
 
 def _hatch_nan(a, label: str) -> None:
@@ -244,7 +261,7 @@ def plot_sweep(ds, x: str, metric: str, out, y: str | None = None, select: dict 
             _mark_missed(a, xv, (ran & da.isnull()).transpose(x).values, "not reached (NaN)")
         else:
             a.plot(xv, vals, "o-", label="mean (every point reached it)")
-            _draw_partial(a, xv, {k: v.transpose(x).values for k, v in partial.items()})
+            _draw_partial(a, xv, {k: v.transpose(x).values for k, v in partial.items()}, xlog)
         if a.get_legend_handles_labels()[0]:
             a.legend(fontsize=8, loc="best")
         a.set_xlabel(xlabel)
