@@ -79,7 +79,7 @@ def test_intervals_cover_all_five_in_at_least_17_of_20_seeds_and_are_not_too_wid
     over the 20 seeds is the standard error the interval claims (its half-width over the quantile,
     1.96 for 1002 samples less five parameters) to within a factor 0.6..1.6; the sample standard
     deviation of 20 estimates falls outside that with probability P(chi2_19 < 0.36 * 19) +
-    P(chi2_19 > 2.56 * 19) = 0.4 % per parameter, and an interval 3 times too wide gives 1/3."""
+    P(chi2_19 > 2.56 * 19) = 0.5 % per parameter, and an interval 3 times too wide gives 1/3."""
     from scipy import stats
     # sensor noise 0.02 bar then 10-bit quantisation; the fit is told 0.02 bar (its intervals use
     # the residual variance); seeds 0..19 (and 1000..1019 for the 3 bar run): deterministic
