@@ -37,10 +37,16 @@ def gauge(p):
 
 # --- the bang-bang band ----------------------------------------------------------------------------------
 def test_bang_bang_stays_in_its_band_plus_the_largest_step_one_period_and_a_dead_time_allow():
-    band = 0.2 * BAR
-    sp = 3.0 * BAR
-    d = closed_loop({"kind": "bang-bang", "setpoint": "3 bar", "band": "0.2 bar"}, 1.5,
-                    supply={"mode": "none"}, output_interval="0.1 ms")
+    """Setpoint 3 bar, then 1 bar from 0.75 s, band 0.5 bar, the muscle's volume constant and no
+    pump: the law charges while p < sp - band/2 and vents while p > sp + band/2, so a charge stops
+    within one step (the pressure change over one period and one dead time, bounded below from
+    Eq. 8) above sp - band/2, and a vent within one step below sp + band/2. Both edges are checked
+    from both sides: a threshold moved to sp + band or sp - band leaves its window."""
+    band = 0.5 * BAR
+    sp, sp2, t2 = 3.0 * BAR, 1.0 * BAR, 0.75
+    d = closed_loop({"kind": "bang-bang", "band": "0.5 bar", "setpoint": {"kind": "steps", "steps": [
+        {"at": "0 s", "value": "3 bar"}, {"at": f"{t2} s", "value": "1 bar"}]}}, 1.5,
+        supply={"mode": "none"}, output_interval="0.1 ms")
     r = frogsim.simulate(frogsim.load_scenario(d))
     p = r.muscle_pressure("hip") - P_ATM
     # largest pressure step while a command waits (one period) and acts (one dead time):
@@ -49,14 +55,26 @@ def test_bang_bang_stays_in_its_band_plus_the_largest_step_one_period_and_a_dead
     horizon = DT + DEAD
     step_charge = K_AIR * R_AIR * T_REF * C_MHJ9 * RHO_REF * p_s * horizon / HIP_V
     # vent: at most choked from the band's top, the muscle's air at most k T_ref (adiabatic filling)
-    p_top = P_ATM + sp + band / 2 + step_charge
-    step_vent = K_AIR * R_AIR * C_MHJ9 * RHO_REF * p_top * math.sqrt(T_REF * K_AIR * T_REF) * horizon / HIP_V
-    bound = band / 2 + max(step_charge, step_vent)
-    inside = np.nonzero(np.abs(p - sp) <= band / 2)[0]
+    def step_vent(p_gauge):
+        return K_AIR * R_AIR * C_MHJ9 * RHO_REF * (P_ATM + p_gauge) * math.sqrt(T_REF * K_AIR * T_REF) \
+            * horizon / HIP_V
+    p_top = sp + band / 2 + step_charge
+    bound = band / 2 + max(step_charge, step_vent(p_top))
+    first = r.t <= t2
+    inside = np.nonzero(first & (np.abs(p - sp) <= band / 2))[0]
     assert inside.size, "never reached the band"
-    after = p[inside[0]:]
+    after = p[inside[0]:np.count_nonzero(first)]
     assert np.max(np.abs(after - sp)) <= bound
-    assert np.max(np.abs(after - sp)) > band / 2 * 0.5      # the bound is not vacuous here
+    # the charge stopped within one step above the band's bottom (0.19 bar here, under band/2:
+    # the window excludes the band's top and a bottom moved to sp - band); nothing vented after
+    assert step_charge < band / 2
+    assert np.all(after >= sp - band / 2) and np.all(after <= sp - band / 2 + step_charge), (after.min(), after.max())
+    # the step down to 1 bar: vented from above until the pressure fell to the band's top, then held
+    # within one vent step below it (0.07 bar here), never above it
+    settled = p[r.t >= t2 + 0.3]
+    top = sp2 + band / 2
+    lo = top - step_vent(top)
+    assert np.all(settled <= top) and np.all(settled >= lo), (settled.min(), settled.max(), lo, top)
 
 
 @pytest.mark.parametrize("dead_ms", [0, 2, 5])

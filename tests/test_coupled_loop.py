@@ -22,9 +22,31 @@ def full_robot():
     return frogsim.load_robot_scenario(raw, cycles=1)
 
 
-def test_mujoco_library_is_found():
+def test_the_mujoco_library_found_steps_the_bindings_data():
+    """The two addresses the compiled loop calls are MuJoCo's mj_step1 and mj_step2 in the copy the
+    bindings use: called on a model and data made through the bindings, one step of a free ball
+    (no contact, default semi-implicit Euler) gives v = -g dt and z = -g dt^2, the same bits as the
+    bindings' own mj_step1 + mj_step2."""
+    import ctypes
+
     import mujoco
-    assert mujoco_c(mujoco) is not None
+    addresses = mujoco_c(mujoco)
+    assert addresses is not None
+    xml = ('<mujoco><option timestep="0.01" gravity="0 0 -9.81"/><worldbody><body pos="0 0 1"><freejoint/>'
+           '<geom size="0.1"/></body></worldbody></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    ours, theirs = mujoco.MjData(m), mujoco.MjData(m)
+    step = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)
+    for address in addresses:
+        step(address)(m._address, ours._address)
+    mujoco.mj_step1(m, theirs)
+    mujoco.mj_step2(m, theirs)
+    g, dt = 9.81, 0.01
+    assert ours.time == pytest.approx(dt)
+    assert ours.qvel[2] == pytest.approx(-g * dt, rel=1e-12)
+    assert ours.qpos[2] == pytest.approx(1.0 - g * dt ** 2, rel=1e-12)
+    np.testing.assert_array_equal(ours.qpos, theirs.qpos)
+    np.testing.assert_array_equal(ours.qvel, theirs.qvel)
 
 
 def _run(rs, compiled, progress=None):

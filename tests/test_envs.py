@@ -11,7 +11,7 @@ from frogsim.circuit import layout as CL
 from frogsim.scenario.motion import command_time
 from frogsim.scenario.schema import VALVE_STATES
 
-gym = pytest.importorskip("gymnasium")
+import gymnasium as gym  # noqa: E402  (a dependency of frogsim, never skipped)
 from gymnasium.utils.env_checker import check_env  # noqa: E402
 
 from frogsim.envs import ENVS  # noqa: E402

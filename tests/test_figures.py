@@ -96,7 +96,7 @@ def test_an_interrupted_run_says_interrupted_in_its_manifest(tmp_path, monkeypat
     assert main(["simulate", "paper-cycle", "--out", str(out)]) == 0     # replaced without --overwrite
 
 
-def test_a_joint_angle_panel_without_a_written_settle_hatches_the_default(tmp_path):
+def test_a_joint_angle_panel_without_a_written_settle_hatches_the_default(tmp_path, monkeypatch):
     """swim.png of a joint-angle run whose settle is not written: the panel hatches the default
     settle time the metrics used (summary.json's settle_s), not a missing value."""
     from frogsim.scenario.load import merged_raw
@@ -106,6 +106,23 @@ def test_a_joint_angle_panel_without_a_written_settle_hatches_the_default(tmp_pa
     raw = frogsim.with_overrides(raw, {"gait.period": "0.5 s"})
     run = frogsim.swim(frogsim.load_robot_scenario(raw))
     assert run.control_metrics()["hip"]["settle_s"] == 0.2
+    import frogsim.studies.robot as robot_study
+    figures = []
+    real_save = robot_study.save
+
+    def keep(fig, path, note):
+        figures.append(fig)
+        real_save(fig, path, note)
+    monkeypatch.setattr(robot_study, "save", keep)
     out = tmp_path / "swim.png"
     plot_swim(run, str(out))
-    assert out.stat().st_size > 10_000
+    assert out.read_bytes()[:4] == b"\x89PNG"
+    # the hip controller's panel: hatched from the run's start to the default settle, 0.2 s
+    # (docs/control.md, the `settle` row: "0.2 s"), and its title says the error counts from there
+    (fig,) = figures
+    (panel,) = [a for a in fig.axes if a.get_title().startswith("hip: joint-angle control")]
+    hatched = [p for p in panel.patches if p.get_hatch() == "//"]
+    assert len(hatched) == 1
+    x0, x1 = sorted(hatched[0].get_path().transformed(hatched[0].get_patch_transform()).vertices[:, 0][[0, 2]])
+    assert x0 == pytest.approx(run.t[0]) and x1 == pytest.approx(0.2)
+    assert "tracking error from 0.2 s on" in panel.get_title()

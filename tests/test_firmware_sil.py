@@ -141,7 +141,6 @@ def _log_through_pty(data: bytes, argv: list, out: Path) -> int:
 def test_log_reads_the_boards_bytes_through_a_pseudo_terminal(sil_run, built, tmp_path):
     """The bytes the emulated board sent, written into a pty, read by `frogsim log` (pyserial on
     the other end): the same CSV as SIL's serial.csv."""
-    pytest.importorskip("serial")
     model, rec, run = sil_run
     _, out, _, _ = built
     write_log_csv(tmp_path / "sil.csv", parse_log(run.serial, rec), rec)
@@ -150,7 +149,6 @@ def test_log_reads_the_boards_bytes_through_a_pseudo_terminal(sil_run, built, tm
 
 
 def test_log_without_the_firmware_folder_writes_raw_counts(sil_run, tmp_path):
-    pytest.importorskip("serial")
     import pandas as pd
     _, rec, run = sil_run
     assert _log_through_pty(run.serial, [], tmp_path / "log") == 0
@@ -185,7 +183,6 @@ def test_sil_refuses_a_folder_without_firmware(tmp_path, capsys):
 
 
 def test_log_refuses_a_port_it_cannot_open_and_writes_nothing(tmp_path, capsys):
-    pytest.importorskip("serial")
     from frogsim.cli import main
     code = main(["log", "--port", str(tmp_path / "no-such-port"), "--duration", "1", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip()

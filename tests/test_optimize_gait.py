@@ -9,7 +9,7 @@ import math
 
 import pytest
 
-pytest.importorskip("optuna")
+import optuna  # noqa: F401  (a dependency of frogsim, never skipped)
 
 from conftest import assert_unit_headers  # noqa: E402
 from frogsim.cli import main  # noqa: E402

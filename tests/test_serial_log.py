@@ -15,7 +15,7 @@ import pytest
 from frogsim.cli import main
 from frogsim.export.serial_log import parse_log
 
-serial = pytest.importorskip("serial")
+import serial  # noqa: E402  (pyserial: a dependency of frogsim, never skipped)
 
 DIGEST = "0123456789abcdef" * 4
 UPC = 1e6 / 819.2                   # [Pa/count] 0.5..4.5 V over 0..10 bar on a 10-bit ADC at 5 V

@@ -105,15 +105,45 @@ def test_tube_modes_physical_exceeds_eq9_and_is_shared(summaries):
     assert t["physical"]["six_branches_L_per_min"] > 2 * limit
 
 
+def _documented_columns() -> dict:
+    """study -> (the columns docs/metrics.md's study table names, whether it elides others with
+    "...")."""
+    import re
+    from pathlib import Path
+    text = (Path(__file__).resolve().parents[1] / "docs" / "metrics.md").read_text()
+    rows = {}
+    for line in text.splitlines():
+        m = re.match(r"\| `([a-z0-9-]+)` \| (.*) \|$", line)
+        if m:
+            named, dots, _ = m.group(2).partition("...")
+            rows[m.group(1)] = (re.findall(r"`([^`]+)`", named), bool(dots))
+    return rows
+
+
 def test_every_study_is_finite_and_documented(tmp_path, study):
-    # contract over the registry: deterministic (the session's run and a fresh one), finite, with a
-    # title, a table and a drawing
+    """Contract over the registry: deterministic (the session's run and a fresh one), finite, with
+    a title, a table and a drawing; documented: named in the README, its CSV's columns those of its
+    row in docs/metrics.md's study table (all of them, unless the row elides some with "..."),
+    each written 'name [unit]' in the one convention."""
+    from pathlib import Path
+
+    from conftest import assert_unit_headers
+    from frogsim.studies.registry import write_table
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    documented = _documented_columns()
     computed = study
     for name, study in STUDIES.items():
         assert study.title
         a = computed(name)
         b = study.compute()
         assert len(a.table) > 0
+        assert f"`{name}`" in readme, f"{name} is not named in README.md"
+        assert name in documented, f"{name} has no row in docs/metrics.md's study table"
+        columns, elided = documented[name]
+        write_table(name, a, tmp_path)
+        written = list(assert_unit_headers(tmp_path / f"{name}.csv").columns)
+        assert [c for c in written if c in columns] == columns, (name, columns, written)
+        assert elided or written == columns, (name, written)
         num = a.table.select_dtypes("number")
         # NaN only for a rise time not reached, where the share of the rise reached says so
         for col in num.columns:

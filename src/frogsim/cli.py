@@ -65,6 +65,31 @@ def _progress(msg: str) -> None:
         print(msg, file=sys.stderr, flush=True)
 
 
+#: [s] the longest a command stays silent on stderr while it works (unless --quiet)
+PROGRESS_EVERY_S = 2.0
+
+
+def _every(describe):
+    """A progress callback for a long loop: ``tick(fraction)`` says ``describe(fraction)`` (a line)
+    at most once per PROGRESS_EVERY_S, the first time that long after the callback was made."""
+    last = [time.perf_counter()]
+
+    def tick(fraction):
+        now = time.perf_counter()
+        if now - last[0] >= PROGRESS_EVERY_S:
+            last[0] = now
+            _progress(describe(fraction))
+    return tick
+
+
+def _compiling(dispatcher, engine: str) -> None:
+    """Before a run whose compiled code is not cached yet (a first run on this machine, or after
+    an update of frogsim or Numba): say so, since Numba then compiles for 10-60 s without a word."""
+    from frogsim._jit import cache_is_warm
+    if not cache_is_warm(dispatcher):
+        _progress(f"compiling the {engine} engine, once per machine (cached afterwards) ...")
+
+
 def _warn(msg: str) -> None:
     print(f"warning: {msg}", file=sys.stderr, flush=True)
 
@@ -192,8 +217,8 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
     # the engine is compiled (or loaded) on two processes or more even for a single study
     pool_size = min(procs, max(len(names), 2))
     if not cache_is_warm(advance):
-        _progress(f"first run: compiling the engines on {pool_size} process{'es' if pool_size > 1 else ''} "
-                  "(cached afterwards)")
+        _progress(f"compiling the engines, once per machine, on {pool_size} process{'es' if pool_size > 1 else ''} "
+                  "(cached afterwards) ...")
     studies = f"{len(names)} stud{'ies' if len(names) != 1 else 'y'}"
     _progress(f"{studies} on {workers} process{'es' if workers > 1 else ''} -> {out}/")
     order = sorted(names, key=lambda n: -STUDIES[n].cost)     # costly first, so they overlap the rest
@@ -241,10 +266,12 @@ def cmd_simulate(args) -> int:
                      scenario=scenario_record(scenario.name, scenario_inputs(scenario, args.scenario)))
 
     def work():
+        from frogsim.engine.integrator import advance
+        _compiling(advance, "pneumatic")
         _progress(f"simulating {scenario.name!r}: {_count(len(scenario.muscles), 'muscle')}, "
                   f"{scenario.duration:g} s ...")
         t0 = time.perf_counter()
-        result = simulate(scenario)
+        result = simulate(scenario, progress=not _QUIET)     # a bar on stderr once a run takes 2 s
         _progress(f"      {_count(result.stats['steps'], 'step')} in {time.perf_counter() - t0:.2f} s")
         _write_simulate(out, result)
         folder.finish()
@@ -285,21 +312,13 @@ def cmd_swim(args) -> int:
 
 
 def _swim_into(args, folder, out: Path, rs) -> int:
-    from frogsim._jit import cache_is_warm
     from frogsim.engine.coupled_loop import run_steps
     from frogsim.engine.swim import swim
     from frogsim.studies.robot import write_outputs
-    if not cache_is_warm(run_steps):
-        _progress("first run: compiling the engine (cached afterwards)")
+    _compiling(run_steps, "swim")
     _progress(f"running {rs.name!r}: {_count(len(rs.muscles), 'muscle')} in {rs.options.environment}, "
               f"{_count(rs.gait.cycles, 'cycle')} of {rs.gait.period:g} s ...")
-    last = [time.perf_counter()]
-
-    def tick(fraction):                  # a sign of life every 2 s on a long run
-        now = time.perf_counter()
-        if now - last[0] >= 2.0:
-            last[0] = now
-            _progress(f"      {100 * fraction:.0f} % ({fraction * rs.duration:.1f} s of {rs.duration:g} s simulated)")
+    tick = _every(lambda f: f"      {100 * f:.0f} % ({f * rs.duration:.1f} s of {rs.duration:g} s simulated)")
     result = swim(rs, progress=tick)
     _progress(f"      {result.stats['mujoco_steps']} MuJoCo steps in {result.wall_s:.2f} s "
               f"({result.t[-1] / result.wall_s:.3g} x real time; compiling {result.compile_s:.2f} s "
@@ -585,7 +604,10 @@ def cmd_compare(args) -> int:
     runs = compare.prepare(args.inputs, args.signal)         # every input and the signal, before any run
     folder = _folder(args, "compare", files=compare.file_names(runs, args.signal),
                      scenario=compare.inputs_record(runs))
-    compare.run_inputs(runs, progress=_progress)              # may fail (exit 1) before anything is written
+    if any(r.table is None for r in runs):                  # a scenario to run
+        from frogsim.engine.integrator import advance
+        _compiling(advance, "pneumatic")
+    compare.run_inputs(runs, progress=None if _QUIET else _progress)   # may fail (exit 1) before anything is written
 
     def work():
         files = compare.write(runs, args.signal, out)
@@ -629,6 +651,9 @@ def cmd_sweep(args) -> int:
     spec = load_spec(args.spec)
     for note in spec.notes:
         _progress(f"note: {note}")
+    if args.scheduler is None:              # (a scheduler's workers compile on their machines)
+        from frogsim.engine.integrator import run_schedule
+        _compiling(run_schedule, "batched pneumatic")
     ds = run_sweep(spec, out=args.out, workers=args.workers, scheduler=args.scheduler,
                    progress=not args.quiet, overwrite=args.overwrite, connect_timeout=args.connect_timeout)
     n, failed, read = ds.attrs["n_points"], ds.attrs["n_failed"], ds.attrs.get("n_points_read", 0)
@@ -686,6 +711,9 @@ def _fit_into(args, folder, spec) -> int:
     tables = f" and {_count(len(spec.force_tables), 'force table')}" if spec.force_tables else ""
     _progress(f"fitting {_count(len(spec.parameters), 'parameter')} to {_count(len(spec.experiments), 'trace')}"
               f"{tables}, {_count(spec.starts, 'start')} ...")
+    if spec.experiments:                    # traces: the pneumatic model runs (force tables alone do not)
+        from frogsim.engine.integrator import run_schedule
+        _compiling(run_schedule, "batched pneumatic")
     res = fit(spec, progress=not args.quiet)
     files = write_outputs(res, args.out)
     folder.finish()
@@ -734,6 +762,8 @@ def cmd_optimize_gait(args) -> int:
                   f" a gait search on {search.rs.name!r}: objective {search.objective}, "
                   f"{_count(search.trials, 'trial')} ({done} done), {_count(search.cycles, 'cycle')} of "
                   f"{search.period:g} s each, {_count(search.workers, 'worker')} ...")
+        from frogsim.engine.coupled_loop import run_steps
+        _compiling(run_steps, "swim")
         res = G.run_search(search, study_db, fresh=not resume, progress=_progress)
         best, base = res["best"].value, res["baseline"].value
         unit = G.OBJECTIVES[search.objective][1]

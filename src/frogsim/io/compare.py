@@ -253,7 +253,8 @@ def run_inputs(runs: list[Run], progress=None) -> None:
         if r.table is None:
             if progress:
                 progress(f"simulating {r.label!r} ...")
-            df = unit_headers(simulate(r.scenario).to_dataframe(units="display"))
+            # the engine's bar on stderr once a run takes 2 s, unless progress is off (--quiet)
+            df = unit_headers(simulate(r.scenario, progress=progress is not None).to_dataframe(units="display"))
             # as frogsim simulate writes it (8 significant digits), so a scenario and its run folder
             # give the same numbers and share one time column
             r.table = pd.read_csv(io.StringIO(df.to_csv(index=False, float_format=CSV_FORMAT)))

@@ -286,6 +286,9 @@ def run_search(search: Search, storage_path: Path, fresh: bool = False, progress
     dists = {k: FloatDistribution(*b) for k, b in search_bounds(search.rs).items()}
     t0 = time.perf_counter()
     base_gait = gait_table_of(search.rs.gait)
+    if progress is not None:
+        from frogsim._words import count
+        progress(f"  the scenario's own gait first (the baseline), {count(search.cycles, 'cycle')} ...")
     baseline = evaluate(search.raw, search.base_dir, base_gait, search.objective)
     if baseline.failure:
         raise SimulationError(f"the scenario's own gait: {baseline.failure}")
