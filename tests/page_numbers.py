@@ -46,8 +46,11 @@ def as_float(text: str) -> float:
 
 
 def same_as_written(text: str, value: float) -> bool:
-    """value rounded to the decimals of text equals text (a minus sign either way)."""
+    """value rounded to the decimals of text equals text (a minus sign either way; a written plus
+    sign asks for a positive value)."""
     text = text.replace("−", "-")
+    if text.startswith("+"):
+        return value > 0 and same_as_written(text[1:], value)
     decimals = len(text.split(".")[1]) if "." in text else 0
     got = f"{value:.{decimals}f}"
     return got == text or (got == "-" + text.lstrip("-") and float(text) == 0.0)
