@@ -86,3 +86,77 @@ def test_the_control_command_runs_the_studies_the_page_names():
     others = re.findall(r"`([\w-]+)`", m.group(2))
     assert ["control-pressure"] + others == studies_in("control")
     assert {"three": 3}[m.group(1)] == len(others)
+
+
+# --- the board: counts, rates and bounds the page works out -----------------------------------------
+def test_the_gain_bounds_are_the_ones_the_loader_allows():
+    import frogsim
+    from frogsim.errors import ScenarioError
+    raw = frogsim.load_robot_scenario("hip-angle-in-air").raw
+    text = " ".join(section(DOC, "The gains' bounds:", "Every setting is a variable path of the robot").split())
+    allowed = {}
+    for key, big in (("proportional_gain", "1e9 bar/rad"), ("derivative_gain", "1e9 bar*s/rad"),
+                     ("integral_gain", "1e15 bar/(rad*s)")):
+        with pytest.raises(ScenarioError) as exc:
+            frogsim.load_robot_scenario(frogsim.with_overrides(raw, {f"controllers.hip.{key}": big}))
+        allowed[key] = float(re.search(r"allowed: 0 to ([\d.e+]+) ", str(exc.value)).group(1))
+    rng = frogsim.load_robot_scenario("hip-angle-in-air").pneumatic
+    check(text, [(r"that is " + NUM + " bar/rad", allowed["proportional_gain"]),
+                 (r"bar/rad, " + NUM + " bar·s/rad", allowed["derivative_gain"]),
+                 (r"and " + NUM + r"e6 bar/\(rad·s\)", allowed["integral_gain"] / 1e6)])
+    hip_range = float(re.search(r"joint's range \((\d+) deg", str(exc.value)).group(1))
+    check(text, [(r"\(" + NUM + r" deg\s+at the hip\)", hip_range / 1000)])
+    assert rng.controller.rate == 1000.0 and "1 kHz" in text
+
+
+def test_the_fastest_controller_rate():
+    from frogsim.scenario.schema import CONTROLLER_RATE_MAX
+    text = " ".join(DOC.split())
+    check(text, [(r"`controller.rate` is at most " + NUM + " kHz", CONTROLLER_RATE_MAX / 1e3)])
+
+
+def test_the_fixed_point_and_fault_counts_of_the_default_lines():
+    import frogsim
+    from frogsim.control import fixed
+    from frogsim.scenario.load import with_firmware
+    sc = frogsim.load_robot_scenario(with_firmware("hip-angle-in-air")).pneumatic
+    fw = sc.firmware
+    text = " ".join(DOC.split())
+    lo, hi = fixed.fault_limits(sc)["pressure"]
+    check(text, [(r"a 10-bit count below " + NUM, lo), (r"below \d+ or above " + NUM, hi)])
+    line = fixed.pressure_volts(fw)
+    check(text, [(r"3 bar is round\(16 x " + NUM + r"\)", float(fixed.real_count(line, fw, 3e5))),
+                 (r"3 bar is round\(16 x [\d.]+\) = " + NUM, fixed.q4(line, fw, 3e5))])
+    # an angle count per sample as a velocity, at the controller's rate
+    rad_per_count = 1.0 / (fixed.q4_per_unit(fixed.angle_line(sc)[0], fw) / 16)
+    check(text, [(r"one count per sample is " + NUM + r" rad/s at 1 kHz", rad_per_count * sc.controller.rate)])
+
+
+def test_the_firmware_twin_on_hip_angle_in_air_against_the_float_law():
+    import frogsim
+    from frogsim.scenario.load import with_firmware
+    flt = frogsim.swim("hip-angle-in-air").control_metrics()["hip"]
+    fw = frogsim.swim(with_firmware("hip-angle-in-air")).control_metrics()["hip"]
+    text = " ".join(section(DOC, "The sliding mode's valve model (Eq. 8) is a table").split())
+    check(text, [(NUM + r" deg RMS\s+after 1.5 s", fw["tracking_error_rms_deg"]),
+                 (r"after 1.5 s against " + NUM + " deg", flt["tracking_error_rms_deg"]),
+                 (r"about " + NUM + " times as often", fw["switchings_per_s"] / flt["switchings_per_s"]),
+                 (r"\(" + NUM + " against", fw["switchings_per_s"]),
+                 (r"against " + NUM + " switchings per second", flt["switchings_per_s"])])
+    assert fw["settle_s"] == 1.5
+
+
+# --- the gait search's baseline -------------------------------------------------------------------
+def test_the_swim_source_pressure_per_cycle_and_the_one_cycle_speed():
+    import frogsim
+    s10 = frogsim.swim("swim").summary()
+    s1 = frogsim.swim("swim", cycles=1).summary()
+    p = s10["source_pressure_each_cycle_start_bar_gauge"]
+    change = lambda c: 100 * (p[c] - p[c - 1]) / p[c - 1]      # noqa: E731  cycle c, from 1
+    text = " ".join(section(DOC, "Every trial runs the evaluated cycles").split())
+    check(text, [(r"changes by " + NUM + " % in cycle 1,", change(1)), (NUM + " % in cycle 6", change(6)),
+                 (NUM + " % in cycle 10", change(10)), (r"changes by " + NUM + " % over the last of the 1",
+                                                        change(1)),
+                 (r"speed is " + NUM + " m/s against", s1["mean_speed_m_per_s"]),
+                 (r"against " + NUM + " m/s over 10 cycles", s10["mean_speed_m_per_s"])])
+    assert s10["cycles"] == 10
