@@ -56,6 +56,15 @@ def same_as_written(text: str, value: float) -> bool:
     return got == text or (got == "-" + text.lstrip("-") and float(text) == 0.0)
 
 
+def same_to_figures(text: str, value: float) -> bool:
+    """value rounded to the significant figures of text equals text; an integer's trailing zeros
+    are not significant ("13100" is 131 hundreds)."""
+    text = text.replace("−", "-")
+    digits = text.lstrip("-").replace(".", "").lstrip("0")
+    figures = len(digits if "." in text else digits.rstrip("0")) or 1
+    return float(f"{value:.{figures}g}") == float(text)
+
+
 def check(text: str, patterns: list) -> None:
     """Each (regex with one number group, value) must match ``text`` once and read ``value`` at its
     written precision."""
