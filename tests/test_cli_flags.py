@@ -74,3 +74,14 @@ def test_help_of_every_command_renders(capsys):
             parser.parse_args([name, "--help"])
         assert exc.value.code == 0
         assert "--help" in capsys.readouterr().out
+
+
+def test_out_says_what_this_command_writes():
+    helps = options()["--out"]
+    for command, text in helps.items():
+        if command == "sweep":
+            assert "results file" in text and "PNG" not in text, text
+        elif command == "plot":
+            assert "PNG file" in text and "results" not in text, text
+        else:
+            assert "folder" in text and "RESULTS.nc" not in text and "PNG" not in text, (command, text)

@@ -788,8 +788,7 @@ def cmd_optimize_gait(args) -> int:
 #: every option's meaning, the same in every command that has it (README, "Flags", lists them;
 #: tests/test_cli_flags.py checks the table against each command's --help)
 FLAGS = {
-    "--out": "where the command writes (required): a new or own folder, or for sweep and plot the "
-             "one file (RESULTS.nc, FIG.png)",
+    "--out": "where the command writes (required)",
     "--overwrite": "replace what --out holds from an earlier run or another command (its files "
                    "deleted first)",
     "--workers": "how many runs go side by side on this machine",
@@ -832,7 +831,9 @@ def _flag(s, name: str, default_text: str | None = None, **kw) -> None:
 
 def _writes(s, metavar: str = "DIR", workers: str | None = None, overwrite: bool = True) -> None:
     """The flags of a command that writes: --out (required), --overwrite, --quiet, --workers."""
-    _flag(s, "--out", required=True, metavar=metavar)
+    what = {"RESULTS.nc": ": the results file, a new one or this sweep's to resume",
+            "FIG.png": ": the PNG file"}.get(metavar, ": a new folder, or one this command wrote before")
+    s.add_argument("--out", help=FLAGS["--out"] + what, required=True, metavar=metavar)
     if overwrite:
         _flag(s, "--overwrite", action="store_true")
     if workers:

@@ -47,7 +47,7 @@ def chou_hannaford_force(p_gauge: float, L: float, b0: float, n: float) -> float
     length [m]; n: braid turns [-] (:func:`frogsim.physics.muscle.braid_parameters`).
     Negative beyond L < b0/sqrt(3), where an ideal muscle would push; see :func:`muscle_force`.
 
-    Worked number: DMSP-20 (D0 = 20 mm, theta0 = 25.3 deg) at 6 bar and rest length: 1496 N.
+    Worked number: DMSP-20 (D0 = 20 mm, theta0 = 25.3 deg) at 6 bar and rest length: 1499 N.
     """
     return p_gauge * (3.0 * L * L - b0 * b0) / (4.0 * math.pi * n * n)
 

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 from frogsim.engine.pneumatic import simulate
 from frogsim.scenario.load import load_scenario
-
-PAPER_AERATION_L = {"hip": 0.455, "knee": 0.401, "ankle": 0.401}   # paper Sec. 4.2
+# the paper's figures live with its studies, which this module does not import back: so
+# `python -m frogsim.studies.calibration` runs it once (no runpy warning of a module imported twice)
+from frogsim.studies.paper import PAPER_AERATION_L
 
 
 def aeration_for(base, muscle_type: str, contraction: float, muscle: str) -> float:

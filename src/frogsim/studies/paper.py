@@ -16,7 +16,6 @@ from frogsim.engine.pneumatic import simulate
 from frogsim.scenario.load import load_scenario
 from frogsim.scenario.schema import Motion, Program
 from frogsim.scenario.tables import header
-from frogsim.studies.calibration import PAPER_AERATION_L
 from frogsim._plotting import figure, save, shade_valve_phases
 from frogsim.studies.registry import StudyData, register
 
@@ -28,6 +27,7 @@ VOLUME_CONSTANTS_PERCENT = (0, 25, 50, 75, 100)            # paper Fig. 16: 0 %.
 BRANCH_LIMITS_L_PER_MIN = (15, 30, 45, 60, 90, 120, 180)   # paper Fig. 17: several saturations
 L_PER_MIN = 1e-3 / 60.0
 NOTE = "frogsim, parameter set fan2017; pressures gauge"
+PAPER_AERATION_L = {"hip": 0.455, "knee": 0.401, "ankle": 0.401}   # paper Sec. 4.2
 # the studies' CSV columns, in the one header convention (frogsim.scenario.tables)
 TIME = header("time", "s")
 HIP_PRESSURE = header("hip pressure", "bar gauge")

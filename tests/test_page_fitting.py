@@ -1,0 +1,37 @@
+"""docs/fitting.md's numbers from runs are the code's: the published loop's fit (section 7, "A
+published loop") from the hysteresis study, which runs the page's command, and the loop height at
+rest length from Hunt et al.'s constants. The fits' printed outputs are compared with runs of their
+commands in tests/test_doc_blocks.py."""
+from __future__ import annotations
+
+from page_numbers import NUM, check, page, section, table_rows
+
+DOC = page("fitting.md")
+
+
+def test_the_published_loops_fit(study):
+    loop = study("hysteresis").summary["hysteresis"]["published_loop"]
+    assert loop["fit"] == "frogsim fit examples/fit/hysteresis/FIT.toml"
+    rows = table_rows(DOC, "`frogsim fit examples/fit/hysteresis/FIT.toml --out hysteresis-fit` gives")
+    lo, hi = loop["slip_per_pressure_ci95_N_per_bar"]
+    check(rows["`slip_per_pressure`"][1], [("^" + NUM + " N/bar,", loop["slip_per_pressure_N_per_bar"]),
+                                           ("interval " + NUM + "-", lo), ("-" + NUM + " N/bar$", hi)])
+    residual = next(v for k, v in rows.items() if k.startswith("force residual"))
+    check(residual[0], [(r"force residual, " + NUM + " rows", loop["rows"])])
+    check(residual[1], [("^" + NUM + " N rms", loop["force_rms_error_N"]),
+                        (r"largest force " + NUM + " N", loop["largest_force_N"])])
+    height = next(v for k, v in rows.items() if k.startswith("loop height"))
+    check(height[1], [("^" + NUM + " N fitted", loop["mean_height_fitted_N"]),
+                      (NUM + " N published", loop["mean_height_published_N"])])
+    text = " ".join(section(DOC, "The mean height matches").split())
+    check(text, [(r"\(" + NUM + " N rms apart", loop["height_rms_difference_N"])])
+    # the prose above the table: the rows of the example's table
+    above = " ".join(section(DOC, "**A published loop: `examples/fit/hysteresis`.**").split())
+    check(above, [(r"direction column \(" + NUM + " rows\\)", loop["rows"]),
+                  (r"muscle pulls " + NUM + " N at 6 bar", loop["largest_force_N"])])
+
+
+def test_hunts_loop_height_at_rest_length():
+    from frogsim.components import hunt2017 as h
+    text = " ".join(section(DOC, "The mean height matches").split())
+    check(text, [(r"c6/c5 = " + NUM + " N", h.C6 / h.C5)])

@@ -1,0 +1,117 @@
+"""docs/sweeps.md's example and messages are the code's: the full example is the shipped file with
+its point count, and every error line the page shows is the one the command prints for the input
+the test builds here (the memory a machine has available, and the cause a network gives for an
+unreachable scheduler, are the two things not compared)."""
+from __future__ import annotations
+
+import copy
+import json
+import re
+import tomllib
+
+import pytest
+
+from frogsim.cli import main
+from page_numbers import ROOT, page
+
+DOC = page("sweeps.md")
+EXAMPLE = ROOT / "examples" / "sweep-source-saturation.toml"
+RAW = tomllib.loads(EXAMPLE.read_text())
+
+
+def test_the_full_example_is_the_shipped_file_and_its_point_count():
+    block = re.search(r"A full example \(`examples/sweep-source-saturation.toml`.*?```toml\n(.*?)```", DOC, re.S).group(1)
+    body = "\n".join(line for line in EXAMPLE.read_text().splitlines() if not line.startswith("#")).strip()
+    assert block.strip() == body
+    from frogsim.sweep import load_spec
+    spec = load_spec(str(EXAMPLE))
+    m = re.search(r"every combination: (\d+) x (\d+) x (\d+) = (\d+) points", block)
+    assert tuple(int(x) for x in m.groups()[:3]) == spec.shape and int(m.group(4)) == spec.n_points
+
+
+def _value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, list):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    return "{ " + ", ".join(f"{json.dumps(k)} = {_value(x)}" for k, x in v.items()) + " }"
+
+
+def _dumps(d: dict, prefix: str = "") -> str:
+    """TOML of a spec dict: its values inline, its sub-tables as [tables] (keys quoted)."""
+    tables = {k: v for k, v in d.items() if isinstance(v, dict)}
+    lines = [f"{json.dumps(k)} = {_value(v)}" for k, v in d.items() if k not in tables]
+    out = ("\n".join(lines) + "\n") if lines else ""
+    for k, v in tables.items():
+        name = f"{prefix}.{json.dumps(k)}" if prefix else json.dumps(k)
+        out += f"\n[{name}]\n" + _dumps(v, name)
+    return out
+
+
+def _message(raw, capsys, tmp_path, *extra) -> str:
+    path = tmp_path / "spec.toml"
+    (tmp_path / "one-hip.toml").write_text((ROOT / "examples" / "one-hip.toml").read_text())
+    text = _dumps(raw)
+    assert tomllib.loads(text) == raw
+    path.write_text(text)
+    out = tmp_path / "out.nc"
+    assert main(["sweep", str(path), "--out", str(out), "--quiet", *extra]) == 2
+    assert not out.exists()
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err, err
+    return err
+
+
+def _with(**changes):
+    raw = copy.deepcopy(RAW)
+    for path, value in changes.items():
+        where = raw
+        keys = path.split("/")
+        for k in keys[:-1]:
+            where = where[k]
+        where[keys[-1]] = value
+    return raw
+
+
+def _page_lines(after: str) -> list[str]:
+    block = re.search(re.escape(after) + r".*?```text\n(.*?)```", DOC, re.S).group(1)
+    return block.splitlines()
+
+
+AVAILABLE = re.compile(r"\([\d.]+ [kMGT]?B available")
+
+
+def test_the_refusals_the_page_shows(capsys, tmp_path):
+    lines = _page_lines("Any problem is one line naming the field")
+    params = RAW["sweep"]["parameters"]
+    cases = [
+        _with(**{"sweep/parameters": {**params, "source.volum": {"start": "1 L", "stop": "2 L", "num": 2}}}),
+        _with(**{"sweep/parameters": {**params, "source.volume": {"start": "2 L", "stop": "2 L", "num": 2}}}),
+        _with(**{"sweep/parameters": {**params, "source.initial_pressure_gauge": {"values": ["3 bar", "lots"]}}}),
+        _with(**{"record/metrics": ["speed"]}),
+        _with(**{"base/overrides": {**RAW["base"]["overrides"], "pump.enabled": True},
+                 "sweep/parameters": {"pump.on_below_gauge": {"values": ["6.2 bar"]}}}),
+    ]
+    got = [_message(raw, capsys, tmp_path) for raw in cases]
+    # the scheduler: the page's address, unreachable here; the cause in brackets is the network's
+    sched = re.search(r"--scheduler = '(tcp://[\d.:]+)'", lines[-1]).group(1)
+    msg = _message(RAW, capsys, tmp_path, "--scheduler", "tcp://127.0.0.1:9")
+    got.append(msg.replace("tcp://127.0.0.1:9", sched))
+    assert len(lines) == len(got)
+    for want, have in zip(lines[:-1], got[:-1]):
+        assert want == have
+    cut = lambda s: s.split(" (", 1)[0]      # noqa: E731
+    assert cut(lines[-1]) == cut(got[-1]), (lines[-1], got[-1])
+    assert "within 5 s" in got[-1]
+
+
+def test_the_size_refusal_the_page_shows(capsys, tmp_path):
+    want = " ".join(_page_lines("e.g. for `num = 1000000000`"))
+    raw = _with(**{"sweep/parameters": {"source.initial_pressure_gauge": {"start": "3 bar", "stop": "6 bar",
+                                                                          "num": 1000000000}}})
+    got = _message(raw, capsys, tmp_path)
+    assert AVAILABLE.sub("(N available", want) == AVAILABLE.sub("(N available", got)
