@@ -43,7 +43,7 @@ MARK = re.compile(r"<!-- test: (.*?) -->\n\Z")
 RUN = {"sh", "bash", "console", "python"}
 DATA = {"toml", "json", "csv", "text"}
 #: pages another change is rewriting: their untagged blocks are known (see the xfail below)
-UNTAGGED_PENDING = {"firmware.md"}
+UNTAGGED_PENDING: set = set()
 #: the run's wall time in a printed line ("396 model runs in 2.5 s"): not a number the page can hold
 WALL_TIME = re.compile(r"\bin \d+(?:\.\d+)? s\b")
 
@@ -244,5 +244,5 @@ def test_a_synopsis_names_a_command_and_options_that_exist(block):
 def test_the_blocks_not_run_are_few_and_listed():
     skipped = [(b.id, b.mark) for b in BLOCKS if b.mark and b.mark.startswith("not runnable")]
     # what this test does not run, written out: a new one must be added here on purpose
-    assert {i.split(":")[0] for i, _ in skipped} <= {"robot.md", "sweeps.md"}, skipped
-    assert len(skipped) <= 2, skipped
+    assert {i.split(":")[0] for i, _ in skipped} <= {"robot.md", "sweeps.md", "firmware.md"}, skipped
+    assert len(skipped) <= 3, skipped
