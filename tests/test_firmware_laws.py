@@ -383,7 +383,10 @@ def _with_program(d: dict) -> dict:
     return d
 
 
-def _run_both(plan, steps: int, seed: int):
+def _run_both(plan, steps: int, seed: int, draw=None):
+    """The plan's C (host build) and its twin on the same counts, sample by sample: each draw's
+    (``draw(rng)``: the counts of the next sample; by default within 40 of a random centre)
+    modes equal. Returns the twin's memory at the end."""
     h = fwm.host_library(plan)
     h.frogsim_reset()
     rng = np.random.default_rng(seed)
@@ -392,13 +395,17 @@ def _run_both(plan, steps: int, seed: int):
     modes = (ctypes.c_int8 * n_m)()
     adc = (ctypes.c_uint16 * max(1, n_ch))()
     centre = rng.integers(0, 1024, n_ch)
+    if draw is None:
+        def draw(rng):
+            return np.clip(centre + rng.integers(-40, 41, n_ch), 0, 1023)
     for k in range(steps):
-        counts = np.clip(centre + rng.integers(-40, 41, n_ch), 0, 1023)
+        counts = draw(rng)
         for j in range(n_ch):
             adc[j] = int(counts[j])
         h.frogsim_sample(k, adc, modes)
         want = fwm.firmware_modes(plan, k, counts, mem)
         assert list(modes) == list(want), f"sample {k}"
+    return mem
 
 
 @needs_gcc
@@ -762,32 +769,25 @@ def test_swim_boards_staggered_and_shared_loops_in_c_equal_the_twin(seed):
     names = fwm._table_names(plan.laws)
     assert len(fwm._joint_pairs(plan.laws, names)) == 6
     assert {int(law.P[joint_angle.P_EVERY]) for law in plan.laws} == {4}
-    h = fwm.host_library(plan)
-    h.frogsim_reset()
-    rng = np.random.default_rng(seed)
-    n_ch, n_m = len(plan.channels), len(plan.muscles)
-    mem = fwm.firmware_memory(plan)
-    modes = (ctypes.c_int8 * n_m)()
-    adc = (ctypes.c_uint16 * n_ch)()
+    n_ch = len(plan.channels)
     enc = [i for i, ch in enumerate(plan.channels) if ch.pins]
-    counts = np.array([32768 if ch.pins else 120 for ch in plan.channels], np.int64)
-    dead = np.zeros(n_ch, np.int64)
-    for k in range(3000):
-        step = rng.integers(-3, 4, n_ch)
-        counts = counts + step
+    analog = [i for i in range(n_ch) if i not in enc]
+    state = {"counts": np.array([32768 if ch.pins else 120 for ch in plan.channels], np.int64),
+             "dead": np.zeros(n_ch, np.int64)}
+
+    def draw(rng):
+        counts = state["counts"] + rng.integers(-3, 4, n_ch)
         counts[enc] = np.clip(counts[enc], 32768 - 300, 32768 + 600)
-        analog = [i for i in range(n_ch) if i not in enc]
         counts[analog] = np.clip(counts[analog], 20, 235)
+        state["counts"] = counts
+        dead = state["dead"]
         if rng.random() < 0.01:
             dead[rng.choice(analog)] = rng.integers(1, 15)
         read = counts.copy()
         read[dead > 0] = 2                       # below every pressure channel's fault limit
-        dead = np.maximum(dead - 1, 0)
-        for j in range(n_ch):
-            adc[j] = int(read[j])
-        h.frogsim_sample(k, adc, modes)
-        want = fwm.firmware_modes(plan, k, read, mem)
-        assert list(modes) == list(want), f"sample {k}"
+        state["dead"] = np.maximum(dead - 1, 0)
+        return read
+    mem = _run_both(plan, 3000, seed, draw)
     lead = [j for j in fwm._joint_pairs(plan.laws, names).values()]
     follow = list(fwm._joint_pairs(plan.laws, names))
     parted = sum(1 for j, f in zip(lead, follow) if not np.array_equal(np.delete(mem[j, :8], 6), np.delete(mem[f, :8], 6)))
