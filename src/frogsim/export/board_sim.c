@@ -48,8 +48,11 @@ struct board_t {
     avr_adc_t *adc;
     /* board_run_until_pin: stop when watch `stop_index` changes to `stop_value` */
     int stop_index, stop_value, stop_hit;
-    /* cycles the core spent asleep (SLEEP instruction until the next interrupt woke it) */
-    uint64_t sleep_cycles;
+    /* cycles the core spent asleep (SLEEP instruction until the next interrupt woke it), and of
+     * them those while the watch `snap_index` (board_run_frame's busy pin) was high: a firmware
+     * that idles inside its interrupt (waiting for the ADC) sleeps there too */
+    uint64_t sleep_cycles, sleep_busy_cycles;
+    watch_t *busy;
     /* board_run_frame: at each fall of watch `snap_index`, `snap_len` bytes of data memory at
      * `snap_addr` are copied into the caller's buffer (the counts an interrupt read, at its end) */
     int snap_index;
@@ -220,12 +223,15 @@ static int step(board_t *b) {
         uint64_t c0 = b->avr->cycle;
         int st = avr_run(b->avr);
         b->sleep_cycles += b->avr->cycle - c0;
+        if (b->busy && b->busy->last)
+            b->sleep_busy_cycles += b->avr->cycle - c0;
         return st;
     }
     return avr_run(b->avr);
 }
 
 uint64_t board_sleep_cycles(board_t *b) { return b->sleep_cycles; }
+uint64_t board_sleep_busy_cycles(board_t *b) { return b->sleep_busy_cycles; }
 
 /* Run the core until its cycle counter reaches `cycle`. Returns 0, or -1 if the firmware
  * stopped (returned from main with interrupts off, or crashed). */
@@ -267,6 +273,10 @@ long board_run_frame(board_t *b, uint64_t end, long n_in, const uint64_t *in_cyc
     if (snap_len < 0 || (uint64_t)snap_addr + (uint64_t)snap_len > (uint64_t)b->avr->ramend + 1)
         return -1;
     b->snap_index = snap_index;
+    b->busy = NULL;
+    for (int w = 0; w < b->n_watch; w++)
+        if (b->watch[w].index == snap_index)
+            b->busy = &b->watch[w];
     b->snap_addr = snap_addr;
     b->snap_len = snap_len;
     b->snap_buf = snaps;

@@ -102,6 +102,8 @@ def _lib():
         lib.board_events_raw = raw
         lib.board_sleep_cycles.restype = u64
         lib.board_sleep_cycles.argtypes = [vp]
+        lib.board_sleep_busy_cycles.restype = u64
+        lib.board_sleep_busy_cycles.argtypes = [vp]
         lib.board_set_adc_mv.argtypes = [vp, ctypes.c_int, ctypes.c_uint32]
         lib.board_set_pin.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
         lib.board_run_until.argtypes = [vp, u64]
@@ -322,6 +324,12 @@ class EmulatedBoard:
     def sleep_cycles(self) -> int:
         """CPU cycles the core has spent asleep so far (after SLEEP, until an interrupt woke it)."""
         return int(self._lib.board_sleep_cycles(self._h))
+
+    @property
+    def sleep_busy_cycles(self) -> int:
+        """Of :attr:`sleep_cycles`, those spent while the busy pin of the last :meth:`run_frame`
+        was high (a firmware idling inside its interrupt, waiting for its conversions)."""
+        return int(self._lib.board_sleep_busy_cycles(self._h))
 
     def set_analog(self, channel: int, millivolts: int) -> None:
         """The voltage at analog input A<channel> [mV, whole: simavr's unit], held until changed."""

@@ -130,7 +130,7 @@ def emulated(timing: dict) -> dict:
             "interrupt_max_cycles": int(round(timing["max_percent"] / 100.0 * timing["period_cycles"])),
             "interrupt_max_percent": float(timing["max_percent"]),
             "interrupt_mean_percent": float(timing["mean_percent"]),
-            "log_percent": max(0.0, float(timing["awake_percent"]) - float(timing["mean_percent"])),
+            "log_percent": float(timing["awake_outside_interrupt_percent"]),
             "samples_late": int(timing.get("samples_late", 0))}
 
 

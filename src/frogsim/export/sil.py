@@ -185,6 +185,7 @@ class BoardRun:
         self.s0 = before[-1]
         self.ticks = [self.s0]
         self.sleep0 = b.sleep_cycles
+        self.sleep_busy0 = b.sleep_busy_cycles
 
     def frame(self, counts, encoder_counts=None) -> list:
         """Sample k's period: the analog channels read ``counts`` (the plant's state at t_k, held
@@ -338,7 +339,8 @@ def interrupt_timing(rec: dict, elf, samples: int = 200, seed: int = 0) -> dict:
     the laws' own arithmetic (a joint-angle row takes some 1000-2200 AVR cycles) is measured
     here, on the machine code itself (:mod:`frogsim.export.fit` judges the fit). Returns the period
     [cycles], the mean and largest share of it the interrupt took [%], the samples over the
-    period, the firmware's overrun counter and the share of the time the chip was awake [%]."""
+    period, the firmware's overrun counter, the share of the time the chip was awake [%] and the share
+    it was awake outside the interrupt (the log's: formatting and sending) [%]."""
     run = BoardRun(rec, elf)
     rng = np.random.default_rng(seed)
     top = (1 << int(rec["adc"]["bits"])) - 1
@@ -352,17 +354,23 @@ def interrupt_timing(rec: dict, elf, samples: int = 200, seed: int = 0) -> dict:
             run.frame(rng.integers(lo, hi + 1).astype(np.int64))
         b = run.board
         run.overruns = int.from_bytes(b.read_ram(run.overrun_address, 2), "little")
-        awake = 1.0 - (b.sleep_cycles - run.sleep0) / max(1, b.cycle - run.s0)
+        span = max(1, b.cycle - run.s0)
+        asleep = b.sleep_cycles - run.sleep0
+        asleep_busy = b.sleep_busy_cycles - run.sleep_busy0
+        awake = 1.0 - asleep / span
     finally:
         run.board.close()
     timing = run.timing()
     load = timing["busy"] / run.period * 100.0
+    # awake outside the interrupt: the log's formatting and its serial interrupts (the time the
+    # interrupt idled waiting for conversions is the interrupt's, not the log's)
+    outside = (span - float(timing["busy"].sum()) - (asleep - asleep_busy)) / span
     return {"samples": samples, "executions": timing["executions"], "period_cycles": run.period,
             "mean_percent": float(load.mean()) if load.size else None,
             "max_percent": float(load.max()) if load.size else None,
             "samples_over_period": int((load > 100.0).sum()) + max(0, samples - timing["executions"]),
             "samples_late": timing["samples_late"], "overruns": run.overruns,
-            "awake_percent": 100.0 * awake}
+            "awake_percent": 100.0 * awake, "awake_outside_interrupt_percent": 100.0 * max(0.0, outside)}
 
 
 class Shadow:
