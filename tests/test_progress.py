@@ -72,3 +72,20 @@ def test_sweep_says_it_compiles(slow, capsys, tmp_path):
     err = _stderr(capsys, ["sweep", str(spec), "--out", str(tmp_path / "loud.nc")])
     assert "compiling the batched pneumatic engine, once per machine" in err and "sweep small" in err
     assert _stderr(capsys, ["sweep", str(spec), "--out", str(tmp_path / "quiet.nc"), "--quiet"]) == ""
+
+
+@pytest.mark.parametrize("quiet", [False, True])
+def test_studies_still_running_are_named_while_they_run(tmp_path, capsys, monkeypatch, quiet):
+    """reproduce: between one study's end and the next, a line every STUDY_HEARTBEAT_S names the
+    studies still running (forced to 1 ms here: leg-in-air takes longer than that), none under
+    --quiet."""
+    monkeypatch.setattr(cli, "STUDY_HEARTBEAT_S", 0.001)
+    args = ["reproduce", "leg-in-air", "fig13", "--out", str(tmp_path / "r"), *(["--quiet"] if quiet else [])]
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    if quiet:
+        assert err == ""
+    else:
+        lines = [line for line in err.splitlines() if "still running:" in line]
+        assert lines and all("of 2 done" in line for line in lines), err
+        assert any("leg-in-air" in line for line in lines), err

@@ -169,6 +169,10 @@ def _study_task(name: str, out: str) -> tuple:
     return name, data.summary, time.perf_counter() - t0
 
 
+#: [s] while studies run on the pool, a line naming those still running at least this often
+STUDY_HEARTBEAT_S = 5.0
+
+
 def _run_studies(args, group: str) -> int:
     from frogsim._files import write_json
     from frogsim.io.outputs import scenario_record, shipped_inputs
@@ -205,7 +209,7 @@ def _run_studies(args, group: str) -> int:
 def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) -> int:
     import multiprocessing
     import os
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     from frogsim._jit import cache_is_warm
     from frogsim.engine.integrator import advance
@@ -244,9 +248,20 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
             # the engine's parts compiled (or loaded from the cache) side by side, first: on a
             # warm cache this loads the engine in parallel, in about the time the studies would
             warm_up_parts(pool, pool_size)
-            futures = [pool.submit(_study_task, name, str(out)) for name in order]
-            for k, fut in enumerate(as_completed(futures), 1):
-                report(k, *fut.result())
+            futures = {pool.submit(_study_task, name, str(out)): name for name in order}
+            pending, k, shown = set(futures), 0, time.perf_counter()
+            while pending:
+                # a line every few seconds while studies run, naming them: a long study is not silence
+                done, pending = wait(pending, timeout=STUDY_HEARTBEAT_S, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    k += 1
+                    report(k, *fut.result())
+                    shown = time.perf_counter()
+                if pending and time.perf_counter() - shown >= STUDY_HEARTBEAT_S:
+                    shown = time.perf_counter()
+                    running = sorted(futures[f] for f in pending)
+                    _progress(f"      {len(names) - len(pending)} of {len(names)} done; still running: "
+                              f"{', '.join(running)} ({shown - t_all:.0f} s so far)")
     summary = folder.previous_summary()     # studies an earlier run of this command put here
     for name in names:                      # in registration order, whatever finished first
         summary.update(summaries[name])
