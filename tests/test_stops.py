@@ -148,3 +148,39 @@ def test_each_strokes_impulse_changes_by_less_than_the_pads_rebound_can_give(swi
     for c, rigid in enumerate((9.4495, 3.3943)):
         m = (r.t >= 2.0 * c) & (r.t < 2.0 * (c + 1))
         assert abs(trap(r.thrust[m], r.t[m]) - rigid) < e * 3.2, c
+
+
+def test_the_pages_stop_numbers_are_this_runs(swim_every_step):
+    """docs/robot.md's figures for the pads, recomputed on the run above, at the precision the page
+    writes them: the largest bound at a hip's touch (N) and that hip's speed (rad/s), the largest
+    jump seen near a touch (N), the first stroke's impulse (Ns)."""
+    import re
+    from pathlib import Path
+    page = (Path(__file__).resolve().parents[1] / "docs" / "robot.md").read_text()
+    m = re.search(r"at most (\d+) N at the hips' touch \((\d+\.\d) rad/s\), (\d+) N seen", page)
+    imp = re.search(r"The first stroke's impulse \(0–2 s\) is (\d+\.\d+) Ns", page)
+    assert m and imp, "docs/robot.md no longer states the pads' figures this test reads"
+    r = swim_every_step
+    cm = r.model
+    h = float(np.diff(r.t)[0])
+    stops = cm.arrays["stops"]
+    ang, w = r.joint_angles, r.joint_velocities
+    outside = (ang > stops[:, C.STOP_UPPER]) | (ang < stops[:, C.STOP_LOWER])
+    touch = outside[1:] & ~outside[:-1]
+    qcols = cm.columns["qpos"]
+    hips = [j for j, name in enumerate(cm.joint_names) if name.startswith("hip")]
+    best = (0.0, 0.0)
+    bound = np.zeros(len(r.t) - 1)
+    for i in np.nonzero(touch.any(axis=1))[0]:
+        gain = _torque_to_thrust_gains(cm, r.rec[i + 1, qcols], r.palm_opening[i + 1])
+        b = sum(gain[j] * torque_jump(stops[j, C.STOP_K], stops[j, C.STOP_C], w[i + 1, j], h)
+                for j in np.nonzero(touch[i])[0])
+        bound[i:i + 5] = np.maximum(bound[i:i + 5], b)
+        if any(touch[i, j] for j in hips) and b > best[0]:
+            best = (b, max(abs(w[i + 1, j]) for j in hips if touch[i, j]))
+    jumps = np.abs(np.diff(r.thrust))
+    assert f"{best[0]:.0f}" == m.group(1) and f"{best[1]:.1f}" == m.group(2), (best, m.groups())
+    assert f"{jumps[bound > 0].max():.0f}" == m.group(3), (jumps[bound > 0].max(), m.group(3))
+    trap = np.trapezoid if hasattr(np, "trapezoid") else np.trapz
+    first = r.t < 2.0
+    assert f"{trap(r.thrust[first], r.t[first]):.2f}" == imp.group(1)
