@@ -20,6 +20,11 @@ def test_the_published_loops_fit(study):
     check(residual[0], [(r"force residual, " + NUM + " rows", loop["rows"])])
     check(residual[1], [("^" + NUM + " N rms", loop["force_rms_error_N"]),
                         (r"largest force " + NUM + " N", loop["largest_force_N"])])
+    check(rows["braid angle"][1], [("^" + NUM + " deg$", loop["braid_angle_deg"])])
+    check(residual[1], [("worst " + NUM + " N", loop["worst_force_error_N"])])
+    at = loop["worst_force_error_at"]          # "at rest length at 6 bar": no contraction, the top pressure
+    assert "at rest length at 6 bar" in residual[1]
+    assert at["contraction_percent"] == 0.0 and at["pressure_bar_gauge"] == 6.0, at
     height = next(v for k, v in rows.items() if k.startswith("loop height"))
     check(height[1], [("^" + NUM + " N fitted", loop["mean_height_fitted_N"]),
                       (NUM + " N published", loop["mean_height_published_N"])])

@@ -95,11 +95,17 @@ def published_loop() -> dict:
     fitted_all = np.concatenate([r["fitted_height_N"] for r in per_pressure])
     j = [prm.path for prm in res.spec.parameters].index("muscle_force.slip_per_pressure")
     err = res.force_curves[0]["after"] - tab.force
+    worst = int(np.argmax(np.abs(err)))
+    braid = [i for i, prm in enumerate(res.spec.parameters) if prm.path.endswith(".braid_angle")]
     return {"source": "Hunt, Szczecinski and Quinn 2017, Front. Neurorobot. 11:18 (FESTO 10 mm muscle)",
             "fit": "frogsim fit examples/fit/hysteresis/FIT.toml",
             "slip_per_pressure_N_per_bar": res.values[j] * BAR,
             "slip_per_pressure_ci95_N_per_bar": [res.ci_low[j] * BAR, res.ci_high[j] * BAR],
             "force_rms_error_N": float(np.sqrt(np.mean(err ** 2))), "rows": int(tab.force.size),
+            "braid_angle_deg": float(np.degrees(res.values[braid[0]])) if braid else None,
+            "worst_force_error_N": float(abs(err[worst])),
+            "worst_force_error_at": {"contraction_percent": float(100.0 * tab.contraction[worst]),
+                                     "pressure_bar_gauge": float(tab.pressure[worst] / BAR)},
             "largest_force_N": float(tab.force.max()),
             "mean_height_published_N": float(published_all.mean()),
             "mean_height_fitted_N": float(fitted_all.mean()),
