@@ -48,3 +48,13 @@ def test_the_reference_density(paper_cycle):
     rho = paper_cycle.reference_density
     text = " ".join(DOC.split())
     check(text, [(r"ρ_ref = " + NUM + " kg/m³", rho)])
+
+
+def test_the_air_mass_drift_is_of_the_order_the_page_gives(paper_cycle):
+    """The page: air_mass_relative_drift "~1e-15" (a conservation check: the circuit's air mass
+    changes only by rounding). The paper cycle's is within a decade of that order."""
+    from frogsim.io.results import run_summary
+    row = next(line for line in DOC.splitlines() if line.startswith("| `air_mass_relative_drift`"))
+    order = float(re.search(r"~(\d(?:\.\d+)?e-\d+)", row).group(1))
+    drift = run_summary(paper_cycle)["air_mass_relative_drift"]
+    assert order / 10 <= abs(drift) < order * 10, drift
