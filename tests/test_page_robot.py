@@ -221,3 +221,27 @@ def test_the_pads_stiffness_is_the_pads_the_page_derives():
         check(text, [(pattern, stops[joint, C.STOP_K])])
     check(text, [(r"0\.15: " + NUM + ",", stops[0, C.STOP_C]), (r", " + NUM + r" and [\d.]+ N m s", stops[1, C.STOP_C]),
                  (r"and " + NUM + " N m s with", stops[2, C.STOP_C])])
+
+
+def test_the_full_robot_stalls_as_the_page_says(swim10):
+    """The prose under the swim table: the full robot uses a third more air than the spring-recovery
+    robot, stalls after four cycles (each later cycle under a fifth of the first's distance, the
+    first four above it), and its exhaust and source pressures are the page's bars apart after
+    four cycles and from the sixth cycle on (at each cycle's end)."""
+    import re
+    text = " ".join(section(DOC, "The robot accelerates only while its legs extend").split())
+    full = swim_run(**{"robot.recovery": "muscle"})
+    s, s6 = full.summary(), swim10.summary()
+    assert "uses a third more air" in text
+    assert abs(s["air_used_per_cycle_L_std"] / s6["air_used_per_cycle_L_std"] - 4.0 / 3.0) < 0.05
+    d = s["distance_each_cycle_m"]
+    assert "stalls after four cycles" in text and "less than a fifth of the first's distance" in text
+    assert all(x > d[0] / 5 for x in d[:4]) and all(x < d[0] / 5 for x in d[4:]), d
+    m = re.search(r"(\d+\.\d) bar apart after four cycles and (\d+\.\d) bar from the sixth on", text)
+    assert m, text
+    df = full.to_dataframe()
+    gap = (df["source_pressure_Pa_abs"].to_numpy() - df["exhaust_pressure_Pa_abs"].to_numpy()) / 1e5
+    t = np.asarray(full.t)
+    at_end = [float(gap[np.searchsorted(t, 2.0 * c) - 1]) for c in range(1, 11)]
+    assert f"{at_end[3]:.1f}" == m.group(1), at_end
+    assert all(f"{g:.1f}" == m.group(2) for g in at_end[5:]), at_end
