@@ -224,4 +224,12 @@ def test_profile_interval_matches_the_jacobian_interval_on_a_linear_case(rig_dir
     res = fit(spec(rig_dir, "lin.csv", starts=1, profile=["muscle_force.strain_scale"]))
     lo, hi = res.profile["muscle_force.strain_scale"]
     assert lo <= TRUE["strain_scale"] <= hi
-    print("strain_scale: Jacobian", res.ci_low[1], res.ci_high[1], "profile", lo, hi)
+    # docs/fitting.md quotes these two intervals (in %, two decimals): they must be this table's
+    import re
+    from pathlib import Path
+    page = " ".join((Path(__file__).resolve().parents[1] / "docs" / "fitting.md").read_text().split())
+    m = re.search(r"strain_scale: linearised (\d+\.\d+)\.\.(\d+\.\d+) %, profile (\d+\.\d+)\.\.(\d+\.\d+) %", page)
+    assert m, "docs/fitting.md no longer quotes strain_scale's intervals"
+    j = res.paths.index("muscle_force.strain_scale")
+    got = [f"{100 * x:.2f}" for x in (res.ci_low[j], res.ci_high[j], lo, hi)]
+    assert got == list(m.groups()), (got, m.groups())
