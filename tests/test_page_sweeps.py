@@ -115,3 +115,20 @@ def test_the_size_refusal_the_page_shows(capsys, tmp_path):
                                                                           "num": 1000000000}}})
     got = _message(raw, capsys, tmp_path)
     assert AVAILABLE.sub("(N available", want) == AVAILABLE.sub("(N available", got)
+
+
+def test_the_label_example_is_the_example_sweeps_third_branch_limit():
+    """The page's label example: the third value of examples/sweep-source-saturation.toml's
+    log-spaced branch limits (15 to 180 L/min in 8 steps: 15 x 12^(2/7) = 30.50906 L/min, 6
+    significant digits in the unit written), as the sweep labels it."""
+    import re
+    from pathlib import Path
+
+    from frogsim.sweep.runner import _written_text
+    from frogsim.sweep.spec import load_spec
+    root = Path(__file__).resolve().parents[1]
+    text = " ".join((root / "docs" / "sweeps.md").read_text().split())
+    label = re.search(r'`"(\d+\.\d+ L/min)"`, the third of `examples/sweep-source-saturation.toml`', text).group(1)
+    spec = load_spec(root / "examples" / "sweep-source-saturation.toml")
+    limit = next(p for p in spec.parameters if p.path == "supply.branch_limit")
+    assert _written_text(limit.written[2]) == label == f"{15 * 12 ** (2 / 7):.6g} L/min"
