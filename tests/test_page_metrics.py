@@ -58,3 +58,22 @@ def test_the_air_mass_drift_is_of_the_order_the_page_gives(paper_cycle):
     order = float(re.search(r"~(\d(?:\.\d+)?e-\d+)", row).group(1))
     drift = run_summary(paper_cycle)["air_mass_relative_drift"]
     assert order / 10 <= abs(drift) < order * 10, drift
+
+
+def test_the_pause_near_2_3_bar_is_fig15s(study):
+    """The page: with the Eq. (9) limit the hip muscle pauses near X bar from about T1 to T2 s for a
+    source of 4 to 6 bar. The pause: Fig. 15's saturated traces rising by less than 1 bar/s (their
+    rise is some 16 bar/s before it) between 0.1 and 0.45 s; its start, end and level at the page's
+    precision, for each of the three sources."""
+    import numpy as np
+    text = " ".join(section(DOC, "Worth knowing when reading Fig. 15(a)").split())
+    m = re.search(r"pauses near (\d+\.\d) bar while it contracts \(from about (\d+\.\d+) s to (\d+\.\d+) s, "
+                  r"whatever the source from 4 to 6 bar\)", text)
+    assert m, text
+    tab = study("fig15").table
+    t = tab["time [s]"].to_numpy()
+    for src in (4, 5, 6):
+        p = tab[f"hip pressure {src} bar source saturated [bar gauge]"].to_numpy()
+        slow = (t >= 0.1) & (t <= 0.45) & (np.abs(np.gradient(p, t)) < 1.0)
+        assert f"{t[slow].min():.1f}" == m.group(2) and f"{t[slow].max():.2f}" == m.group(3), (src, t[slow])
+        assert f"{p[slow].min():.1f}" == f"{p[slow].max():.1f}" == m.group(1), (src, p[slow])
