@@ -236,3 +236,15 @@ def test_simulate_equals_the_batched_engine_bit_for_bit():
     ref = run_models([frogsim.build_model(sc)], threads=1)[0]
     whole = frogsim.simulate(sc)
     assert np.array_equal(whole.y, ref.y) and np.array_equal(whole.u, ref.u)   # bit for bit
+
+def test_a_long_path_in_a_message_keeps_its_file_name():
+    """A path longer than a message shows (SHOWN_MAX) is cut in its middle, not at its end: the
+    file's name, what a reader needs to act, stays (a test folder under pytest-xdist is long)."""
+    from frogsim.errors import SHOWN_MAX, ScenarioError, shown_value
+    path = "/tmp/" + "/".join(["a-rather-long-folder-name"] * 6) + "/trace.csv"
+    shown = shown_value(path)
+    assert len(shown) <= SHOWN_MAX and shown.endswith("trace.csv'") and "…" in shown
+    assert shown.startswith("'/tmp/")
+    msg = str(ScenarioError("trace file", path, "file not found"))
+    assert "trace.csv" in msg and "\n" not in msg
+    assert shown_value("a/b.csv") == "'a/b.csv'"                  # a short path as it is

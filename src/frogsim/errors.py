@@ -1,6 +1,8 @@
 """Errors frogsim raises on purpose, each with a message a user can act on."""
 from __future__ import annotations
 
+import os
+
 import reprlib
 
 
@@ -25,9 +27,23 @@ def clip(text: str, limit: int = SHOWN_MAX) -> str:
     return text if len(text) <= limit else text[:limit - 1] + "…"
 
 
+def clip_path(text: str, limit: int = SHOWN_MAX) -> str:
+    """A path on one line in at most ``limit`` characters: its end kept (the file's name, the
+    part a reader needs), its middle cut ("…")."""
+    text = clip(text, 10 * limit)
+    if len(text) <= limit:
+        return text
+    head = limit // 4
+    return text[:head] + "…" + text[len(text) - (limit - head - 1):]
+
+
 def shown_value(value) -> str:
-    """A value as a message shows it: numbers and Shown text plain, the rest as repr, clipped."""
+    """A value as a message shows it: numbers and Shown text plain, the rest as repr, clipped (a
+    path in the middle, so that its file name stays)."""
     try:
+        if isinstance(value, (str, os.PathLike)) and not isinstance(value, Shown) and (
+                isinstance(value, os.PathLike) or os.sep in value) and len(repr(str(value))) > SHOWN_MAX:
+            return clip_path(repr(str(value)))
         if isinstance(value, Shown):
             text = str(value)
         elif isinstance(value, (int, float)) and not isinstance(value, bool):
