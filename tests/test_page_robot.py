@@ -245,3 +245,24 @@ def test_the_full_robot_stalls_as_the_page_says(swim10):
     at_end = [float(gap[np.searchsorted(t, 2.0 * c) - 1]) for c in range(1, 11)]
     assert f"{at_end[3]:.1f}" == m.group(1), at_end
     assert all(f"{g:.1f}" == m.group(2) for g in at_end[5:]), at_end
+
+
+def test_what_the_vented_muscles_still_pull_in_air():
+    """The prose under the leg-in-air figure: the driving muscles' tensions and the joints' angles
+    (hip, knee, ankle of the left leg) on average over the run's last 0.3 s, at the page's
+    precision."""
+    import re
+    text = " ".join(section(DOC, "The hip pressure with the volume from").split())
+    m = re.search(r"keep pulling \((\d+), (\d+) and (\d+) N at hip, knee and ankle on average over the run's last "
+                  r"(\d+\.\d) s\) and hold the legs a few degrees open against the springs \((\d+\.\d), (\d+\.\d) and "
+                  r"(\d+\.\d) deg on average then\)", text)
+    assert m, text
+    r = frogsim.swim("leg-in-air")
+    t = np.asarray(r.t)
+    late = t >= t[-1] - float(m.group(4)) - 1e-9
+    df = r.to_dataframe()
+    legs = ("hip_left", "knee_left", "ankle_left")
+    pull = [f"{df[j + '_tension_N'].to_numpy()[late].mean():.0f}" for j in legs]
+    cols = [list(r.model.joint_names).index(j) for j in legs]
+    ang = [f"{np.degrees(r.joint_angles[late][:, c]).mean():.1f}" for c in cols]
+    assert pull == list(m.group(1, 2, 3)) and ang == list(m.group(5, 6, 7)), (pull, ang)
