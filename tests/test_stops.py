@@ -184,3 +184,24 @@ def test_the_pages_stop_numbers_are_this_runs(swim_every_step):
     trap = np.trapezoid if hasattr(np, "trapezoid") else np.trapz
     first = r.t < 2.0
     assert f"{trap(r.thrust[first], r.t[first]):.2f}" == imp.group(1)
+
+
+def test_the_pages_rebound_angles_are_this_runs(swim_every_step):
+    """docs/robot.md: the pads' rebound throws the extended hip (and knee) back by the page's
+    angles before the valves switch, in each of the first two strokes: from the joint's largest
+    angle in the stroke's first second to its smallest after it, one decimal."""
+    import re
+    from pathlib import Path
+    page = " ".join((Path(__file__).resolve().parents[1] / "docs" / "robot.md").read_text().split())
+    m = re.search(r"throws the extended hip back by (\d+\.\d)° in each of the first two strokes \(the knee by "
+                  r"(\d+\.\d)° and (\d+\.\d)°\)", page)
+    assert m, "docs/robot.md no longer gives the rebound's angles"
+    r = swim_every_step
+    t = np.asarray(r.t)
+    names = list(r.model.joint_names)
+    for c in (0, 1):
+        m_ = (t >= 2.0 * c) & (t < 2.0 * c + 1.0)
+        for joint, want in (("hip_left", m.group(1)), ("knee_left", m.group(2 + c))):
+            x = np.degrees(r.joint_angles[m_, names.index(joint)])
+            i = int(np.argmax(x))
+            assert f"{x[i] - x[i:].min():.1f}" == want, (c, joint, x[i] - x[i:].min())
