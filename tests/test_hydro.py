@@ -181,3 +181,25 @@ def test_neutral_buoyancy_free_robot_neither_sinks_nor_floats():
         tilt.append(math.degrees(2 * math.acos(min(1.0, abs(d.qpos[3])))))
     assert np.ptp(com_z) < 0.01
     assert max(tilt) < 45.0
+
+
+def test_the_idle_robots_pitch_in_3d_is_the_pages():
+    """docs/robot.md: in 3-D the idle robot (legs held, palms folded, six seconds) pitches to X°
+    after T1 s and back to Y° at T2 s: its tilt's first maximum and the minimum after it, at the
+    page's precision."""
+    import re
+    from pathlib import Path
+    page = " ".join((Path(__file__).resolve().parents[1] / "docs" / "robot.md").read_text().split())
+    m = re.search(r"lightly damped swing: (\d+)° after (\d+\.\d) s, back to (\d+)° at (\d+\.\d) s", page)
+    assert m, "docs/robot.md no longer gives the idle robot's pitch"
+    raw = frogsim.load_robot_scenario("swim").raw
+    raw = frogsim.with_overrides(raw, {"robot.planar": False,
+                                       "gait.drive": [{"at": "0 s", "state": "hold"}],
+                                       "gait.palms": [{"at": "0 s", "state": "fold"}]})
+    r = frogsim.swim(raw, cycles=3)
+    c = r.model.columns["qpos"]
+    tilt = np.array([math.degrees(2 * math.acos(min(1.0, abs(row[c][3])))) for row in r.rec])
+    t = np.asarray(r.t)
+    i = int(np.argmax(tilt))
+    j = i + int(np.argmin(tilt[i:]))
+    assert [f"{tilt[i]:.0f}", f"{t[i]:.1f}", f"{tilt[j]:.0f}", f"{t[j]:.1f}"] == list(m.groups())
