@@ -67,6 +67,13 @@ def test_zero_noise_recovers_all_five_parameters(rig_dir):
     print("relative errors, zero noise:", dict(zip(res.paths, err)))
     assert np.all(err < 1e-4), dict(zip(res.paths, err))
     assert np.all(res.ci_low <= truth) and np.all(truth <= res.ci_high)
+    # docs/fitting.md: "without noise the fit returns each within X of its true value (relative)"
+    import re
+    from pathlib import Path
+    page = " ".join((Path(__file__).resolve().parents[1] / "docs" / "fitting.md").read_text().split())
+    bound = float(re.search(r"without noise the fit returns each within (\d(?:\.\d+)?e-\d+) of its true value",
+                            page).group(1))
+    assert err.max() <= bound, (err.max(), bound)
 
 
 def test_intervals_cover_all_five_in_at_least_17_of_20_seeds_and_are_not_too_wide(rig_dir):
@@ -97,6 +104,15 @@ def test_intervals_cover_all_five_in_at_least_17_of_20_seeds_and_are_not_too_wid
     print("spread of the estimates / claimed standard error:", dict(zip(paths, ratio)))
     assert np.all(covered >= 17), dict(zip(paths, covered))
     assert np.all((0.6 < ratio) & (ratio < 1.6)), dict(zip(paths, ratio))
+    # docs/fitting.md quotes these counts, in the order C, b, dead time, dead volume, stroke contraction
+    import re
+    from pathlib import Path
+    page = " ".join((Path(__file__).resolve().parents[1] / "docs" / "fitting.md").read_text().split())
+    m = re.search(r"Over 20 seeds the 95 % intervals contained the truth (\d+), (\d+), (\d+), (\d+) and (\d+) "
+                  r"times \(C, b, dead time, dead volume, stroke contraction\)", page)
+    assert m, "docs/fitting.md no longer quotes the 20 seeds' coverage"
+    counts = dict(zip(paths, covered))
+    assert [str(counts[p]) for p in (C_PATH, B_PATH, DT_PATH, V_PATH, S_PATH)] == list(m.groups())
 
 
 def test_jacobians_run_as_one_batch(rig_dir, monkeypatch):

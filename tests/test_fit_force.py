@@ -122,6 +122,14 @@ def test_intervals_are_neither_too_narrow_nor_too_wide_over_300_seeds(rig_dir):
     assert len(rows) == 75
     assert np.all(covered >= 272), dict(zip(NAMES, covered))
     assert np.all((0.85 < ratio) & (ratio < 1.18)), dict(zip(NAMES, ratio))
+    # docs/fitting.md quotes the counts, in NAMES' order
+    import re
+    from pathlib import Path
+    page = " ".join((Path(__file__).resolve().parents[1] / "docs" / "fitting.md").read_text().split())
+    m = re.search(r"over 300 seeds: (\d+), (\d+), (\d+), (\d+) and (\d+) of 300 \(" + ", ".join(NAMES[:-1])
+                  + " and " + NAMES[-1] + r"\)", page)
+    assert m, "docs/fitting.md no longer quotes the force law's coverage over 300 seeds"
+    assert [str(c) for c in covered] == list(m.groups())
 
 
 def test_fit_to_festo_rows_matches_the_held_out_rows(rig_dir):
