@@ -4,6 +4,7 @@ rest length from Hunt et al.'s constants. The fits' printed outputs are compared
 commands in tests/test_doc_blocks.py."""
 from __future__ import annotations
 
+import pytest
 from page_numbers import NUM, check, page, section, table_rows
 
 DOC = page("fitting.md")
@@ -40,3 +41,33 @@ def test_hunts_loop_height_at_rest_length():
     from frogsim.components import hunt2017 as h
     text = " ".join(section(DOC, "The mean height matches").split())
     check(text, [(r"c6/c5 = " + NUM + " N", h.C6 / h.C5)])
+
+
+@pytest.mark.parametrize("run", ["discharge", "filling"])
+def test_the_vessel_fits_table(run, tmp_path):
+    """Section 10's table, each row from the run of the command the page gives (`frogsim fit
+    examples/fit/tank-heat/FIT-RUN.toml`): h and C with their 95 % intervals, the fitted rms of
+    pressure and temperature (summary.json), and the temperature trace's range."""
+    import json
+
+    import pandas as pd
+
+    from frogsim.cli import main
+    from page_numbers import ROOT
+    out = tmp_path / "fit"
+    assert main(["fit", str(ROOT / "examples" / "fit" / "tank-heat" / f"FIT-{run}.toml"), "--out", str(out),
+                 "--quiet"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    h = s["parameters"]["source.heat_transfer_coefficient"]
+    c = s["parameters"]["valves.charge.sonic_conductance"]
+    sig = {k: v for e in s["experiments"] for k, v in e["signals"].items()}
+    temp = pd.read_csv(ROOT / "examples" / "fit" / "tank-heat" / f"{run}-temperature.csv")
+    tcol = next(col for col in temp.columns if col.startswith("source temperature"))
+    row = table_rows(DOC, "| run | h [W/(m² K)], 95 % |")[run]
+    check(row[1], [("^" + NUM + " ", h["value_si"]), (r"\(" + NUM + " ", h["ci_low_si"]),
+                   (r"\.\. " + NUM + r"\)", h["ci_high_si"])])
+    check(row[2], [("^" + NUM + " ", c["value_si"] * 1e8), (r"\(" + NUM + " ", c["ci_low_si"] * 1e8),
+                   (r"\.\. " + NUM + r"\)", c["ci_high_si"] * 1e8)])           # m^3/(s Pa) -> L/(s bar)
+    check(row[3], [("^" + NUM + " bar$", sig["source pressure"]["rms_residual_fitted_Pa"] / 1e5)])
+    check(row[4], [("^" + NUM + " K$", sig["source temperature"]["rms_residual_fitted_K"])])
+    check(row[5], [("^" + NUM + " K$", float(temp[tcol].max() - temp[tcol].min()))])
