@@ -52,18 +52,10 @@ COLUMNS = ("channels", "mean", "max", "awake", "fit", "overruns", "mismatched", 
 
 
 def table_rows() -> dict:
-    text = DOC.read_text()
-    start = text.index(HEADING)
-    rows = {}
-    for line in text[start:].splitlines()[1:]:
-        if not line.startswith("|"):
-            if rows:
-                break
-            continue
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if set(cells[0]) <= set("-: ") or cells[0] == "scenario":
-            continue
-        rows[cells[0]] = cells
+    """{first cell: [cells]} of the timing table (the page's, read as every page test reads one)."""
+    from page_numbers import table_rows as rows_after
+    rows = rows_after(DOC.read_text(), HEADING)
+    rows.pop("scenario", None)                      # the header row
     return rows
 
 

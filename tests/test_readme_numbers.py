@@ -4,6 +4,7 @@ update the README with it."""
 import re
 from pathlib import Path
 
+import page_numbers
 import pytest
 
 README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
@@ -11,18 +12,7 @@ README = (Path(__file__).resolve().parents[1] / "README.md").read_text()
 
 def table_rows(heading_text: str) -> dict:
     """{first cell: [cells]} of the first Markdown table after the line containing heading_text."""
-    start = README.index(heading_text)
-    rows = {}
-    for line in README[start:].splitlines()[1:]:
-        if not line.startswith("|"):
-            if rows:
-                break
-            continue
-        cells = [c.strip() for c in line.strip().strip("|").split("|")]
-        if set(cells[0]) <= set("-: "):
-            continue
-        rows[cells[0]] = cells
-    return rows
+    return page_numbers.table_rows(README, heading_text)
 
 
 def same_as_written(text: str, value: float) -> bool:
