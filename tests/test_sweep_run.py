@@ -145,6 +145,34 @@ def test_unreachable_scheduler_exit_2_nothing_written(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_server_that_is_no_dask_scheduler_is_refused_in_time(tmp_path, capsys):
+    """A server that takes the connection and answers something else (an HTTP server: "400 Bad
+    request", then it closes) left Dask's handshake waiting for good. Now: one line naming the
+    address and what is wrong, exit 2, nothing written, the command back within the connect timeout
+    and a few seconds (the test fails if it is not back within a minute)."""
+    import http.server
+    import threading
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.BaseHTTPRequestHandler)
+    server.daemon_threads = True         # a handler still reading the client's bytes does not hold the test
+    serve = threading.Thread(target=server.serve_forever, daemon=True)
+    serve.start()
+    path = write_case(tmp_path)
+    out = tmp_path / "out" / "r.nc"
+    address = f"tcp://127.0.0.1:{server.server_address[1]}"
+    result = {}
+    run = threading.Thread(target=lambda: result.update(code=main(
+        ["sweep", str(path), "--out", str(out), "--scheduler", address, "--connect-timeout", "1", "--quiet"])))
+    run.start()
+    run.join(60.0)
+    server.shutdown()
+    server.server_close()
+    assert not run.is_alive(), "the sweep still waits on a server that is no Dask scheduler"
+    err = capsys.readouterr().err.strip()
+    assert result["code"] == 2 and len(err.splitlines()) == 1, err
+    assert f"--scheduler = '{address}'" in err and "not a Dask scheduler" in err, err
+    assert not (tmp_path / "out").exists()
+
+
 def test_other_spec_refused_then_overwritten(grid_case, capsys):
     folder, path, ds = grid_case
     target = folder / "other.nc"

@@ -587,9 +587,11 @@ def _connect(scheduler, timeout: float):
     address = getattr(scheduler, "scheduler_address", scheduler)
     if not isinstance(address, str) or not address:
         raise ScenarioError("--scheduler", scheduler, "expected a Dask scheduler address such as tcp://host:8786")
+    reached = False
     try:
         _probe(address, timeout)         # fail fast, and without a half-made Client complaining at exit
-        return Client(address, timeout=f"{timeout}s", set_as_default=False), True
+        reached = True
+        return _client_within(Client, address, timeout), True
     except Exception as exc:  # refused, timed out, or something that is not a Dask scheduler answered
         msg = " ".join(str(exc).split())[:200] or type(exc).__name__
     import gc
@@ -599,7 +601,32 @@ def _connect(scheduler, timeout: float):
         gc.collect()
     finally:
         sys.unraisablehook = hook
+    if reached:      # a server took the connection, but its answer was no Dask scheduler's
+        raise ScenarioError("--scheduler", address, "something answers at this address, but not a Dask scheduler "
+                                                    f"(connecting failed with: {msg})")
     raise ScenarioError("--scheduler", address, f"no Dask scheduler reachable within {timeout:g} s ({msg})")
+
+
+def _client_within(Client, address: str, timeout: float):
+    """Client(address), given up after the timeout (and a few seconds of its own): a server that
+    takes the connection but answers something else (an HTTP server) can leave Dask's handshake
+    waiting for good. The attempt is made on a daemon thread, left behind if it hangs."""
+    import threading
+    box = {}
+
+    def make():
+        try:
+            box["client"] = Client(address, timeout=f"{timeout}s", set_as_default=False)
+        except BaseException as exc:        # handed to the caller
+            box["error"] = exc
+    th = threading.Thread(target=make, name="frogsim-dask-connect", daemon=True)
+    th.start()
+    th.join(timeout + 5.0)
+    if th.is_alive():
+        raise TimeoutError(f"the connection was taken but no Dask handshake came back within {timeout + 5.0:g} s")
+    if "error" in box:
+        raise box["error"]
+    return box["client"]
 
 
 def _probe(address: str, timeout: float) -> None:
