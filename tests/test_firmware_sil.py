@@ -116,23 +116,39 @@ def test_a_plan_that_cannot_fit_its_period_overruns(built, tmp_path):
 
 
 def _log_through_pty(data: bytes, argv: list, out: Path) -> int:
-    """Run `frogsim log` on one end of a pseudo-terminal while ``data`` is written into the other."""
+    """Run `frogsim log` on one end of a pseudo-terminal while ``data`` is written into the other,
+    from the moment the port is open (pyserial empties the input buffer when it opens a port: bytes
+    written before would be lost, as a board's before the reader starts; on a loaded machine the
+    reader may take a while to start)."""
     import tty
+
+    import serial
     from frogsim.cli import main
     master, slave = os.openpty()
     tty.setraw(slave)
     port = os.ttyname(slave)
+    opened = threading.Event()
+    real = serial.Serial
+
+    class Opened(real):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            opened.set()
 
     def feed():
-        time.sleep(0.5)
+        if not opened.wait(60.0):
+            return
         for k in range(0, len(data), 64):
             os.write(master, data[k:k + 64])
             time.sleep(0.002)
     th = threading.Thread(target=feed)
     th.start()
+    serial.Serial = Opened
     try:
         return main(["log", "--port", port, *argv, "--duration", "2.5", "--out", str(out), "--quiet"])
     finally:
+        serial.Serial = real
+        opened.set()
         th.join()
         os.close(master)
         os.close(slave)
