@@ -24,6 +24,23 @@ program = "stroke"
 motion = { kind = "volume_constant", fraction = 0.5 }
 """
 
+def source_pressure_sweep(points: int) -> str:
+    """A sweep spec of ``points`` source pressures from 3 to 6 bar on one-hip.toml, recording the
+    hip's rise time: the smallest sweep a command test needs."""
+    return f"""
+name = "small"
+[base]
+scenario = "one-hip.toml"
+[sweep]
+method = "grid"
+[sweep.parameters]
+"source.initial_pressure_gauge" = {{ start = "3 bar", stop = "6 bar", num = {int(points)} }}
+[record]
+metrics = ["rise_time"]
+muscle = "hip"
+"""
+
+
 GRID = """
 name = "grid-test"
 [base]

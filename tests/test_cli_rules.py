@@ -20,7 +20,7 @@ import frogsim
 from frogsim.cli import build_parser, main
 from frogsim.scenario.load import SCENARIOS_DIR
 
-from sweep_helpers import write_case
+from sweep_helpers import source_pressure_sweep, write_case
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -34,18 +34,7 @@ def sweep_results(tmp_path_factory):
     return folder
 
 
-SMALL = """
-name = "small"
-[base]
-scenario = "one-hip.toml"
-[sweep]
-method = "grid"
-[sweep.parameters]
-"source.initial_pressure_gauge" = { start = "3 bar", stop = "6 bar", num = 4 }
-[record]
-metrics = ["rise_time"]
-muscle = "hip"
-"""
+SMALL = source_pressure_sweep(4)
 
 
 def commands(res: Path) -> dict[str, tuple[list[str], str]]:

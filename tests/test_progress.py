@@ -14,20 +14,9 @@ import frogsim.cli as cli
 import frogsim.engine.pneumatic as pneumatic
 from frogsim.cli import main
 
-from sweep_helpers import write_case
+from sweep_helpers import source_pressure_sweep, write_case
 
-SMALL = """
-name = "small"
-[base]
-scenario = "one-hip.toml"
-[sweep]
-method = "grid"
-[sweep.parameters]
-"source.initial_pressure_gauge" = { start = "3 bar", stop = "6 bar", num = 2 }
-[record]
-metrics = ["rise_time"]
-muscle = "hip"
-"""
+SMALL = source_pressure_sweep(2)
 
 
 @pytest.fixture
