@@ -92,7 +92,8 @@ class JointAngleSettings(SensedLoop):
             rate = sc.controller.rate
             ratio = rate / self.angle_rate
             if self.angle_rate > rate * (1.0 + 1e-9) or abs(ratio - round(ratio)) > 1e-6 * ratio:
-                below = [rate / n for n in range(max(1, math.ceil(ratio - 1e-6)), max(1, math.ceil(ratio - 1e-6)) + 3)]
+                first = max(1, math.ceil(ratio - 1e-6))          # the whole N at or above the ratio
+                below = [rate / n for n in range(first, first + 3)]
                 raise ScenarioError(f"{path}.angle_rate", f"{self.angle_rate:g} Hz",
                                     f"must be the controller rate ({rate:g} Hz) divided by a whole number: the angle "
                                     f"loop runs every N samples (e.g. {', '.join(f'{r:.6g} Hz' for r in below)})")
@@ -249,6 +250,7 @@ P_SINE = 10             # P[P_SINE:P_SINE + SN_SIZE]: the sine block (P[P_SINE] 
 P_EVERY = P_SINE + SN_SIZE   # the angle loop runs every P[P_EVERY] samples (angle_loop_due) ...
 P_PHASE = P_EVERY + 1        # ... first at sample P[P_PHASE]
 P_WINDOW = P_PHASE + 1       # the velocity's difference spans P[P_WINDOW] samples (velocity_window)
+SINE = True             # the C twin calls the sine generator (its table is linked)
 
 
 @jit
@@ -258,7 +260,6 @@ def velocity_window(P):
     n = max(1, int(P[P_EVERY]))
     w = int(P[P_WINDOW])
     return w if 1 <= w <= n else n
-SINE = True             # the C twin calls the sine generator (its table is linked)
 
 
 @jit
