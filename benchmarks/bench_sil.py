@@ -76,8 +76,12 @@ def report(name, rs, plan, built, wall, r) -> dict:
     lr = s["log_records"]
     print(f"{name}: {len(plan.muscles)} muscles, {len(plan.channels)} channels, ADC prescaler {plan.adc.prescaler} "
           f"({plan.adc.bits} bits); flash {built.flash_bytes} B, RAM {built.ram_bytes} B")
-    print(f"  SIL of {rs.duration:g} s: {wall:.1f} s wall = {speed:.2f} x real time; emulated AVR "
-          f"{s['avr_wall_s']:.1f} s, plant and checks {wall - s['avr_wall_s']:.1f} s")
+    if s["board_process"]:
+        where = (f"the board in its own process: emulated AVR {s['avr_wall_s']:.1f} s; the plant "
+                 f"{s['plant_wall_s']:.1f} s, waiting for the board {s['plant_waited_s']:.1f} s")
+    else:
+        where = f"in one process: emulated AVR {s['avr_wall_s']:.1f} s, plant and checks {wall - s['avr_wall_s']:.1f} s"
+    print(f"  SIL of {rs.duration:g} s: {wall:.1f} s wall = {speed:.2f} x real time; {where}")
     print(f"  interrupt load mean {load['mean']:.1f} % max {load['max']:.1f} %, chip awake {s['awake_percent']:.1f} %, "
           f"{s['effective_rate_hz']:.1f} Hz effective, overruns {s['overruns']}, late {s['samples_late']}, "
           f"skipped {s['samples_skipped']}, log records {lr['received']}/{lr['made']} (dropped {lr['dropped']}, "

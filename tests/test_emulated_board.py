@@ -142,3 +142,62 @@ def test_millivolts_for_every_count_round_trip(probe_elf):
     conversions, _ = frames(data)
     read = [c for _, c in conversions][:1024]
     assert read == list(range(1024)), [(k, c) for k, c in enumerate(read) if c != k][:5]
+
+
+SLEEPER = Path(__file__).with_name("firmware") / "sleeper.c"
+
+
+def sleeper_elf(tmp_path, period: int) -> Path:
+    need_avr_tools()
+    elf = tmp_path / f"sleeper-{period}.elf"
+    subprocess.run(["avr-gcc", "-mmcu=atmega2560", "-Os", "-DF_CPU=16000000UL", f"-DPERIOD_CYCLES={period}",
+                    "-o", str(elf), str(SLEEPER)], check=True)
+    return elf
+
+
+def test_sleep_is_counted_from_the_sleep_instruction(tmp_path):
+    """A firmware that does the same work at each interrupt and sleeps between them is awake the
+    same number of cycles per interrupt whatever the period: the sleep is counted from the SLEEP
+    instruction on, also the stretch simavr skips in the step that runs it (left out, a core whose
+    only event is its timer would read as awake all the time)."""
+    pins = board.pin_map()
+    per_interrupt = {}
+    for period in (2000, 8000):
+        with EmulatedBoard(sleeper_elf(tmp_path, period)) as b:
+            busy = b.watch(pins[22])
+            b.run_until(10 * period)                  # setup done, the timer running
+            c0, s0 = b.cycle, b.sleep_cycles
+            b.run_until(c0 + 100 * period)
+            awake = (b.cycle - c0) - (b.sleep_cycles - s0)
+            rises = [c for c, i, v in zip(*b.events()) if i == busy and v == 1 and c >= c0]
+        assert len(rises) == 100
+        per_interrupt[period] = awake / 100
+    # the same work per interrupt, within a cycle; and it is a small part of the short period
+    assert per_interrupt[2000] == pytest.approx(per_interrupt[8000], abs=1.0), per_interrupt
+    assert per_interrupt[2000] < 0.25 * 2000, per_interrupt
+
+
+def test_a_sleeping_core_stops_and_takes_an_input_at_the_cycle_asked(tmp_path):
+    """run_until stops at the cycle asked, also inside a long sleep (simavr skips a sleeping core
+    to its next event, past the cycle), and an edge driven there reaches the firmware then: the
+    external interrupt's pin write follows the edge by the same number of cycles wherever in the
+    sleep the edge falls (the datasheet's interrupt response from sleep, Sec. 7.8.1, plus the
+    handler's first instructions)."""
+    pins = board.pin_map()
+    period = 8000
+    with EmulatedBoard(sleeper_elf(tmp_path, period)) as b:
+        mark = b.watch(pins[23])
+        b.run_until(4 * period)
+        delays = []
+        for k, offset in enumerate((1000, 2500, 4111, 6007)):
+            at = (5 + 2 * k) * period + offset
+            b.run_until(at)
+            assert b.cycle == at
+            b.set_pin(pins[2], 1)
+            b.run_until(at + 500)
+            assert b.cycle == at + 500
+            b.set_pin(pins[2], 0)
+            rises = [int(c) for c, i, v in zip(*b.events()) if i == mark and v == 1]
+            assert len(rises) == 1, rises
+            delays.append(rises[0] - at)
+    assert len(set(delays)) == 1 and 0 < delays[0] < 40, delays

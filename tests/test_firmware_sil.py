@@ -115,6 +115,69 @@ def test_a_plan_that_cannot_fit_its_period_overruns(built, tmp_path):
     assert run.sil["cpu_load_percent"]["max"] > 100.0
 
 
+# --- the board in a process of its own ----------------------------------------------------------
+def _same_run(a, b) -> None:
+    """Two SIL runs are the same: the plant's record, the summary (but where the wall time went),
+    the serial bytes."""
+    def same(s):
+        return {k: v for k, v in s.items()
+                if not k.endswith("wall_s") and k not in ("real_time_factor", "board_process", "plant_waited_s")}
+    assert np.array_equal(a.result.y, b.result.y) and np.array_equal(a.result.t, b.result.t)
+    assert same(a.sil) == same(b.sil)
+    assert a.serial == b.serial
+
+
+def test_the_board_in_its_own_process_gives_the_same_run(built):
+    """The valves' 2 ms dead time covers two 1 ms periods, so the board may run a frame behind
+    the plant in a process of its own (what sil does by default): the plant gets the same writes
+    at the same times, and the run is the same as in one process."""
+    plan, out, _, b = built
+    rec = sketch.read_plan_record(out)
+    sc = frogsim.load_scenario(SCENARIO).replace({"duration": 0.2, "controllers.hold.settle": 0.1})
+    assert sil.pipeline_depth(rec, 2e-3) == 2 and sil.pipeline_depth(rec, 0.999e-3) == 0
+    runs = [sil.run_pneumatic(build_model(sc), rec, b.elf, plan, _counts, compare=False, parallel=p)
+            for p in (True, False)]
+    assert runs[0].sil["board_process"] and not runs[1].sil["board_process"]
+    assert runs[0].sil["samples"] == 201
+    _same_run(*runs)
+
+
+def test_a_board_process_that_fails_is_reported_not_waited_for(built, monkeypatch):
+    """An error in the board's process reaches the plant as the same error; a board process that
+    dies (here: exits at its tenth frame) is reported with its exit code; neither hangs."""
+    plan, out, _, b = built
+    rec = sketch.read_plan_record(out)
+    sc = frogsim.load_scenario(SCENARIO).replace({"duration": 0.05, "controllers.hold.settle": 0.02})
+    frame = sil.BoardRun.frame
+
+    def failing(self, *args, **kwargs):
+        if self.frames == 10:
+            raise frogsim.errors.SimulationError("the board failed at its tenth frame")
+        return frame(self, *args, **kwargs)
+    monkeypatch.setattr(sil.BoardRun, "frame", failing)
+    with pytest.raises(frogsim.errors.SimulationError, match="failed at its tenth frame"):
+        sil.run_pneumatic(build_model(sc), rec, b.elf, plan, _counts, compare=False, parallel=True)
+
+    def dying(self, *args, **kwargs):
+        if self.frames == 10:
+            os._exit(3)
+        return frame(self, *args, **kwargs)
+    monkeypatch.setattr(sil.BoardRun, "frame", dying)
+    with pytest.raises(frogsim.errors.SimulationError, match=r"process ended unexpectedly \(exit code 3\)"):
+        sil.run_pneumatic(build_model(sc), rec, b.elf, plan, _counts, compare=False, parallel=True)
+
+
+def test_the_board_process_is_refused_where_the_dead_time_does_not_cover_its_period(built):
+    plan, out, _, b = built
+    rec = sketch.read_plan_record(out)
+    sc = frogsim.load_scenario(SCENARIO).replace({"duration": 0.05, "controllers.hold.settle": 0.02, "valves.charge.dead_time": 0.5e-3,
+                                                  "valves.discharge.dead_time": 0.5e-3})
+    with pytest.raises(frogsim.errors.SimulationError, match="dead time"):
+        sil.run_pneumatic(build_model(sc), rec, b.elf, plan, _counts, compare=False, parallel=True)
+    run = sil.run_pneumatic(build_model(sc), rec, b.elf, plan, _counts, compare=False)   # auto: one process
+    assert not run.sil["board_process"]
+
+
 def _log_through_pty(data: bytes, argv: list, out: Path) -> int:
     """Run `frogsim log` on one end of a pseudo-terminal while ``data`` is written into the other,
     from the moment the port is open (pyserial empties the input buffer when it opens a port: bytes

@@ -519,9 +519,12 @@ def cmd_sil(args) -> int:
                      timing=args.timing)
         s = run.sil
         s["timing"] = args.timing
+        where = (f"the board in its own process: emulated AVR {s['avr_wall_s']:.1f} s, plant "
+                 f"{s['plant_wall_s']:.1f} s, waiting for the board {s['plant_waited_s']:.1f} s"
+                 if s["board_process"] else
+                 f"emulated AVR {s['avr_wall_s']:.1f} s, plant {s['plant_wall_s']:.1f} s")
         _progress(f"      {_count(s['samples'], 'sample')} in {s['wall_s']:.1f} s "
-                  f"({s['real_time_factor']:.2f} x real time; "
-                  f"emulated AVR {s['avr_wall_s']:.1f} s, plant {s['plant_wall_s']:.1f} s)")
+                  f"({s['real_time_factor']:.2f} x real time; {where})")
         write_log_csv(out / "serial.csv", parse_log(run.serial, rec), rec, last_sample=s["samples"] - 1)
         if kind == "robot":
             from frogsim.studies.robot import write_outputs

@@ -82,6 +82,8 @@ def run_coupled_python(cm, fn, progress=None, every_muscle: bool = False) -> dic
     {muscle: "charge" | "hold" | "vent"} (or +1, 0, -1); a muscle left out keeps its mode.
     ``obs["state"]`` is a copy of the pneumatic state y at t, ``obs["qpos"]`` and ``obs["qvel"]``
     copies of MuJoCo's whole qpos and qvel as the compiled laws read them (the step's start).
+    A function with an attribute ``observes`` (a subset of {"state", "qpos", "qvel"}) is given
+    just those three (a cheaper sample: software in the loop reads no more).
 
     With ``every_muscle`` the function drives every muscle, those with a gait program too (the
     gait's valve commands are not run; its palm commands are): the firmware in the loop runs the
@@ -119,8 +121,23 @@ def run_coupled_python(cm, fn, progress=None, every_muscle: bool = False) -> dic
     y, u = a["y"], a["u"]
     tb = int(a["sc"][S_TRUNK])
 
+    # a function that names the observations it reads (``fn.observes``) gets only those: software
+    # in the loop reads the state and MuJoCo's qpos and qvel, and the rest would cost it a third
+    # of its Python time
+    only = getattr(fn, "observes", None)
+    if only is not None:
+        only = frozenset(only)
+        known = {"state", "qpos", "qvel"}
+        if not only <= known:
+            raise ValueError(f"controller function: observes {sorted(only - known)}; a function that "
+                             f"names what it reads may name {sorted(known)}, or leave observes unset")
+
     def decide():
         t_k = cs[CS_SAMPLE] * dt_ctrl
+        if only is not None:
+            obs = {"state": y.copy(), "qpos": d.qpos.copy(), "qvel": d.qvel.copy()}
+            command_from_python(laws, rows, cs, fn(t_k, obs), t_k, u, t_k)
+            return
         obs = {n: float(cs[int(CS_SIZE + c * block) + B_SENSED]) for n, c in rows.items()}
         obs["source"], obs["exhaust"] = float(y[CL.Y_PS]), float(y[CL.Y_PE])
         angle = {n: float(d.qpos[leg_qpos[j]]) for j, n in enumerate(cm.joint_names)}

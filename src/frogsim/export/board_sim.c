@@ -14,6 +14,7 @@
  */
 #include <stdarg.h>
 #include <stdint.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <simavr/sim_avr.h>
@@ -97,9 +98,23 @@ static void quiet(struct avr_t *avr, const int level, const char *format, va_lis
 
 /* simavr's default sleep callback waits in real time for as long as the AVR sleeps (so that a
  * firmware never runs faster than the wall clock); in lockstep the plant sets the pace: a
- * sleeping AVR skips to its next event at once. */
+ * sleeping AVR skips to its next event at once. simavr calls it once for each skip, then adds
+ * 1 + how_long cycles: the sleep cycles are counted here (also the skip made in the step that
+ * ran the SLEEP instruction), those with the busy pin high apart. */
 static void no_wait(struct avr_t *avr, avr_cycle_count_t how_long) {
-    (void)avr; (void)how_long;
+    board_t *b = (board_t *)avr->custom.data;
+    if (!b)
+        return;
+    b->sleep_cycles += 1 + how_long;
+    if (b->busy && b->busy->last)
+        b->sleep_busy_cycles += 1 + how_long;
+}
+
+/* A cycle timer that does nothing: set at until - 1 it ends a sleeping core's skip there
+ * (see run_to). */
+static avr_cycle_count_t wake(struct avr_t *avr, avr_cycle_count_t when, void *param) {
+    (void)avr; (void)when; (void)param;
+    return 0;
 }
 
 /* simavr 1.6 emulates the ATmega2560's ADC with eight input slots (adc_values[8]): a conversion
@@ -146,6 +161,7 @@ board_t *board_open(const char *elf, uint32_t frequency, uint32_t vref_mv) {
     avr->vcc = avr->avcc = avr->aref = vref_mv;
     board_t *b = (board_t *)calloc(1, sizeof(board_t));
     b->avr = avr;
+    avr->custom.data = b;                              /* for no_wait (simavr calls no custom hook) */
     b->stop_index = -1;
     b->snap_index = -1;
     uint32_t flags = 0;
@@ -193,6 +209,16 @@ void board_set_adc_mv(board_t *b, int channel, uint32_t mv) {
         avr_raise_irq(avr_io_getirq(b->avr, AVR_IOCTL_ADC_GETIRQ, ADC_IRQ_ADC0 + channel), mv);
 }
 
+/* board_set_adc_mv for `n` inputs at once: input `inputs[i]` to `mv[i]` millivolts, each
+ * raised only where it changed (a held voltage is no new event for simavr) */
+void board_set_adc_many(board_t *b, int n, const int32_t *inputs, const uint32_t *mv) {
+    for (int i = 0; i < n; i++) {
+        int ch = inputs[i];
+        if (ch >= 0 && ch < ADC_INPUTS && b->mv[ch] != mv[i])
+            board_set_adc_mv(b, ch, mv[i]);
+    }
+}
+
 int board_set_pin(board_t *b, char port, int bit, int value) {
     avr_irq_t *irq = avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit);
     if (!irq) return -2;
@@ -217,17 +243,22 @@ int board_watch_vector(board_t *b, int vector, int index) {
     return 0;
 }
 
-/* One step of the core; the cycles it slept in it are added to sleep_cycles. */
-static int step(board_t *b) {
-    if (b->avr->state == cpu_Sleeping) {
-        uint64_t c0 = b->avr->cycle;
-        int st = avr_run(b->avr);
-        b->sleep_cycles += b->avr->cycle - c0;
-        if (b->busy && b->busy->last)
-            b->sleep_busy_cycles += b->avr->cycle - c0;
-        return st;
+/* Run the core until its cycle counter reaches `until`, exactly: a sleeping core skips to its
+ * next event (a timer, a conversion's end), which may lie past `until` (an input's time, a
+ * frame's end); a no-op cycle timer at until - 1 ends the skip at `until` (simavr adds
+ * 1 + the skip). Returns 0, or -1 if the firmware stopped (returned from main with interrupts
+ * off, or crashed). */
+static int run_to(board_t *b, uint64_t until) {
+    if (b->avr->cycle + 1 < until)
+        avr_cycle_timer_register(b->avr, until - 1 - b->avr->cycle, wake, b);
+    int st = cpu_Running;
+    while (b->avr->cycle < until) {
+        st = avr_run(b->avr);
+        if (st == cpu_Done || st == cpu_Crashed)
+            break;
     }
-    return avr_run(b->avr);
+    avr_cycle_timer_cancel(b->avr, wake, b);
+    return (st == cpu_Done || st == cpu_Crashed) ? -1 : 0;
 }
 
 uint64_t board_sleep_cycles(board_t *b) { return b->sleep_cycles; }
@@ -236,12 +267,7 @@ uint64_t board_sleep_busy_cycles(board_t *b) { return b->sleep_busy_cycles; }
 /* Run the core until its cycle counter reaches `cycle`. Returns 0, or -1 if the firmware
  * stopped (returned from main with interrupts off, or crashed). */
 int board_run_until(board_t *b, uint64_t cycle) {
-    while (b->avr->cycle < cycle) {
-        int st = step(b);
-        if (st == cpu_Done || st == cpu_Crashed)
-            return -1;
-    }
-    return 0;
+    return run_to(b, cycle);
 }
 
 /* Run until watched pin `index` changes (from the other level) to `value` (the change is queued as an event) or the
@@ -251,15 +277,17 @@ int board_run_until_pin(board_t *b, int index, int value, uint64_t max_cycle) {
     b->stop_index = index;
     b->stop_value = value;
     b->stop_hit = 0;
+    if (b->avr->cycle + 1 < max_cycle)
+        avr_cycle_timer_register(b->avr, max_cycle - 1 - b->avr->cycle, wake, b);
+    int st = cpu_Running;
     while (!b->stop_hit && b->avr->cycle < max_cycle) {
-        int st = step(b);
-        if (st == cpu_Done || st == cpu_Crashed) {
-            b->stop_index = -1;
-            return -1;
-        }
+        st = avr_run(b->avr);
+        if (st == cpu_Done || st == cpu_Crashed)
+            break;
     }
+    avr_cycle_timer_cancel(b->avr, wake, b);
     b->stop_index = -1;
-    return b->stop_hit;
+    return (st == cpu_Done || st == cpu_Crashed) ? -1 : b->stop_hit;
 }
 
 /* One controller period in one call: run to cycle `end`, driving input pins on the way (event i:
@@ -267,9 +295,8 @@ int board_run_until_pin(board_t *b, int index, int value, uint64_t max_cycle) {
  * each fall of watch `snap_index` copy `snap_len` bytes of data memory at `snap_addr` into `snaps`
  * (at most `max_snaps`). Returns the number of falls (snapshots wanted; more than max_snaps: some
  * were not kept), or -1 if the firmware stopped or crashed. */
-long board_run_frame(board_t *b, uint64_t end, long n_in, const uint64_t *in_cycle, const char *in_port,
-                     const int32_t *in_bit, const int32_t *in_level, int snap_index, uint32_t snap_addr,
-                     int snap_len, uint8_t *snaps, long max_snaps) {
+static int snap_setup(board_t *b, int snap_index, uint32_t snap_addr, int snap_len, uint8_t *snaps,
+                      long max_snaps) {
     if (snap_len < 0 || (uint64_t)snap_addr + (uint64_t)snap_len > (uint64_t)b->avr->ramend + 1)
         return -1;
     b->snap_index = snap_index;
@@ -282,14 +309,19 @@ long board_run_frame(board_t *b, uint64_t end, long n_in, const uint64_t *in_cyc
     b->snap_buf = snaps;
     b->snap_n = 0;
     b->snap_max = max_snaps;
+    return 0;
+}
+
+long board_run_frame(board_t *b, uint64_t end, long n_in, const uint64_t *in_cycle, const char *in_port,
+                     const int32_t *in_bit, const int32_t *in_level, int snap_index, uint32_t snap_addr,
+                     int snap_len, uint8_t *snaps, long max_snaps) {
+    if (snap_setup(b, snap_index, snap_addr, snap_len, snaps, max_snaps) != 0)
+        return -1;
     for (long i = 0; i <= n_in; i++) {
         uint64_t until = i < n_in ? in_cycle[i] : end;
-        while (b->avr->cycle < until) {
-            int st = step(b);
-            if (st == cpu_Done || st == cpu_Crashed) {
-                b->snap_buf = NULL;
-                return -1;
-            }
+        if (run_to(b, until) != 0) {
+            b->snap_buf = NULL;
+            return -1;
         }
         if (i < n_in) {
             avr_irq_t *irq = avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ(in_port[i]), in_bit[i]);
@@ -299,6 +331,67 @@ long board_run_frame(board_t *b, uint64_t end, long n_in, const uint64_t *in_cyc
     }
     b->snap_buf = NULL;
     return b->snap_n;
+}
+
+/* board_run_frame from `start` to `end` with `n_enc` quadrature encoders moving: encoder e goes
+ * from count[e] to target[e] (count[] is updated), one edge per count, spread evenly over the
+ * period: the m-th (m = 1..|n|) at start + round(m (end - start) / (|n| + 1)) (ties to even, as
+ * Python's round). At each edge, B is set first (to A's new level counting up, to its opposite
+ * counting down), then A to the count's parity; edges of several encoders at one cycle go in
+ * encoder order. Returns as board_run_frame does. */
+long board_run_frame_enc(board_t *b, uint64_t start, uint64_t end, int n_enc, const char *a_port,
+                         const int32_t *a_bit, const char *b_port, const int32_t *b_bit, int32_t *count,
+                         const int32_t *target, int snap_index, uint32_t snap_addr, int snap_len,
+                         uint8_t *snaps, long max_snaps) {
+    if (snap_setup(b, snap_index, snap_addr, snap_len, snaps, max_snaps) != 0)
+        return -1;
+    enum { MAX_ENC = 16 };
+    if (n_enc < 0 || n_enc > MAX_ENC)
+        return -1;
+    long done[MAX_ENC], total[MAX_ENC];
+    double spacing[MAX_ENC];
+    avr_irq_t *irq_a[MAX_ENC], *irq_b[MAX_ENC];
+    double period = (double)(end - start);
+    for (int e = 0; e < n_enc; e++) {
+        long n = (long)target[e] - (long)count[e];
+        total[e] = n < 0 ? -n : n;
+        done[e] = 0;
+        spacing[e] = period / (double)(total[e] + 1);
+        irq_a[e] = avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ(a_port[e]), a_bit[e]);
+        irq_b[e] = avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ(b_port[e]), b_bit[e]);
+        if (total[e] && (!irq_a[e] || !irq_b[e])) {
+            b->snap_buf = NULL;
+            return -1;
+        }
+    }
+    for (;;) {
+        int next = -1;
+        uint64_t at = end;
+        for (int e = 0; e < n_enc; e++) {
+            if (done[e] >= total[e])
+                continue;
+            uint64_t c = start + (uint64_t)nearbyint((double)(done[e] + 1) * spacing[e]);
+            if (next < 0 || c < at) {
+                next = e;
+                at = c;
+            }
+        }
+        if (next < 0)
+            break;
+        if (run_to(b, at) != 0) {
+            b->snap_buf = NULL;
+            return -1;
+        }
+        int up = target[next] > count[next];
+        count[next] += up ? 1 : -1;
+        int level = count[next] & 1;
+        avr_raise_irq(irq_b[next], up ? level : 1 - level);
+        avr_raise_irq(irq_a[next], level);
+        done[next]++;
+    }
+    int st = run_to(b, end);
+    b->snap_buf = NULL;
+    return st != 0 ? -1 : b->snap_n;
 }
 
 uint64_t board_cycle(board_t *b) { return b->avr->cycle; }

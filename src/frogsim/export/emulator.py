@@ -34,14 +34,14 @@ _SOURCE = Path(__file__).with_name("board_sim.c")
 _SIMAVR_HEADER = Path("/usr/include/simavr/sim_avr.h")
 
 
-def millivolts_for_count(count: int, vref_mv: int = 5000) -> int:
+def millivolts_for_count(count, vref_mv: int = 5000):
     """The whole millivolts at which simavr's 10-bit ADC reads ``count``.
 
     simavr converts an input of v millivolts to floor(v x 1023 / V_ref) (its scale is 1023, the
     datasheet's ideal converter's is 1024: ADC = V_in 1024 / V_ref, Sec. 26.7), and takes whole
     millivolts. To give the firmware the count the ideal converter makes from the plant's voltage,
     software in the loop computes that count and feeds the smallest voltage simavr reads as it:
-    ceil(count x V_ref / 1023)."""
+    ceil(count x V_ref / 1023). An int, or an integer array elementwise."""
     return -(-count * vref_mv // 1023)
 
 
@@ -70,7 +70,7 @@ def _library() -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=".so", dir=folder)
     os.close(fd)
-    run = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", tmp, str(_SOURCE), "-lsimavr"],
+    run = subprocess.run([cc, "-O2", "-shared", "-fPIC", "-o", tmp, str(_SOURCE), "-lsimavr", "-lm"],
                          capture_output=True, text=True)
     if run.returncode != 0:
         os.unlink(tmp)
@@ -105,6 +105,10 @@ def _lib():
         lib.board_sleep_busy_cycles.restype = u64
         lib.board_sleep_busy_cycles.argtypes = [vp]
         lib.board_set_adc_mv.argtypes = [vp, ctypes.c_int, ctypes.c_uint32]
+        lib.board_set_adc_many.argtypes = [vp, ctypes.c_int, vp, vp]
+        lib.board_run_frame_enc.restype = ctypes.c_long
+        lib.board_run_frame_enc.argtypes = [vp, u64, u64, ctypes.c_int, vp, vp, vp, vp, vp, vp, ctypes.c_int,
+                                            ctypes.c_uint32, ctypes.c_int, vp, ctypes.c_long]
         lib.board_set_pin.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
         lib.board_run_until.argtypes = [vp, u64]
         lib.board_read_ram.restype = ctypes.c_long
@@ -335,6 +339,11 @@ class EmulatedBoard:
         """The voltage at analog input A<channel> [mV, whole: simavr's unit], held until changed."""
         self._lib.board_set_adc_mv(self._h, int(channel), int(millivolts))
 
+    def set_analog_many(self, channels: np.ndarray, millivolts: np.ndarray) -> None:
+        """:meth:`set_analog` for several inputs at once: A<channels[i]> to ``millivolts[i]``
+        (int32 and uint32 arrays, contiguous), each raised only where it changed."""
+        self._lib.board_set_adc_many(self._h, int(channels.size), channels.ctypes.data, millivolts.ctypes.data)
+
     def set_pin(self, pin: Pin, value: int) -> None:
         """Drive input ``pin`` high (1) or low (0) from outside."""
         self._lib.board_set_pin(self._h, pin.port.encode(), pin.bit, 1 if value else 0)
@@ -387,11 +396,39 @@ class EmulatedBoard:
             raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
         return int(got)
 
+    def run_frame_encoders(self, start: int, end: int, encoders, counts: np.ndarray, targets: np.ndarray,
+                           snap_index: int, snap_address: int, snap_len: int, snaps: np.ndarray) -> int:
+        """:meth:`run_frame` from cycle ``start`` to ``end`` with quadrature encoders moving:
+        ``encoders`` the (A pin, B pin) of each; encoder e goes from ``counts[e]`` to
+        ``targets[e]`` (int32 arrays; ``counts`` is updated), one edge a count, spread evenly
+        over the period (the m-th of n at start + round(m (end - start) / (n + 1))), B set before
+        A (to A's new level counting up, to its opposite counting down), A to the count's
+        parity; edges at one cycle in encoder order. Returns the number of falls of
+        ``snap_index``; FrogsimError if the firmware stopped."""
+        ports = getattr(self, "_enc_ports", None)
+        if ports is None or ports[0] is not encoders:
+            a_port = np.array([ord(a.port) for a, _ in encoders], np.uint8)
+            a_bit = np.array([a.bit for a, _ in encoders], np.int32)
+            b_port = np.array([ord(b.port) for _, b in encoders], np.uint8)
+            b_bit = np.array([b.bit for _, b in encoders], np.int32)
+            ports = self._enc_ports = (encoders, a_port, a_bit, b_port, b_bit)
+        _, a_port, a_bit, b_port, b_bit = ports
+        got = self._lib.board_run_frame_enc(self._h, int(start), int(end), len(encoders), a_port.ctypes.data,
+                                            a_bit.ctypes.data, b_port.ctypes.data, b_bit.ctypes.data,
+                                            counts.ctypes.data, targets.ctypes.data, int(snap_index),
+                                            int(snap_address), int(snap_len), snaps.ctypes.data, snaps.shape[0])
+        if got < 0:
+            raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
+        return int(got)
+
     def events_into(self, c: np.ndarray, i: np.ndarray, v: np.ndarray) -> int:
         """Move up to len(c) queued pin changes into the given arrays (uint64, int32, int32: no
         allocation, for a loop that drains them every sample; contiguous, as np.empty makes them);
         returns how many."""
-        return int(self._lib.board_events_raw(self._h, c.ctypes.data, i.ctypes.data, v.ctypes.data, c.size))
+        key = getattr(self, "_ev_arrays", None)
+        if key is None or key[0] is not c or key[1] is not i or key[2] is not v:
+            key = self._ev_arrays = (c, i, v, c.ctypes.data, i.ctypes.data, v.ctypes.data)
+        return int(self._lib.board_events_raw(self._h, key[3], key[4], key[5], c.size))
 
     def serial(self, limit: int = 1 << 20) -> tuple[bytes, np.ndarray]:
         """The bytes the firmware sent on USART0 since the last call, and the cycle of each."""

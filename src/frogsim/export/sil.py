@@ -97,7 +97,11 @@ class BoardRun:
         # quadrature encoders: (channel index, A pin, B pin); their counts as fed so far
         self.encoders = [(i, pins[int(ch["pins"][0])], pins[int(ch["pins"][1])]) for i, ch in enumerate(chans)
                          if "pins" in ch]
-        self.enc_count = [int(chans[i]["start_count"]) for i, _, _ in self.encoders]
+        self.enc_count = np.array([int(chans[i]["start_count"]) for i, _, _ in self.encoders], np.int32)
+        self.enc_pins = [(a, bpin) for _, a, bpin in self.encoders]
+        # the most counts an encoder may move in a period: n edges spread over it come
+        # P / (n + 1) cycles apart, at least MIN_EDGE_CYCLES
+        self.most_counts = int(rec["period_cycles"]) // self.MIN_EDGE_CYCLES - 1
         for (i, a, bpin), c in zip(self.encoders, self.enc_count):
             # A's level is the count's parity (see frame); a pin is low unless driven, and simavr
             # 1.6 must not see an external-interrupt pin driven low before the firmware has set
@@ -106,7 +110,7 @@ class BoardRun:
                 self.board.set_pin(a, 1)
                 self.board.set_pin(bpin, 1)
         self.period = int(rec["period_cycles"])
-        self.mv = [-1] * len(self.inputs)          # the voltages set, changed only when they change
+        self.input_array = np.array(self.inputs, np.int32)
         self.overrun_address = symbol_address(elf, "fs_overruns")
         self.dropped_address = symbol_address(elf, "fs_dropped")
         self.k_address = symbol_address(elf, "fs_k")
@@ -198,24 +202,25 @@ class BoardRun:
         if self.s0 is None:
             self.begin()
         b = self.board
-        counts = np.asarray(counts, np.int64)
-        self.fed.append(counts.copy())
-        for j, (a, c) in enumerate(zip(self.inputs, counts[self.analog].tolist())):
-            mv = millivolts_for_count(c << self.shift)
-            if mv != self.mv[j]:
-                b.set_analog(a, mv)
-                self.mv[j] = mv
+        counts = np.array(counts, np.int64)
+        self.fed.append(counts)
+        if self.inputs:
+            mv = millivolts_for_count(counts[self.analog] << self.shift)      # whole numbers, elementwise
+            b.set_analog_many(self.input_array, mv.astype(np.uint32))
         start = self.s0 + self.frames * self.period
         end = start + self.period
-        edges = self._edges(encoder_counts, start) if encoder_counts is not None else []
-        inputs = None
-        if edges:
-            flat = [(c, pin, level) for c, pins in edges for pin, level in pins]
-            inputs = (np.array([c for c, _, _ in flat], np.uint64),
-                      np.array([ord(p.port) for _, p, _ in flat], np.uint8),
-                      np.array([p.bit for _, p, _ in flat], np.int32),
-                      np.array([lv for _, _, lv in flat], np.int32))
-        falls = b.run_frame(end, inputs, self.busy, self.snap_address, self.snap.shape[1], self.snap)
+        if encoder_counts is not None and self.encoders:
+            targets = np.array(encoder_counts, np.int32)
+            n = np.abs(targets - self.enc_count)
+            if n.max() > self.most_counts:      # edges closer than MIN_EDGE_CYCLES
+                e = int(np.argmax(n > self.most_counts))
+                raise SimulationError(f"encoder of {self.rec['channels'][self.encoders[e][0]]['signal']!r}: {int(n[e])} "
+                                      f"counts in one controller period ({self.period / (n[e] + 1):.0f} CPU cycles "
+                                      "apart): faster than the firmware counts them; use fewer counts per revolution")
+            falls = b.run_frame_encoders(start, end, self.enc_pins, self.enc_count, targets, self.busy,
+                                         self.snap_address, self.snap.shape[1], self.snap)
+        else:
+            falls = b.run_frame(end, None, self.busy, self.snap_address, self.snap.shape[1], self.snap)
         if falls > self.snap.shape[0]:
             raise SimulationError(f"firmware {self.rec['name']!r}: {falls} interrupts ended in one period")
         out = []
@@ -229,28 +234,6 @@ class BoardRun:
     #: fewest CPU cycles between two edges of one encoder: the edge interrupt must have counted
     #: the last one (about 40 cycles with its entry and exit), or the chip would lose it too
     MIN_EDGE_CYCLES = 80
-
-    def _edges(self, targets, start: int) -> list:
-        """[(cycle, ((pin, level), ...))]: the encoders' edges in this period, in time order."""
-        out = []
-        for e, ((i, a, bpin), target) in enumerate(zip(self.encoders, targets)):
-            c, n = self.enc_count[e], int(target) - self.enc_count[e]
-            if n == 0:
-                continue
-            step = self.period / (abs(n) + 1)
-            if step < self.MIN_EDGE_CYCLES:
-                raise SimulationError(f"encoder of {self.rec['channels'][i]['signal']!r}: {abs(n)} counts in one "
-                                      f"controller period ({step:.0f} CPU cycles apart): faster than the firmware "
-                                      "counts them; use fewer counts per revolution")
-            d = 1 if n > 0 else -1
-            for m in range(abs(n)):
-                c += d
-                level = c & 1
-                # B first (A == B after the edge counts up, A != B down), then A's edge
-                out.append((start + int(round((m + 1) * step)), ((bpin, level if d > 0 else 1 - level), (a, level))))
-            self.enc_count[e] = c
-        out.sort(key=lambda x: x[0])
-        return out
 
     def cycle_time(self, cycle: int) -> float:
         """Plant time [s] of an AVR cycle (sample 0's compare match is t = 0)."""
@@ -406,20 +389,25 @@ class Shadow:
         from frogsim.control.sampled import (B_MODE, CS_BLOCK, CS_SIZE, observe_joints, sample_controllers,
                                              start_controllers)
         t = k * self.dt
-        u = np.zeros(2 * len(self.mp))
         if self.rows:
+            y = np.asarray(y, float)
             if self.cs is None:
-                self.cs = start_controllers(self.laws, self.mp, 0.0, np.array(y, float), u, self.dt)
+                self.u = np.zeros(2 * len(self.mp))
+                self.cs = start_controllers(self.laws, self.mp, 0.0, y, self.u, self.dt)
+                # where each muscle's mode is: its law's B_MODE slot, or its program
+                self.law_of = [j for j, m in enumerate(self.muscles) if m in self.rows]
+                self.mode_at = np.array([int(CS_SIZE + self.rows[m] * self.cs[CS_BLOCK]) + B_MODE
+                                         for m in self.muscles if m in self.rows], np.int64)
             else:
                 if self.joints is not None:
                     observe_joints(self.laws, self.cs, qpos, qvel, *self.joints)
-                sample_controllers(self.laws, self.mp, t, np.array(y, float), u, self.cs)
+                self.u[:] = 0.0
+                sample_controllers(self.laws, self.mp, t, y, self.u, self.cs)
         out = np.zeros(len(self.muscles), np.int8)
+        if self.rows:
+            out[self.law_of] = self.cs[self.mode_at]
         for j, m in enumerate(self.muscles):
-            if m in self.rows:
-                b = int(CS_SIZE + self.rows[m] * self.cs[CS_BLOCK])
-                out[j] = int(self.cs[b + B_MODE])
-            elif m in self.programs:
+            if m in self.programs:
                 out[j] = program_mode(self.programs[m], t, self.rate)
         return out
 
@@ -433,19 +421,15 @@ class SilRun:
     serial: bytes
 
 
-class _Loop:
-    """The controller function the Python-controller drivers call at each sample: one frame of
-    the board per sample, its valve writes returned at their own times."""
+class _BoardSide:
+    """The board's half of the loop: the firmware on the emulated board (:class:`BoardRun`), one
+    frame per call of :meth:`step`, and the checks of each execution against the integer twin
+    and the on-time model (:meth:`_check`), and at the end the summary's board figures. It runs
+    in the plant's process, or in a process of its own (:class:`_BoardProcess`)."""
 
-    def __init__(self, rec, elf, plan, counts, shadow, model, progress, duration, robot, timing="cycle"):
-        if timing not in ("cycle", "grid"):
-            raise ValueError(f"timing {timing!r}: 'cycle' or 'grid'")
-        self.timing = timing
-        self.rec, self.plan, self.counts, self.shadow, self.model = rec, plan, counts, shadow, model
+    def __init__(self, rec, elf, plan):
+        self.rec, self.plan = rec, plan
         self.board = BoardRun(rec, elf)
-        self.muscles = list(rec["muscles"])
-        self.robot = robot
-        self.joint_names, self.joint_qpos = robot if robot else ((), ())
         # the integer twin of frogsim_sample on the counts the firmware read (a plan made by
         # frogsim.control.firmware has it; a hand-written one is checked against the shadow)
         self.twin_mem = None
@@ -453,62 +437,27 @@ class _Loop:
             from frogsim.control.firmware import firmware_memory
             self.twin_mem = firmware_memory(plan)
         self.shadow_modes = []       # the compiled law on the plant's state, per sample
-        self.pending = None          # with encoders: the counts of the sample whose period runs next
         self.checked = 0
         self.mismatched = 0
         self.first_mismatch = None
         self.off_model = 0
         self.first_off_model = None
-        self.progress = progress
-        self.duration = duration
-        self.wall0 = time.perf_counter()
-        self.shown = self.wall0
-        self.k = 0
 
-    def __call__(self, t, obs):
-        y = obs["state"]
-        qpos, qvel = obs.get("qpos"), obs.get("qvel")
-        angles = None
-        if qpos is not None:
-            angles = {n: float(qpos[self.joint_qpos[j]]) for j, n in enumerate(self.joint_names)}
-        counts = np.asarray(self.counts(self.plan, self.model, y, angles), np.int64)
-        for i, at, count in getattr(self.plan, "injected", ()):
-            if t >= at:                   # a sensor fault put into the plant: the wire's count
-                counts[i] = count
-        before = len(self.board.decisions)
-        self.shadow_modes.append(self.shadow.modes(self.k, y, qpos, qvel))
+    def step(self, counts, encoder_counts, shadow_row) -> tuple:
+        """Sample k's shadow decision ``shadow_row`` noted, then one frame run on ``counts`` (None:
+        no frame yet, the first sample with encoders; ``encoder_counts`` as :meth:`BoardRun.frame`
+        takes them). Returns (the frame's valve mode changes as [(plant time [s], muscle index,
+        mode)], the decision of the last execution that ended in it or None)."""
+        self.shadow_modes.append(shadow_row)
+        if counts is None:
+            return [], None
         b = self.board
-        if b.encoders:
-            # the plant runs a period ahead: period k - 1 is run now that the joints' angles at
-            # t_k are known, its encoder edges spread over it; its valve writes, made before
-            # t_k, act a dead time later, after t_k (run_* checks the dead time covers a period)
-            enc = [int(counts[i]) for i, _, _ in b.encoders]
-            if self.pending is None:
-                for (i, _, _), c0, c in zip(b.encoders, b.enc_count, enc):
-                    if c != c0:
-                        raise SimulationError(f"the joint of {self.rec['channels'][i]['signal']!r} starts at encoder "
-                                              f"count {c}, not at the count the firmware starts from ({c0}, angle "
-                                              "0): the robot must start at its encoders' zero")
-                changes = []
-            else:
-                changes = b.frame(self.pending, enc)
-            self.pending = counts
-            t = (self.k - 1) / float(self.rec["rate_hz"]) if self.k else t
-        else:
-            changes = b.frame(counts)
+        before = len(b.decisions)
+        changes = b.frame(counts, encoder_counts)
         self._check()
-        self.k += 1
-        now = time.perf_counter()
-        if self.progress is not None and now - self.shown > 2.0:
-            self.shown = now
-            self.progress(f"      SIL at {t:.2f} s of {self.duration:g} s simulated "
-                          f"({t / (now - self.wall0):.2f} x real time)")
-        board_ = self.board
-        if self.timing == "grid":         # the last decision ended in this period, at the sample
-            if len(board_.decisions) == before:
-                return {}
-            return [(float(t), m, int(x)) for m, x in zip(self.muscles, board_.decisions[-1])]
-        return [(max(float(t), board_.cycle_time(c)), self.muscles[j], int(m)) for c, j, m in changes]
+        t0 = (b.frames - 1) / float(self.rec["rate_hz"])     # the frame's start (a write in the
+        timed = [(max(t0, b.cycle_time(c)), j, m) for c, j, m in changes]    # setup: at sample 0)
+        return timed, (b.decisions[-1] if len(b.decisions) > before else None)
 
     def _check(self) -> None:
         """Each execution that has ended: its decision against the integer twin on the counts it
@@ -523,14 +472,14 @@ class _Loop:
                 want = firmware_modes(self.plan, j, b.counts_read[j], self.twin_mem)
             else:
                 want = self.shadow_modes[j] if j < len(self.shadow_modes) else got
-            if not np.array_equal(got, want):
+            if got.tobytes() != np.asarray(want, np.int8).tobytes():
                 self.mismatched += 1
                 if self.first_mismatch is None:
                     self.first_mismatch = {"sample": j, "time_s": j / float(self.rec["rate_hz"]),
                                            "counts_read": b.counts_read[j].tolist(),
                                            "firmware": got.tolist(), "twin": np.asarray(want).tolist()}
             f = b.sample_of(j)            # the sample it belongs to (j until a sample is skipped)
-            if f < len(self.shadow_modes) and not np.array_equal(got, self.shadow_modes[f]):
+            if f < len(self.shadow_modes) and got.tobytes() != self.shadow_modes[f].tobytes():
                 self.off_model += 1
                 if self.first_off_model is None:
                     self.first_off_model = {"sample": f, "execution": j, "counts_fed": b.fed[f].tolist(),
@@ -538,7 +487,9 @@ class _Loop:
                                             "firmware": got.tolist(), "model": self.shadow_modes[f].tolist()}
             self.checked += 1
 
-    def summary(self, rec) -> dict:
+    def summary(self, rec) -> tuple:
+        """(the summary's board figures, the serial bytes): the board run to its end
+        (:meth:`BoardRun.finish`, the log's last records sent)."""
         from frogsim.export.serial_log import parse_log
         b = self.board
         self._check()
@@ -590,7 +541,7 @@ class _Loop:
             "log_csv": "serial.csv",
         }
         s["warnings"] = warnings_of(s, rec)
-        return s
+        return s, bytes(b.serial)
 
     def adc_differs(self, response, period) -> int:
         """On-time executions (ended within their own period) that read other counts than the
@@ -604,6 +555,231 @@ class _Loop:
             if response[j] <= period and f < len(b.fed) and not np.array_equal(b.counts_read[j], b.fed[f]):
                 out += 1
         return out
+
+    def close(self) -> None:
+        self.board.board.close()
+
+
+def _portable(exc: BaseException) -> BaseException:
+    """``exc`` if it survives pickling (to cross to the plant's process), else a FrogsimError with
+    its message."""
+    import pickle
+    try:
+        pickle.loads(pickle.dumps(exc))
+        return exc
+    except Exception:
+        return FrogsimError(f"{type(exc).__name__}: {exc}")
+
+
+def _serve_board(conn, rec, elf, plan) -> None:
+    """The board's process: a :class:`_BoardSide` that answers the plant's messages in order
+    ("step", args) -> its result, ("summary", rec) -> (figures, serial bytes), then ends; an
+    error is sent back as the exception and ends the process."""
+    side = None
+    try:
+        side = _BoardSide(rec, elf, plan)
+        conn.send(("ok", None))
+        while True:
+            msg = conn.recv()
+            if msg[0] == "step":
+                conn.send(("ok", side.step(*msg[1:])))
+            elif msg[0] == "summary":
+                conn.send(("ok", side.summary(msg[1])))
+                return
+            else:
+                return
+    except EOFError:                     # the plant's process went away
+        return
+    except BaseException as exc:       # noqa: BLE001: every failure goes back to the plant
+        try:
+            conn.send(("error", _portable(exc)))
+        except Exception:
+            pass
+    finally:
+        if side is not None:
+            try:
+                side.close()
+            except Exception:
+                pass
+        conn.close()
+
+
+class _BoardProcess:
+    """:class:`_BoardSide` in a process of its own, a frame behind the plant: :meth:`step` sends
+    sample k's frame and returns the previous frame's result, so that the emulated AVR runs
+    period k while the plant integrates the next one (on another core). The valve writes of a
+    frame then reach the plant one period later than in one process, still before they act when
+    the valves' dead time covers the extra period (:func:`pipeline_depth`); the plant receives the
+    same commands at the same times, so the run is the same (tested)."""
+
+    def __init__(self, rec, elf, plan):
+        import multiprocessing
+        ctx = multiprocessing.get_context("fork")
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_serve_board, args=(child, rec, elf, plan), daemon=True,
+                                name="frogsim-board")
+        self.proc.start()
+        child.close()
+        self.waiting = False
+        self.wait_s = 0.0            # the plant's time spent waiting for the board [s]
+        self._get()
+
+    def _get(self):
+        t0 = time.perf_counter()
+        try:
+            kind, value = self.conn.recv()
+        except (EOFError, OSError):
+            self.proc.join(5.0)
+            raise SimulationError(f"the emulated board's process ended unexpectedly (exit code "
+                                  f"{self.proc.exitcode})") from None
+        finally:
+            self.wait_s += time.perf_counter() - t0
+        if kind == "error":
+            self.close()
+            raise value
+        return value
+
+    def _send(self, msg) -> None:
+        try:
+            self.conn.send(msg)
+        except OSError:                  # the process has ended: why, if it said so before
+            while True:
+                self._get()              # raises its error, or that it ended unexpectedly
+
+    def step(self, counts, encoder_counts, shadow_row) -> tuple:
+        self._send(("step", counts, encoder_counts, shadow_row))
+        out = self._get() if self.waiting else ([], None)
+        self.waiting = True
+        return out
+
+    def summary(self, rec) -> tuple:
+        if self.waiting:               # the last frame's result: its writes act after the run
+            self._get()
+            self.waiting = False
+        self._send(("summary", rec))
+        out = self._get()
+        self.close()
+        return out
+
+    def close(self) -> None:
+        try:
+            self.conn.close()
+        except Exception:
+            pass
+        self.proc.join(5.0)
+        if self.proc.is_alive():
+            self.proc.kill()
+            self.proc.join()
+
+
+def pipeline_depth(rec: dict, dead: float | None) -> int:
+    """How many frames the board may run behind the plant's sample and its valve writes still act
+    in time: the valves' dead time ``dead`` [s] in controller periods, less the period the plant
+    runs ahead with encoders (:meth:`_Loop.__call__`). 0: the board must run in the plant's
+    process, frame by frame."""
+    if dead is None:
+        return 0
+    encoders = any("pins" in ch for ch in rec["channels"])
+    periods = int(np.floor(dead * float(rec["rate_hz"]) + 1e-9))
+    return max(0, periods - (1 if encoders else 0))
+
+
+def _parallel(rec: dict, valves, asked: bool | None, timing: str) -> bool:
+    """Whether the board runs in its own process: ``asked`` (None: wherever the valves' dead time
+    allows it, :func:`pipeline_depth`); asked where it does not allow it, an error."""
+    depth = pipeline_depth(rec, min(valves.charge.dead_time, valves.discharge.dead_time))
+    if asked is None:
+        return depth >= 1 and timing == "cycle"
+    if asked and depth < 1:
+        raise SimulationError("the board in its own process runs a controller period behind the plant, which "
+                              "needs the valves' dead time to cover that period too (encoders take one "
+                              "already): run it in the plant's process (parallel=False)")
+    return bool(asked)
+
+
+class _Loop:
+    """The controller function the Python-controller drivers call at each sample: one frame of
+    the board per sample, its valve writes returned at their own times. With ``parallel`` (a
+    pipeline depth of at least 1, :func:`pipeline_depth`) the board runs in its own process a
+    frame behind (:class:`_BoardProcess`)."""
+
+    #: what it reads of the driver's observations (the coupled driver then builds no more)
+    observes = ("state", "qpos", "qvel")
+
+    def __init__(self, rec, elf, plan, counts, shadow, model, progress, duration, robot, timing="cycle",
+                 parallel: bool = False):
+        if timing not in ("cycle", "grid"):
+            raise ValueError(f"timing {timing!r}: 'cycle' or 'grid'")
+        self.timing = timing
+        self.rec, self.plan, self.counts, self.shadow, self.model = rec, plan, counts, shadow, model
+        self.parallel = bool(parallel) and timing == "cycle"
+        self.side = _BoardProcess(rec, elf, plan) if self.parallel else _BoardSide(rec, elf, plan)
+        self.muscles = list(rec["muscles"])
+        self.robot = robot
+        self.joint_names, self.joint_qpos = robot if robot else ((), ())
+        chans = rec["channels"]
+        self.encoders = [i for i, ch in enumerate(chans) if "pins" in ch]
+        self.enc_start = [int(chans[i]["start_count"]) for i in self.encoders]
+        self.pending = None          # with encoders: the counts of the sample whose period runs next
+        self.progress = progress
+        self.duration = duration
+        self.wall0 = time.perf_counter()
+        self.shown = self.wall0
+        self.k = 0
+        self.serial = b""
+
+    def __call__(self, t, obs):
+        y = obs["state"]
+        qpos, qvel = obs.get("qpos"), obs.get("qvel")
+        angles = None
+        if qpos is not None:
+            angles = {n: float(qpos[self.joint_qpos[j]]) for j, n in enumerate(self.joint_names)}
+        counts = np.asarray(self.counts(self.plan, self.model, y, angles), np.int64)
+        for i, at, count in getattr(self.plan, "injected", ()):
+            if t >= at:                   # a sensor fault put into the plant: the wire's count
+                counts[i] = count
+        row = self.shadow.modes(self.k, y, qpos, qvel)
+        if self.encoders:
+            # the plant runs a period ahead: period k - 1 is run now that the joints' angles at
+            # t_k are known, its encoder edges spread over it; its valve writes, made before
+            # t_k, act a dead time later, after t_k (run_* checks the dead time covers a period)
+            enc = [int(counts[i]) for i in self.encoders]
+            if self.pending is None:
+                for i, c0, c in zip(self.encoders, self.enc_start, enc):
+                    if c != c0:
+                        raise SimulationError(f"the joint of {self.rec['channels'][i]['signal']!r} starts at encoder "
+                                              f"count {c}, not at the count the firmware starts from ({c0}, angle "
+                                              "0): the robot must start at its encoders' zero")
+                changes, decision = self.side.step(None, None, row)
+            else:
+                changes, decision = self.side.step(self.pending, enc, row)
+            self.pending = counts
+            t = (self.k - 1) / float(self.rec["rate_hz"]) if self.k else t
+        else:
+            changes, decision = self.side.step(counts, None, row)
+        self.k += 1
+        now = time.perf_counter()
+        if self.progress is not None and now - self.shown > 2.0:
+            self.shown = now
+            self.progress(f"      SIL at {t:.2f} s of {self.duration:g} s simulated "
+                          f"({t / (now - self.wall0):.2f} x real time)")
+        if self.timing == "grid":         # the last decision ended in this period, at the sample
+            if decision is None:
+                return {}
+            return [(float(t), m, int(x)) for m, x in zip(self.muscles, decision)]
+        return [(tc, self.muscles[j], int(m)) for tc, j, m in changes]
+
+    def summary(self, rec) -> dict:
+        s, self.serial = self.side.summary(rec)
+        s["board_process"] = self.parallel
+        if self.parallel:
+            s["plant_waited_s"] = self.side.wait_s
+        return s
+
+    def close(self) -> None:
+        """End the board (its process, if it has one) without a summary: after a failed run."""
+        if self.parallel:
+            self.side.close()
 
 
 def warnings_of(s: dict, rec: dict) -> list:
@@ -709,13 +885,15 @@ def _compiled_block(result, compiled, float_run) -> dict:
 def _finish_sil(loop, rec, wall: float, duration: float) -> dict:
     sil = loop.summary(rec)
     sil["wall_s"] = wall
-    sil["plant_wall_s"] = wall - sil["avr_wall_s"]
+    # in one process the plant's share is what the board did not take; with the board in its
+    # own process, what the plant did not spend waiting for it
+    sil["plant_wall_s"] = wall - (sil["plant_waited_s"] if sil["board_process"] else sil["avr_wall_s"])
     sil["real_time_factor"] = duration / wall if wall > 0 else None
     return sil
 
 
 def run_pneumatic(model, rec: dict, elf, plan, counts, progress=None, compare: bool = True,
-                  timing: str = "cycle") -> SilRun:
+                  timing: str = "cycle", parallel: bool | None = None) -> SilRun:
     """SIL of a pneumatic scenario (its built model ``model``) against the firmware ``elf``; with
     ``compare`` the scenario's compiled runs too (the "compiled" block).
 
@@ -730,20 +908,25 @@ def run_pneumatic(model, rec: dict, elf, plan, counts, progress=None, compare: b
     sc = model.scenario
     dt = 1.0 / sc.controller.rate
     shadow = Shadow(model.laws, model.mp, sc, rec["muscles"], dt, model.names)
-    loop = _Loop(rec, elf, plan, counts, shadow, model, progress, sc.duration, None, timing)
+    parallel = _parallel(rec, sc.valves, parallel, timing)
+    loop = _Loop(rec, elf, plan, counts, shadow, model, progress, sc.duration, None, timing, parallel)
     t0 = time.perf_counter()
-    result = run_python_controller(model, loop, every_muscle=True)
+    try:
+        result = run_python_controller(model, loop, every_muscle=True)
+    except BaseException:
+        loop.close()
+        raise
     wall = time.perf_counter() - t0
     result.python_law = None           # measured against the scenario's own setpoints, as compiled
     sil = _finish_sil(loop, rec, wall, sc.duration)
     if compare:
         sil["compiled"] = _compiled_block(result, simulate(model),
                                           simulate(build_model(dataclasses.replace(sc, firmware=None))))
-    return SilRun(result, sil, bytes(loop.board.serial))
+    return SilRun(result, sil, loop.serial)
 
 
 def run_robot(rs, rec: dict, elf, plan, counts, progress=None, compare: bool = True,
-              timing: str = "cycle") -> SilRun:
+              timing: str = "cycle", parallel: bool | None = None) -> SilRun:
     """SIL of a robot scenario: the coupled engine (MuJoCo and the pneumatics) as the plant; with
     ``compare`` the scenario's compiled runs too (the "compiled" block); ``timing`` as
     :func:`run_pneumatic` takes it."""
@@ -764,9 +947,14 @@ def run_robot(rs, rec: dict, elf, plan, counts, progress=None, compare: bool = T
                                   f"period ({dt * 1e3:g} ms)")
     shadow = Shadow(a["laws"].copy(), a["mp"], cm.pneumatic.scenario, rec["muscles"], dt, list(cm.muscle_names),
                     joints=(a["leg_qpos"], a["leg_dof"]))
+    parallel = _parallel(rec, rs.pneumatic.valves, parallel, timing)
     loop = _Loop(rec, elf, plan, counts, shadow, cm.pneumatic, progress, rs.duration,
-                 (list(cm.joint_names), a["leg_qpos"]), timing)
-    out = run_coupled_python(cm, loop, every_muscle=True)
+                 (list(cm.joint_names), a["leg_qpos"]), timing, parallel)
+    try:
+        out = run_coupled_python(cm, loop, every_muscle=True)
+    except BaseException:
+        loop.close()
+        raise
     shadow.copy_counters(a["cs"])
     result = SwimResult(rec=out["rec"], model=cm, stats=out["stats"], wall_s=out["wall_s"],
                         compile_s=out.get("compile_s", 0.0), python_law=None)
@@ -774,4 +962,4 @@ def run_robot(rs, rec: dict, elf, plan, counts, progress=None, compare: bool = T
     if compare:
         floats = dataclasses.replace(rs, pneumatic=dataclasses.replace(rs.pneumatic, firmware=None))
         sil["compiled"] = _compiled_block(result, swim(rs), swim(floats))
-    return SilRun(result, sil, bytes(loop.board.serial))
+    return SilRun(result, sil, loop.serial)

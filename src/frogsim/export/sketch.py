@@ -441,6 +441,14 @@ static char fs_line[16 + 11 * (FS_CHANNELS + 5)];
 
 void setup() {{
     TIMSK0 = 0;                               /* no millis() interrupt: nothing delays the control ISR */
+    /* Timers 2 to 5 stopped: the Arduino core starts them for analogWrite(), which this firmware
+     * does not use. (simavr 1.6 also gives their 8-bit phase-correct mode TOP = ICRn, 0, instead
+     * of 0xFF: an overflow and three compare matches every 64 cycles, half of simavr's time in
+     * software in the loop.) */
+    TCCR2B = 0;
+    TCCR3B = 0;
+    TCCR4B = 0;
+    TCCR5B = 0;
     FS_BUSY_DDR |= (1 << FS_BUSY_BIT);
     fs_valve_pins_output();
     for (uint8_t j = 0; j < FS_MUSCLES; j++) fs_modes[j] = 0;
