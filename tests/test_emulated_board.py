@@ -144,6 +144,36 @@ def test_millivolts_for_every_count_round_trip(probe_elf):
     assert read == list(range(1024)), [(k, c) for k, c in enumerate(read) if c != k][:5]
 
 
+@pytest.mark.parametrize("shift", [0, 2])
+def test_counts_set_in_one_call_read_back_as_those_counts(probe_elf, shift):
+    """set_analog_counts (software in the loop's: a sample's counts in one call) sets the voltage
+    each count reads back as: every count of a 10-bit (shift 0) or 8-bit (shift 2) channel, fed to
+    the three inputs the probe converts, is read back as count << shift. A count outside the
+    converter's range is refused, and nothing is set."""
+    pins = board.pin_map()
+    data = b""
+    top = 1023 >> shift
+    inputs = np.array([0, 1, 2], np.int32)
+    with EmulatedBoard(probe_elf) as b:
+        b.set_pin(pins[2], 1)
+        for count in range(top + 1):
+            b.set_analog_counts(inputs, np.full(3, count, np.int64), shift)
+            b.run_until((count + 1) * PERIOD + PERIOD // 2)
+            data += b.serial()[0]
+        for bad in (-1, top + 1):
+            with pytest.raises(ValueError, match=f"count {bad} is outside"):
+                b.set_analog_counts(inputs, np.array([0, bad, 0], np.int64), shift)
+        b.run_until((top + 5) * PERIOD)
+        data += b.serial()[0]
+    conversions, _ = frames(data)
+    read = [c for _, c in conversions]
+    assert read[:top + 1] == [c << shift for c in range(top + 1)], \
+        [(k, c) for k, c in enumerate(read[:top + 1]) if c != k << shift][:5]
+    # after the refused calls every input still reads the last count set (the refused 0 for A0
+    # and A2 was not set either)
+    assert read[top + 1:top + 3] == [top << shift] * 2
+
+
 SLEEPER = Path(__file__).with_name("firmware") / "sleeper.c"
 
 

@@ -355,3 +355,18 @@ def test_the_plans_period_is_exact():
         n = chip.period_cycles(rate)
         p = chip.timer1_prescaler(n)
         assert p is not None and 16e6 / (p * (n // p)) == rate
+
+
+def test_sil_refuses_a_board_process_it_cannot_run(built, tmp_path, capsys):
+    """--board-process yes: refused with --timing grid (each decision at its own sample: a board a
+    period behind cannot give it), and where the valves' dead time (here 0.5 ms) does not cover
+    the 1 ms period the board would run behind; each in one line, nothing written."""
+    fw, _, _ = _copy(built, tmp_path)
+    code, err = _run(capsys, "sil", "hold-3bar", "--firmware", fw, "--out", tmp_path / "o", "--timing", "grid",
+                     "--board-process", "yes")
+    _refused(code, err, tmp_path / "o", "--board-process", "--timing cycle")
+    quick = tmp_path / "hold-3bar.toml"
+    quick.write_text((SHIPPED / "hold-3bar.toml").read_text()
+                     + '\n[valves.charge]\ndead_time = "0.5 ms"\n\n[valves.discharge]\ndead_time = "0.5 ms"\n')
+    code, err = _run(capsys, "sil", quick, "--firmware", fw, "--out", tmp_path / "o", "--board-process", "yes")
+    _refused(code, err, tmp_path / "o", "--board-process", "dead time")

@@ -490,6 +490,7 @@ def cmd_firmware(args) -> int:
 
 
 def cmd_sil(args) -> int:
+    from frogsim.errors import ScenarioError
     from frogsim.export import sil
     from frogsim.export.serial_log import parse_log, write_log_csv
     from frogsim.export.sketch import find_elf, read_plan_record
@@ -501,6 +502,16 @@ def cmd_sil(args) -> int:
     pneumatic = sc if kind == "pneumatic" else sc.pneumatic
     inputs = scenario_inputs(pneumatic, args.scenario)
     sil.check_plan(rec, plan, sc.name, sc.gait.cycles if kind == "robot" else None, inputs)
+    if args.board_process == "yes":
+        if args.timing != "cycle":
+            raise ScenarioError("--board-process", "yes", "needs --timing cycle: with 'grid' the plant takes each "
+                                                          "decision at its own sample, which a board a period behind "
+                                                          "cannot give")
+        v = pneumatic.valves
+        if sil.pipeline_depth(rec, min(v.charge.dead_time, v.discharge.dead_time)) < 1:
+            raise ScenarioError("--board-process", "yes", "the valves' dead time does not cover the period the board "
+                                                          "would run behind (two periods with encoders, one without): "
+                                                          "use 'no' or 'auto'")
     from frogsim.export.emulator import check_tools
     check_tools()                          # simavr missing: refused before anything is written
     if kind == "pneumatic":
@@ -516,7 +527,7 @@ def cmd_sil(args) -> int:
         runner = sil.run_robot if kind == "robot" else sil.run_pneumatic
         from frogsim.control.firmware import adc_counts
         run = runner(sc if kind == "robot" else model, rec, elf, plan, adc_counts, progress=_progress,
-                     timing=args.timing)
+                     timing=args.timing, parallel={"auto": None, "yes": True, "no": False}[args.board_process])
         s = run.sil
         s["timing"] = args.timing
         where = (f"the board in its own process: emulated AVR {s['avr_wall_s']:.1f} s, plant "
@@ -821,6 +832,9 @@ FLAGS = {
     "--timing": "when the plant receives the firmware's valve writes: 'cycle', at the emulated cycle the "
                 "firmware set each pin (the board's truth, late samples included), or 'grid', each sample's "
                 "decision at the sample's own time as the compiled model has it (a check of the harness)",
+    "--board-process": "run the emulated board in a process of its own, a period behind the plant, on "
+                       "another core: 'yes', 'no', or 'auto' (where the valves' dead time covers the extra "
+                       "period and a second core is idle; the run is the same either way)",
     "--scheduler": "run the chunks on a Dask distributed scheduler, e.g. tcp://host:8786 (--workers: "
                    "threads per Dask task, default 1)",
     "--connect-timeout": "seconds to wait for the scheduler, finite and > 0",
@@ -945,6 +959,7 @@ def build_parser() -> argparse.ArgumentParser:
     _flag(s, "--firmware", required=True, metavar="DIR")
     _flag(s, "--cycles", "the scenario's; as exported", type=int, default=None, metavar="N")
     _flag(s, "--timing", "cycle", choices=("cycle", "grid"), default="cycle")
+    _flag(s, "--board-process", "auto", choices=("auto", "yes", "no"), default="auto")
     _flag(s, "--no-animation", action="store_true")
     _writes(s)
     s.set_defaults(func=cmd_sil)

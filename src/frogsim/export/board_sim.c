@@ -219,6 +219,25 @@ void board_set_adc_many(board_t *b, int n, const int32_t *inputs, const uint32_t
     }
 }
 
+/* The analog inputs from ADC counts: input `inputs[i]` to the smallest whole millivolts simavr's
+ * converter reads as count `counts[i]` << `shift` (of 1023 over `vref_mv`): ceil(c vref / 1023),
+ * as frogsim.export.emulator.millivolts_for_count. Returns -1, or the first i whose count is
+ * outside 0..1023 >> shift (nothing is set then). */
+long board_set_adc_counts(board_t *b, int n, const int32_t *inputs, const int64_t *counts, int shift,
+                          uint32_t vref_mv) {
+    for (int i = 0; i < n; i++)
+        if (counts[i] < 0 || (counts[i] << shift) > 1023)
+            return i;
+    for (int i = 0; i < n; i++) {
+        int ch = inputs[i];
+        uint64_t c = (uint64_t)(counts[i] << shift);
+        uint32_t mv = (uint32_t)((c * vref_mv + 1022) / 1023);
+        if (ch >= 0 && ch < ADC_INPUTS && b->mv[ch] != mv)
+            board_set_adc_mv(b, ch, mv);
+    }
+    return -1;
+}
+
 int board_set_pin(board_t *b, char port, int bit, int value) {
     avr_irq_t *irq = avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ(port), bit);
     if (!irq) return -2;
@@ -334,19 +353,25 @@ long board_run_frame(board_t *b, uint64_t end, long n_in, const uint64_t *in_cyc
 }
 
 /* board_run_frame from `start` to `end` with `n_enc` quadrature encoders moving: encoder e goes
- * from count[e] to target[e] (count[] is updated), one edge per count, spread evenly over the
+ * from count[e] to target[e] (count[] is updated; more than `most` counts away: -2 - e is
+ * returned before anything runs), one edge per count, spread evenly over the
  * period: the m-th (m = 1..|n|) at start + round(m (end - start) / (|n| + 1)) (ties to even, as
  * Python's round). At each edge, B is set first (to A's new level counting up, to its opposite
  * counting down), then A to the count's parity; edges of several encoders at one cycle go in
  * encoder order. Returns as board_run_frame does. */
 long board_run_frame_enc(board_t *b, uint64_t start, uint64_t end, int n_enc, const char *a_port,
                          const int32_t *a_bit, const char *b_port, const int32_t *b_bit, int32_t *count,
-                         const int32_t *target, int snap_index, uint32_t snap_addr, int snap_len,
+                         const int32_t *target, long most, int snap_index, uint32_t snap_addr, int snap_len,
                          uint8_t *snaps, long max_snaps) {
-    if (snap_setup(b, snap_index, snap_addr, snap_len, snaps, max_snaps) != 0)
-        return -1;
     enum { MAX_ENC = 16 };
     if (n_enc < 0 || n_enc > MAX_ENC)
+        return -1;
+    for (int e = 0; e < n_enc; e++) {            /* more than `most` counts: refused, nothing run */
+        long n = (long)target[e] - (long)count[e];
+        if (n > most || -n > most)
+            return -2 - e;
+    }
+    if (snap_setup(b, snap_index, snap_addr, snap_len, snaps, max_snaps) != 0)
         return -1;
     long done[MAX_ENC], total[MAX_ENC];
     double spacing[MAX_ENC];

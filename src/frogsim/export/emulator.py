@@ -106,9 +106,11 @@ def _lib():
         lib.board_sleep_busy_cycles.argtypes = [vp]
         lib.board_set_adc_mv.argtypes = [vp, ctypes.c_int, ctypes.c_uint32]
         lib.board_set_adc_many.argtypes = [vp, ctypes.c_int, vp, vp]
+        lib.board_set_adc_counts.restype = ctypes.c_long
+        lib.board_set_adc_counts.argtypes = [vp, ctypes.c_int, vp, vp, ctypes.c_int, ctypes.c_uint32]
         lib.board_run_frame_enc.restype = ctypes.c_long
-        lib.board_run_frame_enc.argtypes = [vp, u64, u64, ctypes.c_int, vp, vp, vp, vp, vp, vp, ctypes.c_int,
-                                            ctypes.c_uint32, ctypes.c_int, vp, ctypes.c_long]
+        lib.board_run_frame_enc.argtypes = [vp, u64, u64, ctypes.c_int, vp, vp, vp, vp, vp, vp, ctypes.c_long,
+                                            ctypes.c_int, ctypes.c_uint32, ctypes.c_int, vp, ctypes.c_long]
         lib.board_set_pin.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
         lib.board_run_until.argtypes = [vp, u64]
         lib.board_read_ram.restype = ctypes.c_long
@@ -344,6 +346,16 @@ class EmulatedBoard:
         (int32 and uint32 arrays, contiguous), each raised only where it changed."""
         self._lib.board_set_adc_many(self._h, int(channels.size), channels.ctypes.data, millivolts.ctypes.data)
 
+    def set_analog_counts(self, channels: np.ndarray, counts: np.ndarray, shift: int = 0) -> None:
+        """Inputs A<channels[i]> (int32) at the voltage simavr's 10-bit converter reads as
+        ``counts[i] << shift`` (int64, contiguous): :func:`millivolts_for_count` of each, set in
+        one call where it changed. ValueError (nothing set) for a count outside the converter's."""
+        bad = self._lib.board_set_adc_counts(self._h, int(channels.size), channels.ctypes.data, counts.ctypes.data,
+                                             int(shift), int(round(self.vref * 1000)))
+        if bad >= 0:
+            raise ValueError(f"analog input A{int(channels[bad])}: count {int(counts[bad])} is outside the "
+                             f"converter's 0..{1023 >> shift}")
+
     def set_pin(self, pin: Pin, value: int) -> None:
         """Drive input ``pin`` high (1) or low (0) from outside."""
         self._lib.board_set_pin(self._h, pin.port.encode(), pin.bit, 1 if value else 0)
@@ -397,14 +409,15 @@ class EmulatedBoard:
         return int(got)
 
     def run_frame_encoders(self, start: int, end: int, encoders, counts: np.ndarray, targets: np.ndarray,
-                           snap_index: int, snap_address: int, snap_len: int, snaps: np.ndarray) -> int:
+                           most: int, snap_index: int, snap_address: int, snap_len: int, snaps: np.ndarray) -> int:
         """:meth:`run_frame` from cycle ``start`` to ``end`` with quadrature encoders moving:
         ``encoders`` the (A pin, B pin) of each; encoder e goes from ``counts[e]`` to
         ``targets[e]`` (int32 arrays; ``counts`` is updated), one edge a count, spread evenly
         over the period (the m-th of n at start + round(m (end - start) / (n + 1))), B set before
         A (to A's new level counting up, to its opposite counting down), A to the count's
         parity; edges at one cycle in encoder order. Returns the number of falls of
-        ``snap_index``; FrogsimError if the firmware stopped."""
+        ``snap_index``; FrogsimError if the firmware stopped; -1 - e, before anything runs, if
+        encoder e would move more than ``most`` counts."""
         ports = getattr(self, "_enc_ports", None)
         if ports is None or ports[0] is not encoders:
             a_port = np.array([ord(a.port) for a, _ in encoders], np.uint8)
@@ -415,8 +428,10 @@ class EmulatedBoard:
         _, a_port, a_bit, b_port, b_bit = ports
         got = self._lib.board_run_frame_enc(self._h, int(start), int(end), len(encoders), a_port.ctypes.data,
                                             a_bit.ctypes.data, b_port.ctypes.data, b_bit.ctypes.data,
-                                            counts.ctypes.data, targets.ctypes.data, int(snap_index),
+                                            counts.ctypes.data, targets.ctypes.data, int(most), int(snap_index),
                                             int(snap_address), int(snap_len), snaps.ctypes.data, snaps.shape[0])
+        if got <= -2:
+            return int(got) + 1
         if got < 0:
             raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
         return int(got)

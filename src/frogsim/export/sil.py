@@ -38,7 +38,7 @@ import numpy as np
 
 from frogsim.errors import FrogsimError, SimulationError
 from frogsim.export import board
-from frogsim.export.emulator import EmulatedBoard, millivolts_for_count
+from frogsim.export.emulator import EmulatedBoard
 from frogsim.scenario.motion import command_time
 
 MODE_OF_STATE = {"charge": 1, "vent": -1, "hold": 0}
@@ -111,6 +111,9 @@ class BoardRun:
                 self.board.set_pin(bpin, 1)
         self.period = int(rec["period_cycles"])
         self.input_array = np.array(self.inputs, np.int32)
+        # the analog channels' place among the counts (a slice where they are consecutive)
+        a = self.analog
+        self.analog_slice = slice(a[0], a[-1] + 1) if a and a == list(range(a[0], a[-1] + 1)) else np.array(a, np.int64)
         self.overrun_address = symbol_address(elf, "fs_overruns")
         self.dropped_address = symbol_address(elf, "fs_dropped")
         self.k_address = symbol_address(elf, "fs_k")
@@ -204,21 +207,20 @@ class BoardRun:
         b = self.board
         counts = np.array(counts, np.int64)
         self.fed.append(counts)
-        if self.inputs:
-            mv = millivolts_for_count(counts[self.analog] << self.shift)      # whole numbers, elementwise
-            b.set_analog_many(self.input_array, mv.astype(np.uint32))
+        if self.inputs:                   # each at millivolts_for_count(count << shift)
+            b.set_analog_counts(self.input_array, counts[self.analog_slice], self.shift)
         start = self.s0 + self.frames * self.period
         end = start + self.period
         if encoder_counts is not None and self.encoders:
             targets = np.array(encoder_counts, np.int32)
-            n = np.abs(targets - self.enc_count)
-            if n.max() > self.most_counts:      # edges closer than MIN_EDGE_CYCLES
-                e = int(np.argmax(n > self.most_counts))
-                raise SimulationError(f"encoder of {self.rec['channels'][self.encoders[e][0]]['signal']!r}: {int(n[e])} "
-                                      f"counts in one controller period ({self.period / (n[e] + 1):.0f} CPU cycles "
+            falls = b.run_frame_encoders(start, end, self.enc_pins, self.enc_count, targets, self.most_counts,
+                                         self.busy, self.snap_address, self.snap.shape[1], self.snap)
+            if falls < 0:                 # edges closer than MIN_EDGE_CYCLES: nothing was run
+                e = -1 - falls
+                n = abs(int(targets[e]) - int(self.enc_count[e]))
+                raise SimulationError(f"encoder of {self.rec['channels'][self.encoders[e][0]]['signal']!r}: {n} "
+                                      f"counts in one controller period ({self.period / (n + 1):.0f} CPU cycles "
                                       "apart): faster than the firmware counts them; use fewer counts per revolution")
-            falls = b.run_frame_encoders(start, end, self.enc_pins, self.enc_count, targets, self.busy,
-                                         self.snap_address, self.snap.shape[1], self.snap)
         else:
             falls = b.run_frame(end, None, self.busy, self.snap_address, self.snap.shape[1], self.snap)
         if falls > self.snap.shape[0]:
@@ -684,12 +686,38 @@ def pipeline_depth(rec: dict, dead: float | None) -> int:
     return max(0, periods - (1 if encoders else 0))
 
 
+def free_core() -> bool:
+    """Whether a second core is free for the board's process: this process may run on two or
+    more, and the load average of the last minute leaves one of them idle (the pipeline hands a
+    frame over every period: on a machine whose cores are all busy each hand-over waits for the
+    scheduler, and one process is faster). Without fork (not Linux) there is no board process."""
+    import multiprocessing
+    import os
+    if "fork" not in multiprocessing.get_all_start_methods():
+        return False
+    try:
+        n = len(os.sched_getaffinity(0))
+    except AttributeError:
+        n = os.cpu_count() or 1
+    if n < 2:
+        return False
+    try:
+        load = os.getloadavg()[0]
+    except OSError:
+        return True
+    return load < n - 0.5
+
+
 def _parallel(rec: dict, valves, asked: bool | None, timing: str) -> bool:
     """Whether the board runs in its own process: ``asked`` (None: wherever the valves' dead time
-    allows it, :func:`pipeline_depth`); asked where it does not allow it, an error."""
+    allows it, :func:`pipeline_depth`, and a core is free for it, :func:`free_core`); asked where
+    the dead time does not allow it, an error."""
     depth = pipeline_depth(rec, min(valves.charge.dead_time, valves.discharge.dead_time))
     if asked is None:
-        return depth >= 1 and timing == "cycle"
+        return depth >= 1 and timing == "cycle" and free_core()
+    if asked and timing != "cycle":
+        raise SimulationError("the board in its own process gives the plant its writes a period late, which "
+                              "timing='grid' (each decision at its own sample) cannot take")
     if asked and depth < 1:
         raise SimulationError("the board in its own process runs a controller period behind the plant, which "
                               "needs the valves' dead time to cover that period too (encoders take one "
@@ -712,7 +740,7 @@ class _Loop:
             raise ValueError(f"timing {timing!r}: 'cycle' or 'grid'")
         self.timing = timing
         self.rec, self.plan, self.counts, self.shadow, self.model = rec, plan, counts, shadow, model
-        self.parallel = bool(parallel) and timing == "cycle"
+        self.parallel = bool(parallel)
         self.side = _BoardProcess(rec, elf, plan) if self.parallel else _BoardSide(rec, elf, plan)
         self.muscles = list(rec["muscles"])
         self.robot = robot
