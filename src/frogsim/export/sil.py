@@ -573,20 +573,75 @@ def _portable(exc: BaseException) -> BaseException:
         return FrogsimError(f"{type(exc).__name__}: {exc}")
 
 
+class _Wire:
+    """The per-frame messages between the plant and the board's process, as raw bytes (pickling
+    the arrays each period cost more than the frame's own Python): to the board ``F`` (sample k's
+    shadow decision, no frame: the first sample with encoders) or ``S`` (counts int64, encoder
+    counts int32, shadow decision int8), ``E`` for the summary; back ``K`` + the result (a frame's
+    changes as float64 times, int32 muscles, int8 modes, then its decision or nothing), ``X`` +
+    a pickled exception."""
+
+    def __init__(self, rec):
+        self.n_ch = len(rec["channels"])
+        self.n_enc = sum(1 for ch in rec["channels"] if "pins" in ch)
+        self.n_m = len(rec["muscles"])
+
+    def step(self, counts, encoder_counts, shadow_row) -> bytes:
+        row = np.asarray(shadow_row, np.int8).tobytes()
+        if counts is None:
+            return b"F" + row
+        enc = np.asarray(encoder_counts if encoder_counts is not None else [], np.int32).tobytes()
+        return b"S" + np.asarray(counts, np.int64).tobytes() + enc + row
+
+    def read_step(self, msg: bytes) -> tuple:
+        m = memoryview(msg)
+        if msg[:1] == b"F":
+            return None, None, np.frombuffer(m[1:], np.int8).copy()
+        c_end = 1 + 8 * self.n_ch
+        e_end = c_end + 4 * self.n_enc
+        counts = np.frombuffer(m[1:c_end], np.int64).copy()
+        enc = np.frombuffer(m[c_end:e_end], np.int32).copy() if self.n_enc else None
+        return counts, enc, np.frombuffer(m[e_end:], np.int8).copy()
+
+    @staticmethod
+    def result(changes, decision) -> bytes:
+        n = len(changes)
+        head = np.array([n, 0 if decision is None else 1], np.int32).tobytes()
+        if n:
+            t, j, mode = zip(*changes)
+            body = (np.array(t, np.float64).tobytes() + np.array(j, np.int32).tobytes()
+                    + np.array(mode, np.int8).tobytes())
+        else:
+            body = b""
+        return b"K" + head + body + (b"" if decision is None else np.asarray(decision, np.int8).tobytes())
+
+    @staticmethod
+    def read_result(m: memoryview) -> tuple:
+        n, has = np.frombuffer(m[:8], np.int32).tolist()
+        at = 8
+        t = np.frombuffer(m[at:at + 8 * n], np.float64).tolist()
+        j = np.frombuffer(m[at + 8 * n:at + 12 * n], np.int32).tolist()
+        mode = np.frombuffer(m[at + 12 * n:at + 13 * n], np.int8).tolist()
+        decision = np.frombuffer(m[at + 13 * n:], np.int8).copy() if has else None
+        return list(zip(t, j, mode)), decision
+
+
 def _serve_board(conn, rec, elf, plan) -> None:
-    """The board's process: a :class:`_BoardSide` that answers the plant's messages in order
-    ("step", args) -> its result, ("summary", rec) -> (figures, serial bytes), then ends; an
-    error is sent back as the exception and ends the process."""
+    """The board's process: a :class:`_BoardSide` that answers the plant's messages in order (a
+    frame -> its result, the summary request -> (figures, serial bytes), then it ends; the
+    wire: :class:`_Wire`); an error is sent back as the exception and ends the process."""
+    import pickle
     side = None
+    wire = _Wire(rec)
     try:
         side = _BoardSide(rec, elf, plan)
-        conn.send(("ok", None))
+        conn.send_bytes(b"K")
         while True:
-            msg = conn.recv()
-            if msg[0] == "step":
-                conn.send(("ok", side.step(*msg[1:])))
-            elif msg[0] == "summary":
-                conn.send(("ok", side.summary(msg[1])))
+            msg = conn.recv_bytes()
+            if msg[:1] in (b"S", b"F"):
+                conn.send_bytes(wire.result(*side.step(*wire.read_step(msg))))
+            elif msg[:1] == b"E":
+                conn.send_bytes(b"K" + pickle.dumps(side.summary(rec)))
                 return
             else:
                 return
@@ -594,7 +649,7 @@ def _serve_board(conn, rec, elf, plan) -> None:
         return
     except BaseException as exc:       # noqa: BLE001: every failure goes back to the plant
         try:
-            conn.send(("error", _portable(exc)))
+            conn.send_bytes(b"X" + pickle.dumps(_portable(exc)))
         except Exception:
             pass
     finally:
@@ -617,6 +672,7 @@ class _BoardProcess:
     def __init__(self, rec, elf, plan):
         import multiprocessing
         ctx = multiprocessing.get_context("fork")
+        self.wire = _Wire(rec)
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_serve_board, args=(child, rec, elf, plan), daemon=True,
                                 name="frogsim-board")
@@ -626,40 +682,42 @@ class _BoardProcess:
         self.wait_s = 0.0            # the plant's time spent waiting for the board [s]
         self._get()
 
-    def _get(self):
+    def _get(self) -> memoryview:
+        import pickle
         t0 = time.perf_counter()
         try:
-            kind, value = self.conn.recv()
+            msg = self.conn.recv_bytes()
         except (EOFError, OSError):
             self.proc.join(5.0)
             raise SimulationError(f"the emulated board's process ended unexpectedly (exit code "
                                   f"{self.proc.exitcode})") from None
         finally:
             self.wait_s += time.perf_counter() - t0
-        if kind == "error":
+        if msg[:1] == b"X":
             self.close()
-            raise value
-        return value
+            raise pickle.loads(msg[1:])
+        return memoryview(msg)[1:]
 
-    def _send(self, msg) -> None:
+    def _send(self, msg: bytes) -> None:
         try:
-            self.conn.send(msg)
+            self.conn.send_bytes(msg)
         except OSError:                  # the process has ended: why, if it said so before
             while True:
                 self._get()              # raises its error, or that it ended unexpectedly
 
     def step(self, counts, encoder_counts, shadow_row) -> tuple:
-        self._send(("step", counts, encoder_counts, shadow_row))
-        out = self._get() if self.waiting else ([], None)
+        self._send(self.wire.step(counts, encoder_counts, shadow_row))
+        out = self.wire.read_result(self._get()) if self.waiting else ([], None)
         self.waiting = True
         return out
 
     def summary(self, rec) -> tuple:
+        import pickle
         if self.waiting:               # the last frame's result: its writes act after the run
             self._get()
             self.waiting = False
-        self._send(("summary", rec))
-        out = self._get()
+        self._send(b"E")
+        out = pickle.loads(self._get())
         self.close()
         return out
 
