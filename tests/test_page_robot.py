@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import frogsim
-from page_numbers import NUM, check, page, same_to_figures, section, table_rows
+from page_numbers import NUM, ROOT, check, page, same_to_figures, section, table_rows
 
 DOC = page("robot.md")
 SIGNED = r"([+−-]?\d+(?:\.\d+)?)"
@@ -266,3 +266,18 @@ def test_what_the_vented_muscles_still_pull_in_air():
     cols = [list(r.model.joint_names).index(j) for j in legs]
     ang = [f"{np.degrees(r.joint_angles[late][:, c]).mean():.1f}" for c in cols]
     assert pull == list(m.group(1, 2, 3)) and ang == list(m.group(5, 6, 7)), (pull, ang)
+
+
+def test_the_readmes_swim_figures_are_this_run(swim10):
+    """README.md, "The robot swimming": `frogsim swim swim --cycles 10` with the paper's timing and
+    spring recovery, the run the swimming table's first column is."""
+    s = swim10.summary()
+    readme = (ROOT / "README.md").read_text()
+    text = " ".join(readme[readme.index("With the paper's timing and spring recovery:"):].split())
+    check(text, [(r"recovery: " + NUM + " m/s", s["mean_speed_m_per_s"]),
+                 (r"m/s \(" + NUM + " body lengths/s", s["mean_speed_body_lengths_per_s"]),
+                 (r"body lengths/s\), " + NUM + " m and", s["distance_per_cycle_m"]),
+                 (r"m and " + NUM + " L of air per cycle", s["air_used_per_cycle_L_std"]),
+                 (r"falling from " + NUM + " to", s["source_pressure_each_cycle_start_bar_gauge"][0]),
+                 (r"from \d+ to " + NUM + " bar in", s["source_pressure_after_cycles_bar_gauge"]),
+                 (r"bar in " + NUM + " cycles", s["cycles"])])
