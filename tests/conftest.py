@@ -7,7 +7,14 @@ from __future__ import annotations
 
 import copy
 import math
+import os
+import pickle
 import tomllib
+
+try:
+    import fcntl
+except ImportError:                   # no flock: each xdist worker computes its own
+    fcntl = None
 
 import pytest
 
@@ -74,17 +81,44 @@ def paper_cycle_raw() -> dict:
 
 
 @pytest.fixture(scope="session")
-def study():
-    """study(name) -> StudyData, each registered study computed once per test session (the paper
-    and design tests and the README check share the runs)."""
+def study(tmp_path_factory):
+    """study(name) -> StudyData, each registered study computed once per test run (the paper and
+    design tests, the figures and the README check share the runs): in one process, or across
+    pytest-xdist's workers, where the first to need a study computes it and the others read it."""
     from frogsim.studies import run_study
+    shared = _run_folder(tmp_path_factory, "studies")
     cache = {}
 
     def get(name):
         if name not in cache:
-            cache[name] = run_study(name)
+            cache[name] = run_study(name) if shared is None else _computed_once(shared, name, run_study)
         return cache[name]
     return get
+
+
+def _run_folder(tmp_path_factory, name: str):
+    """A folder every xdist worker of this test run sees (None without xdist, or without flock)."""
+    uid = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if uid is None or fcntl is None:
+        return None
+    folder = tmp_path_factory.getbasetemp().parent / f"{name}-{uid}"
+    folder.mkdir(exist_ok=True)
+    return folder
+
+
+def _computed_once(folder, name: str, compute):
+    """compute(name), pickled into folder by whichever worker gets there first; the others wait on
+    its lock and read that."""
+    path = folder / f"{name}.pickle"
+    with open(folder / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if path.exists():
+            return pickle.loads(path.read_bytes())
+        data = compute(name)
+        part = path.with_name(path.name + ".part")
+        part.write_bytes(pickle.dumps(data))
+        os.replace(part, path)
+        return data
 
 
 # --- CSV headers ----------------------------------------------------------------------------------
