@@ -146,3 +146,37 @@ def assert_unit_headers(path):
         assert unit in CSV_UNITS, f"{path.name}: {col!r} has an unknown unit {unit!r}"
         assert table[col].dtype.kind == "f", f"{path.name}: {col!r} holds text"
     return table
+
+
+# --- the order the test files are handed to pytest-xdist's workers --------------------------------
+#: the test files that take longest, longest first (each run on its own, `python3 -m pytest
+#: tests/FILE`, by CPU time; every other file takes under 20 s). `--dist loadfile` hands a worker
+#: the next whole file when it runs short of work; pytest-xdist's own order puts the files with
+#: the most tests first, which leaves long files of few tests (a fuzzer, a compilation from scratch,
+#: a killed sweep) for the end, where one worker runs them while the other has nothing left. Handed
+#: out longest first, the short files come last and fill in. A file missing here only runs later.
+LONGEST_FIRST = (
+    "test_doc_blocks.py", "test_optimize_gait.py", "test_firmware_laws.py", "test_controller_kinds.py",
+    "test_warmup.py", "test_firmware_e2e.py", "test_firmware_numbers.py", "test_figure_layout.py",
+    "test_studies.py", "test_cli_rules.py", "test_sweep_run.py", "test_sweep_resume.py",
+    "test_firmware_faults.py", "test_firmware_encoders.py", "test_control.py", "test_progress.py",
+    "test_cli.py", "test_fuzz.py", "test_outputs.py", "test_firmware_laws_avr.py", "test_fit_force.py",
+    "test_swim_cli.py", "test_csv_headers.py", "test_tables.py", "test_output_grid.py",
+)
+
+
+def pytest_configure(config):
+    # keep the collection's order of files (below) rather than xdist's reordering by test count
+    if getattr(config.option, "loadscopereorder", None) is not None:
+        config.option.loadscopereorder = False
+
+
+def pytest_collection_modifyitems(config, items):
+    """The files in LONGEST_FIRST's order, then the others, most tests first (as xdist would have
+    them); each file's tests keep their order."""
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    count: dict = {}
+    for item in items:
+        count[item.path] = count.get(item.path, 0) + 1
+    position = {id(item): k for k, item in enumerate(items)}
+    items.sort(key=lambda item: (rank.get(item.path.name, len(rank)), -count[item.path], position[id(item)]))
