@@ -26,8 +26,13 @@ def swim10():
     return swim_run()            # `frogsim swim swim --cycles 10`: the scenario's 10 cycles, 10 ms output
 
 
-def test_leg_in_air_table():
-    s = frogsim.swim("leg-in-air").summary()      # what `frogsim reproduce leg-in-air` runs
+@pytest.fixture(scope="module")
+def leg_in_air():
+    return frogsim.swim("leg-in-air")             # what `frogsim reproduce leg-in-air` runs
+
+
+def test_leg_in_air_table(leg_in_air):
+    s = leg_in_air.summary()
     rows = table_rows(DOC, "Leg in air (`frogsim reproduce leg-in-air")
     legs = ("hip_left", "knee_left", "ankle_left")
     delay = rows["joint delay hip / knee / ankle"][1]
@@ -247,7 +252,7 @@ def test_the_full_robot_stalls_as_the_page_says(swim10):
     assert all(f"{g:.1f}" == m.group(2) for g in at_end[5:]), at_end
 
 
-def test_what_the_vented_muscles_still_pull_in_air():
+def test_what_the_vented_muscles_still_pull_in_air(leg_in_air):
     """The prose under the leg-in-air figure: the driving muscles' tensions and the joints' angles
     (hip, knee, ankle of the left leg) on average over the run's last 0.3 s, at the page's
     precision."""
@@ -257,7 +262,7 @@ def test_what_the_vented_muscles_still_pull_in_air():
                   r"(\d+\.\d) s\) and hold the legs a few degrees open against the springs \((\d+\.\d), (\d+\.\d) and "
                   r"(\d+\.\d) deg on average then\)", text)
     assert m, text
-    r = frogsim.swim("leg-in-air")
+    r = leg_in_air
     t = np.asarray(r.t)
     late = t >= t[-1] - float(m.group(4)) - 1e-9
     df = r.to_dataframe()
