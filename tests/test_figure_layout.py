@@ -56,7 +56,7 @@ def assert_clean(seen: dict, at_least: int = 1) -> None:
 @pytest.mark.parametrize("name", list(STUDIES))
 def test_every_study_figure_hides_nothing(name, checked, tmp_path, study):
     import copy
-    STUDIES[name].draw(copy.deepcopy(study(name)), str(tmp_path / f"{name}.png"))   # the session's run, untouched
+    STUDIES[name].draw(copy.deepcopy(study(name)), str(tmp_path / f"{name}.png"))   # the shared run, untouched
     assert_clean(checked)
 
 

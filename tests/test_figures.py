@@ -47,7 +47,7 @@ def _legend_texts(fig) -> set:
 def test_every_labelled_curve_of_every_paper_figure_is_in_a_legend_and_no_legend_covers_a_bar(
         name, figures, tmp_path, study):
     import copy
-    STUDIES[name].draw(copy.deepcopy(study(name)), str(tmp_path / f"{name}.png"))   # the session's run, untouched
+    STUDIES[name].draw(copy.deepcopy(study(name)), str(tmp_path / f"{name}.png"))   # the shared run, untouched
     fig = figures[-1]
     texts = _legend_texts(fig)
     for a in fig.axes:
