@@ -84,7 +84,9 @@ def main() -> int:
     sw = sum(m[f"{j}_{s}"]["switchings_per_s"] for s in SIDES for j in JOINTS)
     ratio = DURATION / wall_c
     print("full robot, 12 muscles / 24 valves, water, 6 compiled joint-angle controllers at 1 kHz:")
-    print(f"  closed loop: {wall_c:6.3f} s for {DURATION:g} s simulated -> {ratio:6.1f}x real time "
+    steps = rc.stats["mujoco_steps"]
+    print(f"  closed loop: {wall_c:6.3f} s for {DURATION:g} s simulated -> {ratio:6.1f}x real time, "
+          f"{wall_c / steps * 1e6:.1f} us per MuJoCo step "
           f"(with the model's build: {total_c:.3f} s, {DURATION / total_c:.1f}x)")
     print(f"  open loop (same robot, its gait): {wall_o:6.3f} s -> {DURATION / wall_o:6.1f}x real time "
           f"(with build {total_o:.3f} s); closed/open loop wall ratio {wall_c / wall_o:.2f}")

@@ -1,6 +1,7 @@
 """Sweep benchmark: 10,000 hip-muscle scenarios of 2 s each through the batched engine.
 
 Run:  python benchmarks/bench_sweep.py [--points 10000] [--threads 2] [--ref-points 8]
+      python benchmarks/bench_sweep.py --commands     # the sweep command, cold and warm (below)
 
 Case
     One hip muscle, the paper's 2 s cycle (charge at 0 s, vent at 1 s), paper supply mode. Varied
@@ -27,14 +28,27 @@ Measured in one run
     * agreement of the rise times on that subset.
 
 Exit status: 0 when the time target is met and the subset agrees, 1 otherwise.
+
+With --commands, instead: the ``frogsim sweep`` command as a user runs it, on a one-point sweep,
+the two example specs and this benchmark's grid written as a spec (one hip, 2 s runs, the four
+metrics): ``python -m frogsim sweep SPEC --out R.nc --workers 2`` in a fresh process (a cold
+start: imports, loading the compiled engine, the unit registry; its wall time, and the command's
+own "N points in T s" line), then the same spec run twice in this process with
+``run_sweep(spec, workers=2)`` and the second run timed (caches warm). Prints one row per sweep,
+the table docs/sweeps.md quotes ("Measured"). No target: exit status 0 when every command ran.
 """
 from __future__ import annotations
 
 import argparse
 import gc
 import os
+import re
+import subprocess
 import sys
+import tempfile
 import time
+import tomllib
+from pathlib import Path
 
 import numpy as np
 
@@ -116,6 +130,79 @@ def breakdown(models, build_s: float, build_cpu: float) -> None:
           f"(now {runs_cpu / n * 1e6:.0f} us CPU)")
 
 
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+GRID_SPEC = f"""name = "bench-sweep-grid"
+[base]
+scenario = "bench-sweep.toml"
+[sweep.parameters]
+"source.initial_pressure_gauge" = {{ start = "3 bar", stop = "6 bar", num = 10 }}
+"supply.branch_limit" = {{ start = "20 L/min", stop = "200 L/min", num = 20 }}
+"muscle_types.hip.stroke_contraction" = {{ start = 0.0, stop = 0.2, num = 50 }}
+[record]
+metrics = {METRICS!r}
+muscle = "hip"
+"""
+ONE_POINT_SPEC = """name = "one-point"
+base = "one-hip.toml"
+[sweep.parameters]
+"source.initial_pressure_gauge" = ["6 bar"]
+"""
+
+
+#: BASE as the scenario file the grid spec reads (commands() checks that it loads as BASE)
+BASE_TOML = """name = "bench-sweep"
+parameters = "fan2017"
+duration = "2 s"
+output_interval = "1 ms"
+[programs.stroke]
+pressurise = "1 s"
+release = "1 s"
+[muscles.hip]
+type = "hip"
+program = "stroke"
+motion = { kind = "stroke", delay = "0.1 s", rise = "0.3 s", fall = "0.3 s" }
+"""
+
+
+def commands(workers: int) -> int:
+    """The sweep command cold and run_sweep warm on four specs; one row each (see the docstring)."""
+    from frogsim.sweep import load_spec, run_sweep
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        (tmp / "one-hip.toml").write_text((EXAMPLES / "one-hip.toml").read_text())
+        assert tomllib.loads(BASE_TOML) == BASE
+        (tmp / "bench-sweep.toml").write_text(BASE_TOML)
+        (tmp / "one-point.toml").write_text(ONE_POINT_SPEC)
+        (tmp / "grid.toml").write_text(GRID_SPEC)
+        specs = [("one point (examples/one-hip.toml, a 2 s run)", tmp / "one-point.toml"),
+                 ("examples/sweep-source-saturation.toml", EXAMPLES / "sweep-source-saturation.toml"),
+                 ("examples/sweep-lhs-valves.toml", EXAMPLES / "sweep-lhs-valves.toml"),
+                 ("the 10 x 20 x 50 grid of this benchmark", tmp / "grid.toml")]
+        print(f"frogsim {frogsim.__version__}: the sweep command, --workers {workers}, {os.cpu_count()} CPUs, "
+              f"load average before {os.getloadavg()[0]:.1f}")
+        print(f"{'sweep':<46} {'points':>7} {'cold command':>13} {'(its line)':>11} {'warm, in process':>17}")
+        ok = True
+        for k, (label, spec) in enumerate(specs):
+            out = tmp / f"r{k}.nc"
+            t0 = time.perf_counter()
+            run = subprocess.run([sys.executable, "-m", "frogsim", "sweep", str(spec), "--out", str(out),
+                                  "--workers", str(workers)], capture_output=True, text=True)
+            cold = time.perf_counter() - t0
+            said = re.search(r"^([\d,]+) points? in ([\d.]+) s -> ", run.stderr, re.M)
+            if run.returncode != 0 or not said:
+                print(f"{label}: the command failed ({run.returncode}): {run.stderr.strip()[-400:]}")
+                ok = False
+                continue
+            loaded = load_spec(str(spec))
+            run_sweep(loaded, workers=workers, progress=False)
+            t0 = time.perf_counter()
+            run_sweep(loaded, workers=workers, progress=False)
+            warm = time.perf_counter() - t0
+            print(f"{label:<46} {loaded.n_points:>7,} {cold:>11.1f} s {float(said.group(2)):>9.1f} s {warm:>15.2f} s")
+    return 0 if ok else 1
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--points", type=int, default=10000, help="number of sweep points (default 10000)")
@@ -124,7 +211,11 @@ def main(argv=None) -> int:
     ap.add_argument("--no-breakdown", action="store_true", help="skip the stage-by-stage breakdown")
     ap.add_argument("--repeats", type=int, default=3, help="timed repetitions of the whole sweep; the best counts "
                                                            "(default 3)")
+    ap.add_argument("--commands", action="store_true", help="instead: the frogsim sweep command cold and run_sweep "
+                                                            "warm on four specs (docs/sweeps.md, Measured)")
     args = ap.parse_args(argv)
+    if args.commands:
+        return commands(2)
     base = frogsim.load_scenario(BASE)
     points = grid_points(args.points)
     print(f"frogsim {frogsim.__version__} sweep benchmark: {len(points)} hip-muscle scenarios of 2 s, "

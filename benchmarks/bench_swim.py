@@ -1,12 +1,14 @@
 """Speed of the coupled robot simulation: 10 swim cycles of the full robot on one core.
 
-Run:  python benchmarks/bench_swim.py [--cycles N] [--repeats N]
+Run:  python benchmarks/bench_swim.py [--cycles N] [--repeats N] [--recovery spring]
 
 Case
     The shipped ``swim`` scenario with ``robot.recovery = "muscle"``: the full robot, two
     antagonistic DMSP-20 muscles per joint (12 muscles, 24 valves), free in water (strip drag,
     added mass, buoyancy), the pump on, the paper's 1 s / 1 s open-loop timing, 10 cycles = 20 s of
     simulated time at MuJoCo's 1 ms step, the pneumatics adapting their own steps inside it.
+    ``--recovery spring``: the shipped ``swim`` scenario as it is (six driving muscles, springs
+    recover the legs).
 
 What is timed
     ``frogsim.engine.coupled.run_coupled`` on a freshly built model, best of N: the whole loop
@@ -37,6 +39,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--cycles", type=int, default=10)
     ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--recovery", choices=("muscle", "spring"), default="muscle",
+                    help="muscle: the full robot (default); spring: the shipped swim scenario as it is")
     args = ap.parse_args(argv)
     if hasattr(os, "sched_setaffinity"):
         cpu = min(os.sched_getaffinity(0))
@@ -58,7 +62,7 @@ def main(argv=None) -> int:
             call_model_data(step2, m, d)
 
     raw = frogsim.load_robot_scenario("swim").raw
-    raw = frogsim.with_overrides(raw, {"robot.recovery": "muscle"})
+    raw = frogsim.with_overrides(raw, {"robot.recovery": args.recovery})
     rs = frogsim.load_robot_scenario(raw, cycles=args.cycles)
     print(f"frogsim {frogsim.__version__}, MuJoCo {mujoco.__version__}, Numba {numba.__version__}, "
           f"Python {sys.version.split()[0]}")

@@ -7,7 +7,14 @@ from __future__ import annotations
 
 import copy
 import math
+import os
+import pickle
 import tomllib
+
+try:
+    import fcntl
+except ImportError:                   # no flock: each xdist worker computes its own
+    fcntl = None
 
 import pytest
 
@@ -74,17 +81,44 @@ def paper_cycle_raw() -> dict:
 
 
 @pytest.fixture(scope="session")
-def study():
-    """study(name) -> StudyData, each registered study computed once per test session (the paper
-    and design tests and the README check share the runs)."""
+def study(tmp_path_factory):
+    """study(name) -> StudyData, each registered study computed once per test run (the paper and
+    design tests, the figures and the README check share the runs): in one process, or across
+    pytest-xdist's workers, where the first to need a study computes it and the others read it."""
     from frogsim.studies import run_study
+    shared = _run_folder(tmp_path_factory, "studies")
     cache = {}
 
     def get(name):
         if name not in cache:
-            cache[name] = run_study(name)
+            cache[name] = run_study(name) if shared is None else _computed_once(shared, name, run_study)
         return cache[name]
     return get
+
+
+def _run_folder(tmp_path_factory, name: str):
+    """A folder every xdist worker of this test run sees (None without xdist, or without flock)."""
+    uid = os.environ.get("PYTEST_XDIST_TESTRUNUID")
+    if uid is None or fcntl is None:
+        return None
+    folder = tmp_path_factory.getbasetemp().parent / f"{name}-{uid}"
+    folder.mkdir(exist_ok=True)
+    return folder
+
+
+def _computed_once(folder, name: str, compute):
+    """compute(name), pickled into folder by whichever worker gets there first; the others wait on
+    its lock and read that."""
+    path = folder / f"{name}.pickle"
+    with open(folder / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if path.exists():
+            return pickle.loads(path.read_bytes())
+        data = compute(name)
+        part = path.with_name(path.name + ".part")
+        part.write_bytes(pickle.dumps(data))
+        os.replace(part, path)
+        return data
 
 
 # --- CSV headers ----------------------------------------------------------------------------------
@@ -112,3 +146,37 @@ def assert_unit_headers(path):
         assert unit in CSV_UNITS, f"{path.name}: {col!r} has an unknown unit {unit!r}"
         assert table[col].dtype.kind == "f", f"{path.name}: {col!r} holds text"
     return table
+
+
+# --- the order the test files are handed to pytest-xdist's workers --------------------------------
+#: the test files that take longest, longest first (each run on its own, `python3 -m pytest
+#: tests/FILE`, by CPU time; every other file takes under 20 s). `--dist loadfile` hands a worker
+#: the next whole file when it runs short of work; pytest-xdist's own order puts the files with
+#: the most tests first, which leaves long files of few tests (a fuzzer, a compilation from scratch,
+#: a killed sweep) for the end, where one worker runs them while the other has nothing left. Handed
+#: out longest first, the short files come last and fill in. A file missing here only runs later.
+LONGEST_FIRST = (
+    "test_doc_blocks.py", "test_optimize_gait.py", "test_firmware_laws.py", "test_controller_kinds.py",
+    "test_warmup.py", "test_firmware_e2e.py", "test_firmware_numbers.py", "test_figure_layout.py",
+    "test_studies.py", "test_cli_rules.py", "test_sweep_run.py", "test_sweep_resume.py",
+    "test_firmware_faults.py", "test_firmware_encoders.py", "test_control.py", "test_progress.py",
+    "test_cli.py", "test_fuzz.py", "test_outputs.py", "test_firmware_laws_avr.py", "test_fit_force.py",
+    "test_swim_cli.py", "test_csv_headers.py", "test_tables.py", "test_output_grid.py",
+)
+
+
+def pytest_configure(config):
+    # keep the collection's order of files (below) rather than xdist's reordering by test count
+    if getattr(config.option, "loadscopereorder", None) is not None:
+        config.option.loadscopereorder = False
+
+
+def pytest_collection_modifyitems(config, items):
+    """The files in LONGEST_FIRST's order, then the others, most tests first (as xdist would have
+    them); each file's tests keep their order."""
+    rank = {name: k for k, name in enumerate(LONGEST_FIRST)}
+    count: dict = {}
+    for item in items:
+        count[item.path] = count.get(item.path, 0) + 1
+    position = {id(item): k for k, item in enumerate(items)}
+    items.sort(key=lambda item: (rank.get(item.path.name, len(rank)), -count[item.path], position[id(item)]))

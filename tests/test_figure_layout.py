@@ -28,7 +28,7 @@ from sweep_helpers import GRID, write_case
 import frogsim._plotting as plotting
 from frogsim._plotting import layout_problems
 from frogsim.cli import main
-from frogsim.studies import STUDIES, run_study
+from frogsim.studies import STUDIES
 
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
 
@@ -54,8 +54,9 @@ def assert_clean(seen: dict, at_least: int = 1) -> None:
 
 # --- the registered studies ---------------------------------------------------------------------------
 @pytest.mark.parametrize("name", list(STUDIES))
-def test_every_study_figure_hides_nothing(name, checked, tmp_path):
-    STUDIES[name].draw(run_study(name), str(tmp_path / f"{name}.png"))
+def test_every_study_figure_hides_nothing(name, checked, tmp_path, study):
+    import copy
+    STUDIES[name].draw(copy.deepcopy(study(name)), str(tmp_path / f"{name}.png"))   # the shared run, untouched
     assert_clean(checked)
 
 

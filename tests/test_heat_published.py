@@ -18,6 +18,9 @@ with m = p V/(R T): T_a - T ~ exp(-t/tau), so a straight-line fit of ln|T_a - T|
 tau and h, with the regression's own interval. That h comes from the measured points and these
 closed forms only (numpy/scipy, no frogsim engine); frogsim's fit of the same points
 (FIT-*-recovery.toml: the engine, the orifice, the residual flow) must agree with it.
+
+docs/fitting.md's "After the flow" table and prose are these fits and closed forms, at the
+precision the page writes them.
 """
 from __future__ import annotations
 
@@ -56,19 +59,33 @@ def closed_form_h(times, temps, T_a, filling, confidence=0.95):
     return -scale * r.slope, scale * q * r.stderr
 
 
-@pytest.mark.parametrize("name, data", [("discharge", DISCHARGE), ("filling", FILLING)])
-def test_fitted_h_agrees_with_the_recovery_time_constant(name, data):
+DATA = {"discharge": DISCHARGE, "filling": FILLING}
+
+
+@pytest.fixture(scope="module")
+def recovery():
+    """recovery(name) -> (fit spec, its experiment, fit result), each fit run once for this file."""
     from frogsim.fit import fit, load_fit_spec
-    times, temps, T_a, filling = data
+    done = {}
+
+    def get(name):
+        if name not in done:
+            spec = load_fit_spec(EXAMPLE / f"FIT-{name}-recovery.toml", starts=1)
+            done[name] = (spec, spec.experiments[0], fit(spec))
+        return done[name]
+    return get
+
+
+@pytest.mark.parametrize("name", ["discharge", "filling"])
+def test_fitted_h_agrees_with_the_recovery_time_constant(name, recovery):
+    times, temps, T_a, filling = DATA[name]
     h_cf, half = closed_form_h(times, temps, T_a, filling)
     assert 0.5 < h_cf < 5.0               # free convection of air at 1 bar: a few W/(m^2 K)
-    spec = load_fit_spec(EXAMPLE / f"FIT-{name}-recovery.toml", starts=1)
-    e = spec.experiments[0]
+    spec, e, res = recovery(name)
     # the spec starts where the data say: the first point, the ambient, no other fitted setting
     assert e.scenario.source.initial_temperature == pytest.approx(temps[0])
     assert e.scenario.air.ambient_temperature == pytest.approx(T_a)
     np.testing.assert_allclose(e.trace.time + times[0], times, atol=1e-9)
-    res = fit(spec)
     h, lo, hi = res.values[0], res.ci_low[0], res.ci_high[0]
     print(f"{name}: frogsim h = {h:.3f} W/(m^2 K) ({lo:.3f} .. {hi:.3f}); closed form "
           f"{h_cf:.3f} +- {half:.3f}")
@@ -77,3 +94,47 @@ def test_fitted_h_agrees_with_the_recovery_time_constant(name, data):
     assert lo > 0.0                                           # the data do see the wall's heat
     swing = max(temps) - min(temps)
     assert res.rms_residual[(e.name, "source temperature")] < 0.15 * swing
+
+
+def _tau(times, temps, T_a):
+    """The recovery's time constant [s]: the closed form's straight line through ln|T_a - T|."""
+    return -1.0 / stats.linregress(np.asarray(times, float), np.log(np.abs(T_a - np.asarray(temps, float)))).slope
+
+
+def test_the_pages_recovery_table_and_prose(recovery):
+    """docs/fitting.md, "After the flow": each row (window, points, frogsim's h and interval, its rms
+    temperature residual, the measured swing, the closed form's h) and the prose under it (how far
+    the two h differ, the h it rounds them to, the discharge's tau with the ambient 2 K off)."""
+    from page_numbers import NUM, check, page, section, table_rows
+    doc = page("fitting.md")
+    rows = table_rows(doc, "| recovery | points |")
+    assert len(rows) == 2, rows                            # the two runs
+    text = " ".join(section(doc, "**After the flow**", "What this means for the robot's").split())
+    rel = {}
+    for name in ("discharge", "filling"):
+        times, temps, T_a, filling = DATA[name]
+        _, e, res = recovery(name)
+        h, lo, hi = res.values[0], res.ci_low[0], res.ci_high[0]
+        h_cf, half = closed_form_h(times, temps, T_a, filling)
+        cells = next(v for k, v in rows.items() if k.startswith(name + ","))
+        check(cells[0], [(name + ", " + NUM + "-", times[0]), ("-" + NUM + " s,", times[-1]),
+                         ("T_a = " + NUM + " K$", T_a)])
+        check(cells[1], [("^" + NUM + "$", len(times))])
+        check(cells[2], [("^" + NUM + " ", h), (r"\(" + NUM + " ", lo), (r"\.\. " + NUM + r"\)", hi)])
+        check(cells[3], [("^" + NUM + " K$", res.rms_residual[(e.name, "source temperature")])])
+        check(cells[4], [("^" + NUM + " K$", max(temps) - min(temps))])
+        check(cells[5], [("^" + NUM + " ±", h_cf), ("± " + NUM + "$", half)])
+        rel[name] = 100 * abs(h - h_cf) / h_cf
+        check(text, [(r"h ≈ " + NUM + r" W/\(m² K\) after the " + name, h)] if name == "discharge" else
+              [(r"and " + NUM + r" W/\(m² K\) after the filling", h)])
+    check(text, [(r"differ by " + NUM + " % and", rel["discharge"]), (r"% and " + NUM + " %, about", rel["filling"])])
+    times, temps, T_a, _ = DISCHARGE
+    tau = {d: _tau(times, temps, T_a + d) for d in (-2.0, 0.0, 2.0)}
+    check(text, [(r"τ by −" + NUM + " % /", 100 * (tau[0.0] - tau[-2.0]) / tau[0.0]),
+                 (r"% / \+" + NUM + r" % \(", 100 * (tau[2.0] - tau[0.0]) / tau[0.0]),
+                 (r"\(" + NUM + " s, [\\d.]+ s against", tau[-2.0]), (r" s, " + NUM + " s against", tau[2.0]),
+                 (r"against " + NUM + r" s\)", tau[0.0])])
+    # the robot's source tanks against these data: still air 1-2 W/(m^2 K), the recoveries' h
+    tail = " ".join(section(doc, "What this means for the robot's parameter set").split())
+    lo_h, hi_h = sorted(recovery(n)[2].values[0] for n in ("discharge", "filling"))
+    check(tail, [(r"still air \(" + NUM + "-", lo_h), (r"still air \(\d+-" + NUM + r" W", hi_h)])

@@ -7,6 +7,7 @@ an upward import in a copy of the package and checks the checker catches it.
 from __future__ import annotations
 
 import ast
+import functools
 import shutil
 from pathlib import Path
 
@@ -58,33 +59,40 @@ def _type_checking(node) -> bool:
 
 def imports(root: Path = PACKAGE) -> dict[str, set[str]]:
     """module -> the modules (frogsim.* or third-party top names) it imports."""
-    out = {}
-    for path in sorted(root.rglob("*.py")):
-        mod = _module_name(path, root)
-        tree = ast.parse(path.read_text(), str(path))
-        found = set()
+    paths = sorted(root.rglob("*.py"))
+    files = frozenset(path.relative_to(root).as_posix() for path in paths)
+    return {_module_name(path, root): set(_module_imports(path.read_text(), str(path.relative_to(root)), files))
+            for path in paths}
 
-        def visit(node):
-            for child in ast.iter_child_nodes(node):
-                if isinstance(child, ast.If) and _type_checking(child):
-                    for sub in child.orelse:
-                        visit(sub)
-                    continue
-                if isinstance(child, ast.Import):
-                    found.update(a.name for a in child.names)
-                elif isinstance(child, ast.ImportFrom) and child.module and child.level == 0:
-                    found.add(child.module)
-                    found.update(f"{child.module}.{a.name}" for a in child.names
-                                 if (root / Path(*child.module.split(".")[1:]) / f"{a.name}.py").exists())
-                visit(child)
-        visit(tree)
-        out[mod] = found
-    return out
+
+@functools.lru_cache(maxsize=None)
+def _module_imports(text: str, name: str, files: frozenset) -> frozenset:
+    """What one module's text imports (``files``: the tree's modules, to tell ``from frogsim.x import
+    y`` of a module y from that of a name): a module read again unchanged, in the package or a copy
+    of it, is not parsed again."""
+    tree = ast.parse(text, name)
+    found = set()
+
+    def visit(node):
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.If) and _type_checking(child):
+                for sub in child.orelse:
+                    visit(sub)
+                continue
+            if isinstance(child, ast.Import):
+                found.update(a.name for a in child.names)
+            elif isinstance(child, ast.ImportFrom) and child.module and child.level == 0:
+                found.add(child.module)
+                found.update(f"{child.module}.{a.name}" for a in child.names
+                             if "/".join([*child.module.split(".")[1:], f"{a.name}.py"]) in files)
+            visit(child)
+    visit(tree)
+    return frozenset(found)
 
 
 def upward_imports(root: Path = PACKAGE) -> list[str]:
     bad = []
-    for mod, deps in imports(root).items():
+    for mod, deps in _imports_of(root).items():
         here = RANK[_layer(mod)]
         for dep in deps:
             if dep.split(".")[0] != "frogsim" or dep == "frogsim":
@@ -136,8 +144,14 @@ def imports_cache(root: Path) -> dict:
     return _CACHE[root]
 
 
+def _imports_of(root: Path) -> dict:
+    """A tree's imports, read once for this file (the package's tests all read the same tree; a
+    planted copy is read once all its plants are in)."""
+    return imports_cache(root)
+
+
 def test_every_module_has_a_layer():
-    unknown = sorted({_layer(m) for m in imports()} - set(RANK))
+    unknown = sorted({_layer(m) for m in _imports_of(PACKAGE)} - set(RANK))
     assert not unknown, f"modules outside the layer list (add them to LAYERS and DESIGN.md): {unknown}"
 
 
@@ -150,23 +164,25 @@ def test_no_import_cycles():
 
 
 def test_only_the_units_module_imports_pint():
-    users = sorted(m for m, deps in imports().items() if any(d.split(".")[0] == "pint" for d in deps))
+    users = sorted(m for m, deps in _imports_of(PACKAGE).items() if any(d.split(".")[0] == "pint" for d in deps))
     assert set(users) <= PINT_ALLOWED, users
 
 
 def test_a_planted_upward_import_is_caught(tmp_path):
+    """Three plants in one copy of the package, read once: an upward import, pint outside the units
+    module, and a cycle (two modules of one layer importing each other); each check finds its own
+    and only the upward import is upward."""
     copy = tmp_path / "frogsim"
     shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
     target = copy / "physics" / "gas.py"
     target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.studies import paper\n")
-    assert upward_imports(copy) == ["frogsim.physics.gas imports frogsim.studies",
-                                    "frogsim.physics.gas imports frogsim.studies.paper"]
     (copy / "physics" / "flow.py").write_text((copy / "physics" / "flow.py").read_text()
                                               + "\nimport pint\n")
-    assert "frogsim.physics.flow" in [m for m, d in imports(copy).items() if "pint" in d]
-    # and a cycle: two modules of one layer importing each other
     (copy / "physics" / "air.py").write_text((copy / "physics" / "air.py").read_text()
                                              + "\nfrom frogsim.physics import hydro\n")
     (copy / "physics" / "hydro.py").write_text((copy / "physics" / "hydro.py").read_text()
                                                + "\nfrom frogsim.physics import air\n")
+    assert upward_imports(copy) == ["frogsim.physics.gas imports frogsim.studies",
+                                    "frogsim.physics.gas imports frogsim.studies.paper"]
+    assert "frogsim.physics.flow" in [m for m, d in _imports_of(copy).items() if "pint" in d]
     assert ["frogsim.physics.air", "frogsim.physics.hydro"] in cycles(copy)

@@ -12,6 +12,7 @@ is not an offset.)
 from __future__ import annotations
 
 import ast
+import functools
 import shutil
 from pathlib import Path
 
@@ -66,23 +67,30 @@ def offset_violations(root: Path) -> list[str]:
     bad = []
     for path in sorted(root.rglob("*.py")):
         rel = path.relative_to(root).as_posix()
-        if rel in LAYOUT_MODULES:
-            continue
-        tree = ast.parse(path.read_text())
-        for node in ast.walk(tree):
-            hit = False
-            if _name(node) in RAW_OFFSETS and not isinstance(node, ast.alias):
-                hit = True
-            elif isinstance(node, ast.alias) and node.name in RAW_OFFSETS:
-                hit = True
-            elif isinstance(node, ast.Subscript) and _name(node.value) in STATE_ARRAYS:
-                hit = any(isinstance(s, ast.BinOp) and not _constant(s) and not _row_before(s)
-                          for s in ast.walk(node.slice))
-            elif isinstance(node, ast.BinOp) and not _constant(node):
-                hit = any(_name(side) in FIXED_COLUMNS for side in (node.left, node.right))
-            if hit:
-                bad.append(f"{rel}:{node.lineno}: {ast.get_source_segment(path.read_text(), node)}")
+        if rel not in LAYOUT_MODULES:
+            bad.extend(_file_violations(rel, path.read_text()))
     return bad
+
+
+@functools.lru_cache(maxsize=None)
+def _file_violations(rel: str, text: str) -> tuple[str, ...]:
+    """One module's offsets (a function of its path and text alone: a file read again unchanged,
+    in the package or a copy of it, is not parsed again)."""
+    bad = []
+    for node in ast.walk(ast.parse(text)):
+        hit = False
+        if _name(node) in RAW_OFFSETS and not isinstance(node, ast.alias):
+            hit = True
+        elif isinstance(node, ast.alias) and node.name in RAW_OFFSETS:
+            hit = True
+        elif isinstance(node, ast.Subscript) and _name(node.value) in STATE_ARRAYS:
+            hit = any(isinstance(s, ast.BinOp) and not _constant(s) and not _row_before(s)
+                      for s in ast.walk(node.slice))
+        elif isinstance(node, ast.BinOp) and not _constant(node):
+            hit = any(_name(side) in FIXED_COLUMNS for side in (node.left, node.right))
+        if hit:
+            bad.append(f"{rel}:{node.lineno}: {ast.get_source_segment(text, node)}")
+    return tuple(bad)
 
 
 def test_no_module_outside_the_layout_computes_an_offset():
@@ -99,14 +107,26 @@ def test_no_module_outside_the_layout_computes_an_offset():
     "def f(y, i):\n    return y[:, L.Y_PS + i]\n",
     "def f(n):\n    return C.R_FIXED + 2 * n\n",
 ])
-def test_the_scan_finds_a_planted_offset(tmp_path, planted):
-    copy = tmp_path / "frogsim"
+def test_the_scan_finds_a_planted_offset(package_copy, planted):
+    target = package_copy / "engine" / "result.py"
+    clean = target.read_text()
+    target.write_text(clean + "\n\n" + planted)
+    try:
+        found = offset_violations(package_copy)
+    finally:
+        target.write_text(clean)
+    assert found and all(f.startswith("engine/result.py:") for f in found)
+
+
+@pytest.fixture(scope="module")
+def package_copy(tmp_path_factory):
+    """One copy of the package for the planted offsets, clean as the package is; each test plants
+    its offset in it and puts the file back."""
+    copy = tmp_path_factory.mktemp("package") / "frogsim"
     shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
     assert offset_violations(copy) == []
-    target = copy / "engine" / "result.py"
-    target.write_text(target.read_text() + "\n\n" + planted)
-    found = offset_violations(copy)
-    assert found and all(f.startswith("engine/result.py:") for f in found)
+    yield copy
+    assert offset_violations(copy) == []          # every plant was taken out again
 
 
 def test_labels_follow_the_documented_order():

@@ -160,3 +160,30 @@ def test_the_swim_source_pressure_per_cycle_and_the_one_cycle_speed():
                  (r"speed is " + NUM + " m/s against", s1["mean_speed_m_per_s"]),
                  (r"against " + NUM + " m/s over 10 cycles", s10["mean_speed_m_per_s"])])
     assert s10["cycles"] == 10
+
+
+# --- the joint-control benchmark's robot ------------------------------------------------------------
+def test_the_joint_control_benchmarks_robot_tracks_and_steps_as_the_page_says():
+    """The robot of benchmarks/bench_joint_control.py (the full robot swimming, six joint-angle
+    controllers on 1 Hz sines), run here as the benchmark builds it: the hip's tracking error the
+    page quotes ("In water") and the right-hand sides per MuJoCo step ("Cost"), neither a wall-clock
+    figure."""
+    import sys
+
+    import frogsim
+    from page_numbers import ROOT
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        from bench_joint_control import scenario
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    sc = scenario(True)
+    assert len(sc.muscles) == 12                          # "the 12-muscle circuit"
+    r = frogsim.swim(sc)
+    m = r.control_metrics()
+    text = " ".join(DOC.split())
+    for side in ("left", "right"):
+        check(text, [(r"swimming robot, hip RMS error " + NUM + " deg", m[f"hip_{side}"]["tracking_error_rms_deg"])])
+    cost = " ".join(section(DOC, "### Cost (benchmarks/bench_joint_control.py)").split())
+    check(cost, [(r"the pneumatic driver \(about " + NUM + " right-hand sides of the 12-muscle circuit per step",
+                  r.stats["rhs_evaluations"] / r.stats["mujoco_steps"])])

@@ -77,3 +77,11 @@ def test_the_pause_near_2_3_bar_is_fig15s(study):
         slow = (t >= 0.1) & (t <= 0.45) & (np.abs(np.gradient(p, t)) < 1.0)
         assert f"{t[slow].min():.1f}" == m.group(2) and f"{t[slow].max():.2f}" == m.group(3), (src, t[slow])
         assert f"{p[slow].min():.1f}" == f"{p[slow].max():.1f}" == m.group(1), (src, p[slow])
+    # "With a 3 bar source the muscle settles at 2.5 bar, so 2.3 bar is already past its 90 % level":
+    # the pause's level again, above 90 % of the way from the 3 bar run's start to where it settles
+    again = re.search(r"settles at [\d.]+ bar, so (\d+\.\d) bar is already past its 90 % level", text)
+    assert again and again.group(1) == m.group(1), text
+    p3 = tab["hip pressure 3 bar source saturated [bar gauge]"].to_numpy()
+    settled = study("fig15").summary["source_pressure_sweep"]["saturated"][0]
+    assert settled["source_pressure_bar_gauge"] == 3
+    assert p3[0] + 0.9 * (settled["final_muscle_pressure_bar_gauge"] - p3[0]) < float(again.group(1))

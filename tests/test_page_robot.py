@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import frogsim
-from page_numbers import NUM, check, page, same_to_figures, section, table_rows
+from page_numbers import NUM, ROOT, check, page, same_to_figures, section, table_rows
 
 DOC = page("robot.md")
 SIGNED = r"([+−-]?\d+(?:\.\d+)?)"
@@ -26,8 +26,13 @@ def swim10():
     return swim_run()            # `frogsim swim swim --cycles 10`: the scenario's 10 cycles, 10 ms output
 
 
-def test_leg_in_air_table():
-    s = frogsim.swim("leg-in-air").summary()      # what `frogsim reproduce leg-in-air` runs
+@pytest.fixture(scope="module")
+def leg_in_air():
+    return frogsim.swim("leg-in-air")             # what `frogsim reproduce leg-in-air` runs
+
+
+def test_leg_in_air_table(leg_in_air):
+    s = leg_in_air.summary()
     rows = table_rows(DOC, "Leg in air (`frogsim reproduce leg-in-air")
     legs = ("hip_left", "knee_left", "ankle_left")
     delay = rows["joint delay hip / knee / ankle"][1]
@@ -247,7 +252,7 @@ def test_the_full_robot_stalls_as_the_page_says(swim10):
     assert all(f"{g:.1f}" == m.group(2) for g in at_end[5:]), at_end
 
 
-def test_what_the_vented_muscles_still_pull_in_air():
+def test_what_the_vented_muscles_still_pull_in_air(leg_in_air):
     """The prose under the leg-in-air figure: the driving muscles' tensions and the joints' angles
     (hip, knee, ankle of the left leg) on average over the run's last 0.3 s, at the page's
     precision."""
@@ -257,7 +262,7 @@ def test_what_the_vented_muscles_still_pull_in_air():
                   r"(\d+\.\d) s\) and hold the legs a few degrees open against the springs \((\d+\.\d), (\d+\.\d) and "
                   r"(\d+\.\d) deg on average then\)", text)
     assert m, text
-    r = frogsim.swim("leg-in-air")
+    r = leg_in_air
     t = np.asarray(r.t)
     late = t >= t[-1] - float(m.group(4)) - 1e-9
     df = r.to_dataframe()
@@ -266,3 +271,18 @@ def test_what_the_vented_muscles_still_pull_in_air():
     cols = [list(r.model.joint_names).index(j) for j in legs]
     ang = [f"{np.degrees(r.joint_angles[late][:, c]).mean():.1f}" for c in cols]
     assert pull == list(m.group(1, 2, 3)) and ang == list(m.group(5, 6, 7)), (pull, ang)
+
+
+def test_the_readmes_swim_figures_are_this_run(swim10):
+    """README.md, "The robot swimming": `frogsim swim swim --cycles 10` with the paper's timing and
+    spring recovery, the run the swimming table's first column is."""
+    s = swim10.summary()
+    readme = (ROOT / "README.md").read_text()
+    text = " ".join(readme[readme.index("With the paper's timing and spring recovery:"):].split())
+    check(text, [(r"recovery: " + NUM + " m/s", s["mean_speed_m_per_s"]),
+                 (r"m/s \(" + NUM + " body lengths/s", s["mean_speed_body_lengths_per_s"]),
+                 (r"body lengths/s\), " + NUM + " m and", s["distance_per_cycle_m"]),
+                 (r"m and " + NUM + " L of air per cycle", s["air_used_per_cycle_L_std"]),
+                 (r"falling from " + NUM + " to", s["source_pressure_each_cycle_start_bar_gauge"][0]),
+                 (r"from \d+ to " + NUM + " bar in", s["source_pressure_after_cycles_bar_gauge"]),
+                 (r"bar in " + NUM + " cycles", s["cycles"])])

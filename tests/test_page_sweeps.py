@@ -12,7 +12,7 @@ import tomllib
 import pytest
 
 from frogsim.cli import main
-from page_numbers import ROOT, page
+from page_numbers import NUM, ROOT, check, page, section
 
 DOC = page("sweeps.md")
 EXAMPLE = ROOT / "examples" / "sweep-source-saturation.toml"
@@ -132,3 +132,33 @@ def test_the_label_example_is_the_example_sweeps_third_branch_limit():
     spec = load_spec(root / "examples" / "sweep-source-saturation.toml")
     limit = next(p for p in spec.parameters if p.path == "supply.branch_limit")
     assert _written_text(limit.written[2]) == label == f"{15 * 12 ** (2 / 7):.6g} L/min"
+
+
+def test_the_units_example_and_the_time_series_size():
+    """"Units: one convention": a branch limit written "45 L/min" is stored as the page says, with
+    the attributes it names, and a final_pressure in Pa with its display factor (one point of the
+    example spec, run in memory); "Limits": the example's time series has 201 samples of float64 a
+    point, so 10,000 points hold the megabytes the page gives per state."""
+    from frogsim.sweep import load_spec, run_sweep
+    raw = _with(**{"sweep/parameters": {"source.initial_pressure_gauge": ["6 bar"], "supply.branch_limit": ["45 L/min"],
+                                        "muscles.hip.motion.fraction": [1.0]}})
+    ds = run_sweep(load_spec(raw, base_dir=ROOT / "examples"), workers=1, progress=False)
+    text = " ".join(DOC.split())
+    m = re.search(r'a branch limit written `"45 L/min"` is stored as `([\d.e+-]+)` with `units = "([^"]+)"`, '
+                  r'`display_units = "([^"]+)"`, `display_factor = ([\d.e+-]+)`', text)
+    assert m, text[:200]
+    limit = ds["supply.branch_limit"]
+    assert float(m.group(1)) == pytest.approx(float(limit.values[0]), rel=1e-12)
+    assert (m.group(2), m.group(3)) == (limit.attrs["units"], limit.attrs["display_units"])
+    assert m.group(4) == f"{limit.attrs['display_factor']:.5g}"
+    m = re.search(r'a `final_pressure` of ([\d.]+) bar gauge is stored as `([\d.]+)` with `units = "([^"]+)"`, '
+                  r'`display_units = "([^"]+)"`, `display_factor = ([\d.e+-]+)`', text)
+    p = ds["final_pressure"]
+    assert (m.group(3), m.group(4)) == (p.attrs["units"], p.attrs["display_units"])
+    assert float(m.group(5)) == p.attrs["display_factor"]
+    assert m.group(2) == repr(float(m.group(1)) * p.attrs["display_factor"])
+    series = ds["muscle_pressure"]
+    limits = " ".join(section(DOC, "## Limits").split())
+    m = re.search(r"10,000 points x (\d+) samples is (\d+) MB per state", limits)
+    assert int(m.group(1)) == series.sizes["time"] and series.dtype.itemsize == 8
+    check(limits, [(r"samples is " + NUM + " MB per state", 10_000 * series.sizes["time"] * 8 / 1e6)])

@@ -113,6 +113,18 @@ def test_force_hysteresis_table(study):
                  (r"the forces to " + NUM + " N rms", loop["force_rms_error_N"]),
                  (r"mean height " + NUM + " N fitted", loop["mean_height_fitted_N"]),
                  (r"against\s+" + NUM + r" N\s+published", loop["mean_height_published_N"])])
+    # the paragraph under the table: the loop width without hysteresis, what the published-size loop
+    # adds, and the loops' heights at the co-contraction pressure (2 c p_g: every element sliding)
+    from frogsim.studies.hysteresis import CO_CONTRACTION_BAR, runs as hysteresis_runs
+    slip = {key: c for key, _, c, _ in hysteresis_runs()}
+    assert CO_CONTRACTION_BAR == 3.0
+    text = " ".join(README[README.index("The loop width is the angle"):README.index("## Wall heat transfer")].split())
+    width = {key: r["sine"]["loop_width_deg"] for key, r in runs.items()}
+    check(text, [(r"opens it to " + NUM + " deg without hysteresis", width["off"]),
+                 (r"loop \(" + NUM + " N high in each muscle at 3 bar", 2 * slip["published"] * 3.0),
+                 (r"widens it by " + NUM + " deg", width["published"] - width["off"]),
+                 (r"10 N/bar \(" + NUM + r" N\) doubles it", 2 * slip["10_N_per_bar"] * 3.0)])
+    assert round(width["10_N_per_bar"] / width["off"]) == 2                   # "doubles it"
 
 
 def test_heat_table(study):
