@@ -1,8 +1,8 @@
 """Controller kinds: one module each, found through the registry; their settings checked like any
 other field (units by dimension, ranges that make physical sense); a Python law's metrics carry
 its own label and setpoint; the registry refuses two kinds with one code or name, a code no kind
-declares stops a run instead of holding the valves, and a new kind is one new module, nothing
-else edited."""
+declares stops a run instead of holding the valves, `frogsim firmware` refuses a kind without a
+firmware twin, and a new kind is one new module, nothing else edited."""
 from __future__ import annotations
 
 import dataclasses
@@ -172,6 +172,16 @@ def test_the_registry_finds_every_shipped_kind_and_the_loader_knows_the_same_nam
     assert twins == ["program", "bang-bang", "pwm", "sliding-mode", "joint-angle"]
 
 
+def test_every_firmware_twin_is_checked_against_its_c():
+    """tests/test_firmware_laws.py runs each kind's C twin beside its Numba twin (``_both(lib,
+    module, ...)`` on random inputs): a kind whose twin has no such test fails here."""
+    from frogsim.control import kinds
+    text = (Path(__file__).with_name("test_firmware_laws.py")).read_text()
+    for k in kinds.with_twin():
+        module = k.module.rsplit(".", 1)[1]
+        assert f"_both(lib, {module}," in text, f"kind {k.name!r}: no twin test in tests/test_firmware_laws.py"
+
+
 def test_a_row_whose_code_no_kind_declares_stops_the_run_instead_of_holding():
     """The dispatch has no fallback: a row of code 9 (no kind's) is an error, not a hold."""
     from frogsim.circuit.model import build_model
@@ -198,6 +208,22 @@ def test_a_firmware_block_whose_code_has_no_twin_is_an_error():
     assert out[0] == 1
     with pytest.raises(ValueError, match="no controller kind's with a firmware twin"):
         fwm._plan_modes(np.array([9.0]), *rest, -1.0, 10.0, fwm.firmware_memory(plan), 0, adc, out)
+
+
+def test_firmware_refuses_a_kind_without_a_twin_naming_the_controller_and_the_kind(tmp_path, monkeypatch, capsys):
+    """bang-bang declared without its twin (as a kind that has none): `frogsim firmware` on
+    hold-3bar (controller "hold") exits 2 with one line and writes nothing."""
+    from frogsim.cli import main
+    from frogsim.control import kinds
+    monkeypatch.setitem(kinds.KINDS, "bang-bang", dataclasses.replace(kinds.KINDS["bang-bang"], firmware=None))
+    out = tmp_path / "fw"
+    code = main(["firmware", "hold-3bar", "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2, err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert "controllers.hold.kind = 'bang-bang'" in err and "controller 'hold'" in err, err
+    assert "no firmware twin" in err, err
+    assert not out.exists()
 
 
 # --- what a search reads: the tunable gains -----------------------------------------------------------
@@ -372,7 +398,7 @@ KIND = ControllerKind(settings=FixedDutySettings, code=CODE, law=law, firmware=N
 '''
 
 RUN = r'''
-import json
+import json, subprocess, sys
 import numpy as np
 import frogsim
 from frogsim.sweep import run_sweep
@@ -409,6 +435,14 @@ for v in (0.2, 0.6):
     r = frogsim.simulate(frogsim.load_scenario("one-hip.toml").replace({"controllers.loop.duty": v}))
     single.append(float((r.charged_mass("hip")[-1] - r.charged_mass("hip")[0]) / r.reference_density))
 out["single"] = single
+# frogsim firmware on a vent-always scenario: refused, nothing written
+with open("vent.toml", "w") as f:
+    f.write('name = "vent"\nduration = "1 s"\n[supply]\nmode = "none"\n'
+            '[muscles.hip]\ntype = "hip"\nmotion = { kind = "constant" }\n'
+            '[controllers.vent]\nkind = "vent-always"\nmuscle = "hip"\n[firmware]\n')
+fw = subprocess.run([sys.executable, "-m", "frogsim", "firmware", "vent.toml", "--out", "fw"],
+                    capture_output=True, text=True)
+out["firmware"] = {"code": fw.returncode, "stderr": fw.stderr}
 print(json.dumps(out))
 '''
 
@@ -418,7 +452,7 @@ def test_a_new_kind_is_one_new_module(tmp_path):
     """In a copy of the package, two kinds added as one new module each, no other file edited: a
     "vent-always" law (no firmware twin) vents its muscle from the first sample on, down to the
     exhaust's pressure; a "fixed-duty" law keeps its charge valve open its duty's fraction of the
-    time, in simulate and in a sweep."""
+    time, in simulate and in a sweep; `frogsim firmware` refuses the vent-always scenario by name."""
     src = _package_copy(tmp_path, {"vent_always.py": _kind_module("vent-always", 9.0, "VentAlwaysSettings"),
                                    "fixed_duty.py": FIXED_DUTY})
     work = tmp_path / "run"
@@ -447,3 +481,10 @@ def test_a_new_kind_is_one_new_module(tmp_path):
     # the sweep's points are the single runs (air charged over the run, a standard volume [m^3])
     np.testing.assert_allclose(out["sweep"], out["single"], rtol=1e-12)
     assert out["sweep"][1] > out["sweep"][0] > 0.0     # more duty, more air
+    # frogsim firmware: exit 2, one line naming the controller and its kind, no folder
+    fw = out["firmware"]
+    assert fw["code"] == 2, fw["stderr"]
+    err = fw["stderr"].strip()
+    assert len(err.splitlines()) == 1 and err.startswith("frogsim: error: "), err
+    assert "controllers.vent.kind = 'vent-always'" in err and "no firmware twin" in err, err
+    assert not (work / "fw").exists()
