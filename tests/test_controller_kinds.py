@@ -273,6 +273,34 @@ def test_the_program_kind_has_no_row_nothing_to_tune_and_no_metrics():
     assert (k.code, k.law, k.gains, k.metrics, k.tracks) == (None, None, (), (), None)
 
 
+# --- what the engines read: setpoint and metrics ------------------------------------------------------
+#: the keys every closed-loop controller's metrics carry, whatever its kind
+COMMON = {"kind", "muscle", "muscles", "joint", "settle_s", "switchings", "switchings_charge_valve",
+          "switchings_discharge_valve", "switchings_per_s", "air_used_L_std"}
+
+
+@pytest.mark.parametrize("kind", ["bang-bang", "pwm", "sliding-mode"])
+def test_a_pressure_kind_reports_the_metrics_it_declares(kind):
+    from frogsim.control import kinds
+    from frogsim.scenario.kinds import ControllerSettings
+    r = frogsim.simulate(frogsim.load_scenario(closed_loop({"kind": kind, "setpoint": "3 bar"}, 0.3)))
+    entry = r.control_metrics()["loop"]
+    declared = kinds.KINDS[kind]
+    assert set(entry) - COMMON == set(declared.metrics)
+    assert declared.tracks == "pressure"
+    assert ControllerSettings().setpoint is None            # the base class declares it
+    assert r.model.scenario.controllers["loop"].setpoint.value == pytest.approx(3 * BAR)
+
+
+def test_the_joint_angle_kind_reports_the_metrics_it_declares():
+    from frogsim.control import kinds
+    r = frogsim.swim("hip-angle-in-air")
+    entry = r.control_metrics()["hip"]
+    declared = kinds.KINDS["joint-angle"]
+    assert set(entry) - COMMON == set(declared.metrics)
+    assert declared.tracks == "angle"
+
+
 # --- adding a kind: one new module, nothing else edited -----------------------------------------------
 def _package_copy(root: Path, modules: dict) -> Path:
     """A copy of the package under root/src with ``modules`` ({file name: text}) added to
