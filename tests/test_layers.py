@@ -186,3 +186,41 @@ def test_a_planted_upward_import_is_caught(tmp_path):
                                     "frogsim.physics.gas imports frogsim.studies.paper"]
     assert "frogsim.physics.flow" in [m for m, d in _imports_of(copy).items() if "pint" in d]
     assert ["frogsim.physics.air", "frogsim.physics.hydro"] in cycles(copy)
+
+
+#: modules outside control/kinds/ that import a kind's module by name, each with what it reads
+#: there that no declaration holds; everything else reaches the kinds through their registry
+#: (frogsim.control.kinds), so that a new kind is one new module
+KIND_IMPORTS = {
+    # the program table of the muscles without a closed-loop law; a joint's two laws sharing one
+    # loop in the board's C (fs_joint_angle_pair)
+    "frogsim.control.firmware": {"program", "joint_angle"},
+    # the angle loop's schedule in the firmware's cycle estimate
+    "frogsim.export.fit": {"joint_angle"},
+}
+
+
+def kind_imports(root: Path = PACKAGE) -> list[str]:
+    """Imports of a kind's module from outside control/kinds/ that KIND_IMPORTS does not list."""
+    folder = root / "control" / "kinds"
+    found = {p.stem for p in folder.glob("*.py")}
+    helpers = {"__init__", "spec", "common"}
+    bad = []
+    for mod, deps in imports(root).items():
+        if mod.startswith("frogsim.control.kinds"):
+            continue
+        for dep in deps:
+            parts = dep.split(".")
+            if parts[:3] == ["frogsim", "control", "kinds"] and len(parts) > 3 and parts[3] in found - helpers \
+                    and parts[3] not in KIND_IMPORTS.get(mod, ()):
+                bad.append(f"{mod} imports {dep}")
+    return sorted(bad)
+
+
+def test_the_kinds_are_reached_through_their_registry(tmp_path):
+    assert kind_imports() == []
+    copy = tmp_path / "frogsim"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    target = copy / "control" / "sampled.py"
+    target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.control.kinds import pwm\n")
+    assert kind_imports(copy) == ["frogsim.control.sampled imports frogsim.control.kinds.pwm"]

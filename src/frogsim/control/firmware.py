@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import importlib
 import subprocess
 import tempfile
 from dataclasses import dataclass, field
@@ -34,8 +35,8 @@ from frogsim._files import user_cache_folder
 from frogsim._jit import jit
 from frogsim.circuit.layout import pressure_index
 from frogsim.components import atmega2560 as chip
-from frogsim.control import fixed
-from frogsim.control.kinds import bang_bang, joint_angle, program, pwm, sliding_mode
+from frogsim.control import fixed, kinds
+from frogsim.control.kinds import joint_angle, program
 from frogsim.control.sampled import fw_dispatch
 from frogsim.control.signals import FW_MEM, SINE_N, adc_count, fw_fault
 from frogsim.control.table import (L_FAULT_AHI, L_FAULT_ALO, L_FAULT_PHI, L_FAULT_PLO, L_FW, L_JOINT1, L_KIND,
@@ -43,11 +44,10 @@ from frogsim.control.table import (L_FAULT_AHI, L_FAULT_ALO, L_FAULT_PHI, L_FAUL
 from frogsim.errors import FrogsimError, ScenarioError
 from frogsim.scenario.firmware import firmware_layout
 
-#: kind code of the table -> the kind's module (its fw_law, C_NAME, c_source)
-KIND_MODULES = {bang_bang.CODE: bang_bang, pwm.CODE: pwm, sliding_mode.CODE: sliding_mode,
-                joint_angle.CODE: joint_angle}
-#: every module with a firmware twin, in the order the C defines them
-TWINS = (program, bang_bang, pwm, sliding_mode, joint_angle)
+#: kind code of the table -> the module of the kind with that code and a firmware twin (the registry's)
+KIND_MODULES = {k.code: importlib.import_module(k.module) for k in kinds.with_twin() if k.code is not None}
+#: every kind's firmware twin, in the order the C defines them (the registry's: program first, then by code)
+TWINS = tuple(k.firmware for k in kinds.with_twin())
 
 
 @dataclass(frozen=True)
@@ -102,6 +102,16 @@ class Law:
         object.__setattr__(self, "_Pf", np.asarray(self.P, float))
         object.__setattr__(self, "_Tf", np.asarray(self.T, float))
 
+    @property
+    def kind(self):
+        """The declaration of the law's kind (:class:`frogsim.control.kinds.spec.ControllerKind`)."""
+        return kinds.of_module(self.module)
+
+    @property
+    def twin(self):
+        """The kind's firmware twin (:class:`frogsim.control.kinds.spec.FirmwareTwin`)."""
+        return self.kind.firmware
+
 
 @dataclass(frozen=True)
 class FirmwarePlan:
@@ -147,6 +157,7 @@ def firmware_plan(model) -> FirmwarePlan:
     if fw is None:
         raise ScenarioError("firmware", "(missing)", "the scenario needs a [firmware] section to be exported "
                                                      "(`[firmware]` alone takes the defaults)")
+    check_twins(sc)
     layout = firmware_layout(sc)
     rate = sc.controller.rate
     plan_adc = chip.plan_adc(sum(1 for s in layout.signals if not s.encoder), 1.0 / rate)
@@ -165,8 +176,13 @@ def firmware_plan(model) -> FirmwarePlan:
     laws = pm.laws
     if laws.ndim == 2:
         for c in range(laws.shape[0]):
-            if laws[c, L_KIND] in KIND_MODULES:
-                rows[pm.names[int(laws[c, L_MUSCLE])]] = c
+            code = float(laws[c, L_KIND])
+            if code in RESERVED:
+                continue
+            if code not in KIND_MODULES:       # check_twins refused every kind without a twin
+                raise FrogsimError(f"row {c} of the table of laws has kind code {code:g}, which no controller "
+                                   "kind with a firmware twin declares")
+            rows[pm.names[int(laws[c, L_MUSCLE])]] = c
     joints = list(sc.joints)
     plan_laws = []
     for i, m in enumerate(pm.names):
@@ -215,6 +231,22 @@ def firmware_plan(model) -> FirmwarePlan:
                         injected=injected)
 
 
+#: the table's kind codes that are no controller kind's (an empty row, the pump's band, a Python law)
+RESERVED = frozenset(kinds.RESERVED_CODES)
+
+
+def check_twins(sc) -> None:
+    """ScenarioError (one line, naming the controller and its kind) when a controller of
+    scenario ``sc`` is of a kind without a firmware twin: the board could not run it."""
+    for name, ctl in sc.controllers.items():
+        kind = kinds.of(ctl)
+        if kind.firmware is None:
+            have = ", ".join(k.name for k in kinds.with_twin())
+            raise ScenarioError(f"controllers.{name}.kind", kind.name,
+                                f"controller {name!r} is of kind {kind.name!r}, which has no firmware twin, so "
+                                f"the board cannot run it (kinds with one: {have})")
+
+
 def c_source(name: str, laws: list, fault_mode: int = -1, fault_resume: int = 10) -> str:
     """The firmware's laws as one C99 translation unit: the kinds' C twins, each muscle's
     parameters (RAM), table (flash: FS_TABLE) and memory, ``frogsim_sample``, ``frogsim_reset``
@@ -237,9 +269,9 @@ def c_source(name: str, laws: list, fault_mode: int = -1, fault_resume: int = 10
            "#ifndef FS_CH\n#define FS_CH(i) (adc[i])\n#endif\n\n",
            "void frogsim_sample(uint32_t k, const uint16_t *adc, int8_t *modes);\nvoid frogsim_reset(void);\n"
            "uint32_t frogsim_faults(void);\n",
-           "".join(f"int8_t {mod.C_NAME}(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P, "
-                   "const int32_t *T);\n" for mod in TWINS), "\n", fixed.C_COMMON, "\n"]
-    out += [mod.c_source() + "\n" for mod in used]
+           "".join(f"int8_t {twin.c_name}(uint32_t k, uint16_t cp, uint16_t ca, int32_t *mem, const int32_t *P, "
+                   "const int32_t *T);\n" for twin in TWINS), "\n", fixed.C_COMMON, "\n"]
+    out += [twin.c_source() + "\n" for twin in used]
     tables = _table_names(laws)
     for j, law in enumerate(laws):
         out.append(fixed.c_array(f"fs_P{j}", law.P, False))
@@ -283,7 +315,7 @@ def c_source(name: str, laws: list, fault_mode: int = -1, fault_resume: int = 10
             checks.append(f"    if (fs_fault({cp}, {plo}u, {phi}u, &fs_F{j}[0])) {{ bad = 1; faults |= 1UL << {law.pressure}; }}\n")
         if law.angle >= 0 and alo >= 0:
             checks.append(f"    if (fs_fault({ca}, {alo}u, {ahi}u, &fs_F{j}[1])) {{ bad = 1; faults |= 1UL << {law.angle}; }}\n")
-        call = f"{law.module.C_NAME}(k, {cp}, {ca}, fs_M{j}, fs_P{j}, {tables[j]})"
+        call = f"{law.twin.c_name}(k, {cp}, {ca}, fs_M{j}, fs_P{j}, {tables[j]})"
         if j in followers:
             call = (f"(pair{j} ? fs_joint_angle_follow({cp}, {ca}, fs_M{followers[j]}, fs_M{j}, fs_P{j}) : {call})")
         if checks:
@@ -334,7 +366,7 @@ def table_bytes(laws: list) -> int:
     generator's table (int16, :data:`frogsim.control.signals.FW_SINE`) when a law that can call it
     is linked."""
     names = _table_names(laws)
-    sine = 2 * SINE_N if any(getattr(law.module, "SINE", False) for law in laws) else 0
+    sine = 2 * SINE_N if any(law.twin.sine for law in laws) else 0
     return sine + sum(4 * max(1, law.T.size) for j, law in enumerate(laws) if names[j] == f"fs_T{j}")
 
 
@@ -432,7 +464,7 @@ def _packed(plan: FirmwarePlan) -> tuple:
     if hit is not None and hit[0] is plan:
         return hit[1]
     laws = plan.laws
-    codes = np.array([PROGRAM_CODE if law.module is program else law.module.CODE for law in laws], np.float64)
+    codes = np.array([PROGRAM_CODE if law.module is program else law.kind.code for law in laws], np.float64)
     P_off = np.cumsum([0] + [len(law._Pf) for law in laws]).astype(np.int64)
     T_off = np.cumsum([0] + [len(law._Tf) for law in laws]).astype(np.int64)
     P_all = np.concatenate([law._Pf for law in laws]) if laws else np.zeros(0)
@@ -498,8 +530,8 @@ def host_library(plan_or_source) -> ctypes.CDLL:
     h.frogsim_sample.restype = None
     h.frogsim_reset.argtypes = []
     h.frogsim_reset.restype = None
-    for mod in TWINS:
-        fn = getattr(h, mod.C_NAME, None)
+    for twin in TWINS:
+        fn = getattr(h, twin.c_name, None)
         if fn is not None:
             fn.argtypes = [ctypes.c_uint32, ctypes.c_uint16, ctypes.c_uint16, i32p, i32p, i32p]
             fn.restype = ctypes.c_int8

@@ -27,11 +27,15 @@ evaluates the right-hand side again) and :func:`apply_due` (the queued commands 
 the coupled engine also :func:`observe_joints`, the Python drivers :func:`command_from_python`,
 the results :func:`switch_counts`.
 
-A kind's law is dispatched in :func:`sample_controllers`, one branch per kind (the one place a
-new kind is listed besides its module; Numba compiles calls to functions it can name). A law
-returns a mode; :func:`command_valves` turns it into valve commands due one dead time later,
-kept with their due times in ``cs``; :func:`next_control_time` returns the earliest of the next
-sample and the due times, and :func:`apply_due` writes a command into u when its time has come.
+A row's law is found by its kind code through :func:`law_mode`, and with ``[firmware]`` its
+integer twin through :func:`fw_dispatch`: both are assembled at import from the registry of
+kinds (:mod:`frogsim.control.kinds`: one branch per kind with a law, or with a twin, compiled as
+the chain of closures :func:`_law_chain` and :func:`_twin_chain` make; Numba compiles calls to
+the functions a closure holds as it does to named ones), so no list of kinds is kept here, and a
+code no kind declares stops the run with an error instead of holding the valves. A law returns a
+mode; :func:`command_valves` turns it into valve commands due one dead time later, kept with
+their due times in ``cs``; :func:`next_control_time` returns the earliest of the next sample and
+the due times, and :func:`apply_due` writes a command into u when its time has come.
 """
 from __future__ import annotations
 
@@ -39,9 +43,9 @@ import math
 
 import numpy as np
 
-from frogsim._jit import jit, jit_alloc, jit_step
+from frogsim._jit import jit, jit_alloc, jit_inner, jit_step
 from frogsim.circuit.layout import pressure_index
-from frogsim.control.kinds import bang_bang, joint_angle, pwm, sliding_mode
+from frogsim.control import kinds
 from frogsim.control.signals import (  # noqa: F401  (the memory layout and signals, re-exported)
     B_A_FILT, B_A_FILT_ON, B_A_SENSED, B_ANGLE, B_CLIPS, B_CMD_C, B_CMD_D, B_FILT, B_FILT_ON, B_INT, B_MODE,
     B_OMEGA, B_PHASE, B_PULSE, B_Q0, B_QC_HEAD, B_QC_N, B_QD_HEAD, B_QD_N, B_SENSED, B_SP, B_SW_C, B_SW_D,
@@ -257,17 +261,8 @@ def sample_controllers(laws, mp, t, y, u, cs):
             if laws[c, L_JOINT1] > 0.0:
                 sense_joint(laws, c, cs, b, k, dt)
             continue                # commanded from Python (command_valves)
-        # the compiled dispatch: one branch per controller kind with a law (frogsim.control.kinds)
-        mode = MODE_HOLD
-        if kind == bang_bang.CODE:
-            mode = bang_bang.law(laws, c, cs, b, y, p, ts)
-        elif kind == pwm.CODE:
-            mode = pwm.law(laws, c, cs, b, y, p, ts)
-        elif kind == sliding_mode.CODE:
-            mode = sliding_mode.law(laws, mp, c, cs, b, y, p, ts)
-        elif kind == joint_angle.CODE:
-            mode = joint_angle.law(laws, c, cs, b, y, p, ts)
-        command_valves(laws, c, cs, mode, ts)
+        # the kind's law, by its code (the registry's dispatch, law_mode)
+        command_valves(laws, c, cs, law_mode(kind, laws, mp, c, cs, b, y, p, ts), ts)
     if valves and apply_due(laws, t, u, cs):       # commands without dead time act at once
         changed = True
     return changed
@@ -322,25 +317,95 @@ def firmware_mode(laws, c, cs, b, y, k, ts):
     T = laws[c, at + 2 + n_p:at + 2 + n_p + n_t]
     mem = cs[b + B_FW0:b + B_FW0 + FW_MEM]
     mode = fw_dispatch(kind, P, T, mem, k, cp, ca)
-    if kind == joint_angle.CODE:
-        cs[b + B_CLIPS] = mem[3]
+    fw_report(kind, cs, b, mem)
     return float(mode)
 
 
-@jit
-def fw_dispatch(kind, P, T, mem, k, cp, ca):
-    """The integer twin's law of kind code ``kind`` (each kind module's ``fw_law``) on its block
-    (P, T) and memory: the one dispatch the model's compiled sample and the firmware plan's twin
-    (:func:`frogsim.control.firmware.firmware_modes`) share; 0 (hold) for a kind without a twin."""
-    if kind == bang_bang.CODE:
-        return bang_bang.fw_law(P, T, mem, k, cp, ca)
-    if kind == pwm.CODE:
-        return pwm.fw_law(P, T, mem, k, cp, ca)
-    if kind == sliding_mode.CODE:
-        return sliding_mode.fw_law(P, T, mem, k, cp, ca)
-    if kind == joint_angle.CODE:
-        return joint_angle.fw_law(P, T, mem, k, cp, ca)
-    return 0
+# --- the kinds' dispatch, assembled from the registry (frogsim.control.kinds) ----------------------------
+def _law_chain(entries):
+    """``law_mode(kind, laws, mp, c, cs, b, y, p, ts) -> mode``: the law of the kind whose code is
+    ``kind`` (``entries``: the kinds with a law, at least one), one compiled branch per kind, each
+    a closure that tries its code and hands on to the next; the last raises ValueError for a code
+    that is not its own."""
+    def last(code, law):
+        @jit_inner
+        def branch(kind, laws, mp, c, cs, b, y, p, ts):
+            if kind != code:
+                raise ValueError("sample_controllers: a row of the table of laws has a kind code that no "
+                                 "controller kind declares (frogsim.control.kinds)")
+            return law(laws, mp, c, cs, b, y, p, ts)
+        return branch
+
+    def link(code, law, rest):
+        @jit_inner
+        def branch(kind, laws, mp, c, cs, b, y, p, ts):
+            if kind == code:
+                return law(laws, mp, c, cs, b, y, p, ts)
+            return rest(kind, laws, mp, c, cs, b, y, p, ts)
+        return branch
+
+    out = last(entries[-1].code, entries[-1].law)
+    for k in reversed(entries[:-1]):
+        out = link(k.code, k.law, out)
+    return out
+
+
+def _twin_chain(entries):
+    """``fw_dispatch(kind, P, T, mem, k, cp, ca) -> mode``: the firmware twin (``fw_law``) of
+    the kind whose code is ``kind``, as :func:`_law_chain` builds the laws' dispatch (the last
+    raises ValueError for a code that is not its own)."""
+    def last(code, fw_law):
+        @jit_inner
+        def branch(kind, P, T, mem, k, cp, ca):
+            if kind != code:
+                raise ValueError("fw_dispatch: a firmware block's kind code is no controller kind's with a "
+                                 "firmware twin (frogsim.control.kinds)")
+            return fw_law(P, T, mem, k, cp, ca)
+        return branch
+
+    def link(code, fw_law, rest):
+        @jit_inner
+        def branch(kind, P, T, mem, k, cp, ca):
+            if kind == code:
+                return fw_law(P, T, mem, k, cp, ca)
+            return rest(kind, P, T, mem, k, cp, ca)
+        return branch
+
+    out = last(entries[-1].code, entries[-1].firmware.fw_law)
+    for kd in reversed(entries[:-1]):
+        out = link(kd.code, kd.firmware.fw_law, out)
+    return out
+
+
+def _report_chain(entries):
+    """``fw_report(kind, cs, b, mem)``: the twin's ``report`` of the kind whose code is ``kind``
+    (``entries``: the kinds whose twin has one); nothing for the others."""
+    @jit_inner
+    def none(kind, cs, b, mem):
+        return
+
+    def link(code, report, rest):
+        @jit_inner
+        def branch(kind, cs, b, mem):
+            if kind == code:
+                report(cs, b, mem)
+            else:
+                rest(kind, cs, b, mem)
+        return branch
+
+    out = none
+    for kd in reversed(entries):
+        out = link(kd.code, kd.firmware.report, out)
+    return out
+
+
+#: the law of a row's kind (every kind with rows)
+law_mode = _law_chain(kinds.with_law())
+#: the integer twin's law of a firmware block's kind: the one dispatch the model's compiled sample
+#: and the firmware plan's twin (:func:`frogsim.control.firmware.firmware_modes`) share
+fw_dispatch = _twin_chain([k for k in kinds.with_twin() if k.code is not None])
+#: what a twin leaves in its memory for the results, copied into the row's block after its sample
+fw_report = _report_chain([k for k in kinds.with_twin() if k.code is not None and k.firmware.report is not None])
 
 
 @jit_alloc

@@ -338,6 +338,7 @@ class SwimResult:
         and for a joint-angle controller the controller samples at which the pair's pressure
         targets were clipped to [atmosphere, source]. Under "robot": the whole robot's air, air
         per metre and cost of transport (None, with the reason, when it did not move forward)."""
+        from frogsim.control import kinds
         from frogsim.control.sampled import B_CLIPS, CS_BLOCK, CS_SIZE, switch_counts
         a = self.model.arrays
         laws, cs = a["laws"], a["cs"]
@@ -353,7 +354,8 @@ class SwimResult:
             label, sp = label_and_setpoint(ctl, self.python_law, self.t, lambda: self.setpoint(name))
             entry = {"kind": label, "muscles": muscles, "settle_s": ctl.settle_time(self.rs.duration)}
             after = self.t >= ctl.settle_time(self.rs.duration)
-            angle = ctl.NAMED == "joint"        # the controller tracks its joint's angle
+            declared = kinds.of(ctl)
+            angle = declared.tracks == "angle"      # the controller tracks its joint's angle
             if angle:
                 entry["joint"] = ctl.joint
             if sp is not None and angle:
@@ -361,10 +363,10 @@ class SwimResult:
                 e = np.degrees(sp - self.joint_angles[:, j])[after]
                 entry["tracking_error_rms_deg"] = float(np.sqrt(np.mean(e ** 2))) if e.size else None
                 entry["tracking_error_max_deg"] = float(np.max(np.abs(e))) if e.size else None
-            if angle:
+            if "samples_pressure_target_clipped" in declared.metrics:
                 b = int(CS_SIZE + rows[ctl.muscle] * cs[CS_BLOCK])
                 entry["samples_pressure_target_clipped"] = int(cs[b + B_CLIPS])
-            elif sp is not None:
+            if sp is not None and not angle:        # a pressure (a Python law's setpoint too)
                 i = self.muscle_names.index(ctl.muscle)
                 e = (sp - self.pressures[:, i])[after]
                 entry["tracking_error_rms_bar"] = float(np.sqrt(np.mean(e ** 2)) / 1e5) if e.size else None

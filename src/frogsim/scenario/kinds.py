@@ -1,15 +1,19 @@
-"""The registry of controller kinds: the loader finds a ``[controllers.NAME]`` section's settings
-class here by its ``kind``, so the scenario layer never imports :mod:`frogsim.control`.
+"""The loader's registry of controller kinds: the loader finds a ``[controllers.NAME]`` section's
+settings class here by its ``kind``, so the scenario layer never imports :mod:`frogsim.control`.
 
-Each kind is one module of :mod:`frogsim.control.kinds` (docs/control.md, "Adding a controller
-kind"); it defines a frozen dataclass of its settings, derived from :class:`ControllerSettings`
-and decorated with :func:`register`, which puts it into :data:`KINDS`. Importing
-:mod:`frogsim.control` (``import frogsim`` does) registers every shipped kind.
+Each kind is one module of :mod:`frogsim.control.kinds` (docs/architecture.md, "Adding a
+controller kind"); it defines a frozen dataclass of its settings, derived from
+:class:`ControllerSettings`, and declares the kind (``KIND = ControllerKind(...)``); the kinds'
+registry (:mod:`frogsim.control.kinds`) finds every such module and puts its settings class into
+:data:`KINDS` (:func:`register`). Importing :mod:`frogsim.control` (``import frogsim`` does)
+registers every shipped kind.
 
 The settings class of a kind holds, besides its fields (with their metadata: unit kind, bounds,
 choices, read by the loader, :meth:`frogsim.scenario.core.Scenario.replace` and the sweeps):
 
 * ``KIND`` (its name in files) and ``NAMED`` ("muscle", or "joint" for a kind that names a joint);
+* ``setpoint``: what the controller tracks (None for a kind that tracks nothing), which the
+  results read for their tracking metrics;
 * :meth:`ControllerSettings.check`: its cross-field checks, run with every scenario rule;
 * :meth:`ControllerSettings.write_rows`: its rows of the compiled table of laws.
 
@@ -32,7 +36,13 @@ _TABLE: list = []     # the table builder (frogsim.control.table.build_table), o
 
 
 def register(cls):
-    """Class decorator: make ``cls`` (a :class:`ControllerSettings` dataclass) the kind ``cls.KIND``."""
+    """Make ``cls`` (a :class:`ControllerSettings` dataclass) the settings of kind ``cls.KIND``
+    (the kinds' registry, :mod:`frogsim.control.kinds`, calls this for each kind it finds);
+    ImportError when another class already holds the name, naming both modules."""
+    other = KINDS.get(cls.KIND)
+    if other is not None and other is not cls:
+        raise ImportError(f"controller kinds: kind name {cls.KIND!r} of {cls.__module__} is already taken by "
+                          f"{other.__module__}: each kind needs its own name")
     KINDS[cls.KIND] = cls
     return cls
 
@@ -63,6 +73,14 @@ class ControllerSettings:
     @property
     def kind(self) -> str:
         return self.KIND
+
+    @property
+    def setpoint(self):
+        """What the controller tracks (a :class:`frogsim.scenario.schema.Setpoint` or
+        :class:`~frogsim.scenario.schema.AngleSetpoint`), or None: the results measure tracking
+        against it. A kind with a setpoint declares it as a field of that name, which takes the
+        place of this property; for the others (``program``, an open-loop ``pwm``) it is None."""
+        return None
 
     def driven(self) -> tuple:
         """The muscles whose valves the controller commands."""

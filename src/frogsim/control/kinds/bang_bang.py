@@ -8,16 +8,15 @@ import numpy as np
 from frogsim._jit import jit
 from frogsim.control import fixed
 from frogsim.control.kinds.common import PressureTracking
+from frogsim.control.kinds.spec import PRESSURE_TRACKING, ControllerKind, FirmwareTwin, Gain
 from frogsim.control.signals import B_SP, bang_bang, fw_at, fw_relay, fw_sine, setpoint
 from frogsim.control.table import L_BAND, valve_row, with_setpoint
 from frogsim.scenario.fields import quantity
-from frogsim.scenario.kinds import register
 from frogsim.scenario.schema import BAR, GAUGE_MAX
 
 CODE = 2.0      # the table's kind column
 
 
-@register
 @dataclass(frozen=True)
 class BangBangSettings(PressureTracking):
     """Charge below setpoint - band/2, vent above setpoint + band/2, hold between."""
@@ -83,8 +82,16 @@ def c_source() -> str:
 
 
 @jit
-def law(laws, c, cs, b, y, p, ts):
+def law(laws, mp, c, cs, b, y, p, ts):
     """The relay on the sensed pressure p [Pa abs] against the setpoint at ts."""
     sp, _ = setpoint(laws, c, ts)
     cs[b + B_SP] = sp
     return bang_bang(p, sp, laws[c, L_BAND])
+
+
+KIND = ControllerKind(
+    settings=BangBangSettings, code=CODE, law=law,
+    firmware=FirmwareTwin(fw_law=fw_law, c_name=C_NAME, c_source=c_source, sine=SINE),
+    tracks="pressure", metrics=PRESSURE_TRACKING,
+    # the band: from about one count of a 10-bit ADC on a 10 bar transducer (0.01 bar) up to 1 bar
+    gains=(Gain("band", "bar", 0.01, 1.0, log=True),))

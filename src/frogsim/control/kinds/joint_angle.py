@@ -16,6 +16,7 @@ from frogsim._jit import jit
 from frogsim.circuit.layout import Y_PS
 from frogsim.control import fixed
 from frogsim.control.kinds.common import SensedLoop
+from frogsim.control.kinds.spec import ANGLE_TRACKING, ControllerKind, FirmwareTwin, Gain
 from frogsim.control.signals import (SN_SIZE, B_CLIPS, B_INT, B_PHASE, B_SP, B_TARGET, CS_DT, CS_SAMPLE, bang_bang,
                                      fw_relay, fw_sine, sense_joint, setpoint)
 from frogsim.control.table import (L_A_BITS, L_A_EVERY, L_A_FS, L_A_LAG, L_A_NOISE, L_A_PHASE, L_A_SEED, L_BAND,
@@ -23,14 +24,12 @@ from frogsim.control.table import (L_A_BITS, L_A_EVERY, L_A_FS, L_A_LAG, L_A_NOI
                                    valve_row, with_setpoint)
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.fields import quantity
-from frogsim.scenario.kinds import register
 from frogsim.scenario.rules import check_below_source
 from frogsim.scenario.schema import BAR, GAUGE_MAX, AngleSensor, AngleSetpoint
 
 CODE = 6.0      # the table's kind column (one row per muscle of the pair)
 
 
-@register
 @dataclass(frozen=True)
 class JointAngleSettings(SensedLoop):
     """``joint`` names the joint; ``muscle`` (the extensor: its pressure raises the joint angle) and
@@ -183,7 +182,7 @@ def angle_schedule(sc, name: str) -> tuple:
 
 
 @jit
-def law(laws, c, cs, b, y, p, ts):
+def law(laws, mp, c, cs, b, y, p, ts):
     """The cascade's mode for this row's muscle at ts (the angle read through its sensor)."""
     th, w = sense_joint(laws, c, cs, b, int(cs[CS_SAMPLE]), cs[CS_DT])
     return joint_angle_mode(laws, c, cs, b, y, p, ts, th, w)
@@ -540,3 +539,26 @@ uint8_t fs_joint_angle_pair(const int32_t *a, const int32_t *b, const int32_t *P
         && a[7] == b[7];
 }
 """
+
+
+@jit
+def fw_report(cs, b, mem):
+    """After a firmware sample: the twin's count of runs with a clipped target (its memory's
+    word 3) into the row's B_CLIPS, where the results read it as in a float run."""
+    cs[b + B_CLIPS] = mem[3]
+
+
+KIND = ControllerKind(
+    settings=JointAngleSettings, code=CODE, law=law,
+    firmware=FirmwareTwin(fw_law=fw_law, c_name=C_NAME, c_source=c_source, sine=SINE, report=fw_report),
+    tracks="angle", metrics=ANGLE_TRACKING + ("samples_pressure_target_clipped",),
+    gains=(
+        # the shipped robot scenarios use Kp 30 bar/rad, Kd 1 bar*s/rad, Ki 0 or 30 bar/(rad*s)
+        Gain("proportional_gain", "bar/rad", 1.0, 100.0, log=True),
+        Gain("derivative_gain", "bar*s/rad", 0.0, 3.0),
+        Gain("integral_gain", "bar/(rad*s)", 0.0, 100.0),
+        # the pair's common pressure (stiffness), below fan2017's 6 bar source with room for dp/2
+        Gain("co_contraction", "bar", 0.5, 4.0),
+        # the inner relays' band
+        Gain("band", "bar", 0.02, 0.5, log=True),
+    ))

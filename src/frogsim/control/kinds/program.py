@@ -13,11 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from frogsim._jit import jit
-from frogsim.scenario.kinds import ControllerSettings, register
+from frogsim.control.kinds.spec import ControllerKind, FirmwareTwin
+from frogsim.scenario.kinds import ControllerSettings
 from frogsim.scenario.motion import command_sample
 
 
-@register
 @dataclass(frozen=True)
 class ProgramSettings(ControllerSettings):
     """The muscle runs its open-loop program (it must have one); nothing else to set."""
@@ -90,3 +90,9 @@ def c_source() -> str:
     return mode;
 }
 """
+
+
+KIND = ControllerKind(
+    settings=ProgramSettings, code=None, law=None,     # no row: the model runs the program as a schedule
+    firmware=FirmwareTwin(fw_law=fw_law, c_name=C_NAME, c_source=c_source),
+    tracks=None, metrics=(), gains=())

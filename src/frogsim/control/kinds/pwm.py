@@ -10,20 +10,19 @@ import numpy as np
 from frogsim._jit import jit
 from frogsim.control import fixed
 from frogsim.control.kinds.common import SensedLoop
+from frogsim.control.kinds.spec import PRESSURE_TRACKING, ControllerKind, FirmwareTwin, Gain
 from frogsim.control.signals import (B_PHASE, B_PULSE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, fw_at, fw_sine,
                                      setpoint)
 from frogsim.control.table import (DUTY_CLOSED, DUTY_SCHEDULED, L_DUTY, L_MINPULSE_N, L_PBAND, L_PERIOD_N,
                                    L_REST, valve_row, with_setpoint)
 from frogsim.errors import MISSING, ScenarioError
 from frogsim.scenario.fields import choice, quantity, unwrap
-from frogsim.scenario.kinds import register
 from frogsim.scenario.rules import check_pressure_setpoint, err
 from frogsim.scenario.schema import BAR, GAUGE_MAX, DutySchedule, Setpoint
 
 CODE = 3.0      # the table's kind column
 
 
-@register
 @dataclass(frozen=True)
 class PwmSettings(SensedLoop):
     """Pulses of round(duty N) samples at the start of each period of N = rate / frequency samples."""
@@ -140,7 +139,7 @@ def _check_duty_schedule(ds, path: str) -> None:
 
 
 @jit
-def law(laws, c, cs, b, y, p, ts):
+def law(laws, mp, c, cs, b, y, p, ts):
     """The PWM's mode at ts (the setpoint or the duty schedule read at ts)."""
     sp, _ = setpoint(laws, c, ts)
     cs[b + B_SP] = sp
@@ -264,3 +263,18 @@ def c_source() -> str:
     return 0;
 }
 """
+
+
+KIND = ControllerKind(
+    settings=PwmSettings, code=CODE, law=law,
+    firmware=FirmwareTwin(fw_law=fw_law, c_name=C_NAME, c_source=c_source, sine=SINE),
+    tracks="pressure", metrics=PRESSURE_TRACKING,     # with a setpoint (closed loop); open loop: none
+    gains=(
+        # the carrier: 10 to 200 samples a period at 1 kHz, under fan2017's limit of 250 Hz (twice
+        # the 2 ms valve dead time)
+        Gain("frequency", "Hz", 5.0, 100.0, log=True),
+        # closed loop: the pressure error that gives a full period's pulse
+        Gain("proportional_band", "bar", 0.1, 5.0, log=True),
+        # shorter than the shortest period of the range (10 ms at 100 Hz)
+        Gain("minimum_pulse", "ms", 0.0, 5.0),
+    ))

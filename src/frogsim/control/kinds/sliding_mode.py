@@ -11,18 +11,17 @@ from frogsim._jit import jit
 from frogsim.circuit.layout import M_CB, M_CC, M_CM, M_CRL, M_DB, M_DC, M_DM, M_DRL, M_SIZE, Y_PE, Y_PS
 from frogsim.control import fixed
 from frogsim.control.kinds.common import PressureTracking
+from frogsim.control.kinds.spec import PRESSURE_TRACKING, ControllerKind, FirmwareTwin, Gain
 from frogsim.control.signals import B_MODE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, fw_at, fw_sine, setpoint
 from frogsim.control.table import (L_BRANCH, L_DEAD_C, L_DEAD_D, L_GAIN, L_HORIZON, L_MUSCLE, L_PENALTY,
                                    L_RHOREF, L_TAMB, L_TREF, valve_row, with_setpoint)
 from frogsim.physics.flow import iso6358_mass_flow
 from frogsim.scenario.fields import quantity
-from frogsim.scenario.kinds import register
 from frogsim.scenario.schema import BAR, GAUGE_MAX
 
 CODE = 4.0      # the table's kind column
 
 
-@register
 @dataclass(frozen=True)
 class SlidingModeSettings(PressureTracking):
     """Sliding surface s = e + lambda de/dt; the mode minimising s^2 + rho^2 [opening a valve]."""
@@ -231,3 +230,15 @@ def c_source() -> str:
     return best;
 }
 """
+
+
+KIND = ControllerKind(
+    settings=SlidingModeSettings, code=CODE, law=law,
+    firmware=FirmwareTwin(fw_law=fw_law, c_name=C_NAME, c_source=c_source, sine=SINE),
+    tracks="pressure", metrics=PRESSURE_TRACKING,
+    gains=(
+        # lambda: a tenth of a 2 ms default up to ten times it (about ten valve dead times)
+        Gain("horizon", "ms", 0.2, 20.0, log=True),
+        # rho: a tenth of the 0.05 bar default up to ten times it (docs/control.md's study spans 0.02-0.15 bar)
+        Gain("penalty", "bar", 0.005, 0.5, log=True),
+    ))
