@@ -19,6 +19,9 @@ Definitions used by :meth:`SwimResult.summary` (all from the run's own records):
   (m_air R T_ambient ln(p_source / p_atm), the least work that could have compressed it), m the
   robot's mass with ballast, d the forward distance; null when d <= 0, as is the air per metre,
   with ``cost_of_transport_reason`` saying why;
+* aeration volume: the air a muscle took in during its first pressurise phase (as
+  :meth:`frogsim.engine.run_result.RunResult.aeration_volume`); null for a muscle whose valves
+  no program opens (one under closed-loop control);
 * joint delay: from the first charge command to the joint having moved 5 % of its excursion in
   that pressurise phase.
 """
@@ -317,7 +320,7 @@ class SwimResult(RunResult):
             "joints": joints,
             "max_contraction_percent": {m: float(100 * contraction[:, i].max())
                                         for i, m in enumerate(self.muscle_names)},
-            "aeration_volume_L_std": {m: self.aeration_volume(m) * 1e3 if len(self.charge_open_times(m)) else 0.0
+            "aeration_volume_L_std": {m: self.aeration_volume(m) * 1e3 if len(self.charge_open_times(m)) else None
                                       for m in self.muscle_names},
             "air_mass_relative_drift": float(np.ptp(air_total) / air_total[0]),
             "solver": {**self.stats, "wall_time_s": self.wall_s, "compile_time_s": self.compile_s,
