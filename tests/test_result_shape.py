@@ -228,3 +228,18 @@ def test_aeration_volume_is_one_measure_in_m3_on_both_and_null_without_a_phase()
     assert s["hip_left"] is None and s["knee_left_recovery"] is None
     with pytest.raises(IndexError, match="has 0 pressurise phases"):
         r.aeration_volume("hip_left")
+
+
+def test_the_heat_studys_charge_openings_are_openings_not_switchings(study):
+    """The heat study's bang-bang hold reports its charge valve's openings. The switch counter counts
+    every change of the valve (an opening and a closing each); the valve starts shut, so n
+    switchings are ceil(n / 2) openings. Adiabatic: the controller charges once and holds."""
+    from frogsim.studies.heat import MODELS, scenarios
+    runs = study("heat").summary["heat"]["runs"]
+    for model, params in MODELS.items():
+        r = frogsim.simulate(scenarios(params)["bang-bang-3bar"])
+        charge, _ = r.switchings["hip"]
+        assert runs[model]["bang_bang_charge_valve_openings"] == (charge + 1) // 2
+    assert runs["adiabatic"]["bang_bang_charge_valve_openings"] == 1
+    text = study("heat").summary["heat"]["conclusion"]
+    assert f"({runs['heat']['bang_bang_charge_valve_openings']} charge openings" in text
