@@ -18,6 +18,9 @@ class Result(RunResult):
     Attributes: ``t`` [s], ``y`` (state at each output time, see :mod:`frogsim.circuit.layout`),
     ``u`` (valve states and pump state at each output time), ``model`` (the built model), ``status``
     ("ok"), ``stats`` (accepted steps, rejected steps, right-hand-side evaluations).
+
+    What it shares with a robot run's result (the circuit's constants, aeration volume, setpoints,
+    the controllers' metrics) is written once in :class:`frogsim.engine.run_result.RunResult`.
     """
     t: np.ndarray
     y: np.ndarray

@@ -42,7 +42,11 @@ DELAY_FRACTION = 0.05
 
 @dataclass
 class SwimResult(RunResult):
-    """Records of one robot run on the output grid (SI inside), with the model that made them."""
+    """Records of one robot run on the output grid (SI inside), with the model that made them.
+
+    What it shares with a pneumatic run's result (the circuit's constants, aeration volume,
+    setpoints, the controllers' metrics) is written once in
+    :class:`frogsim.engine.run_result.RunResult`."""
     rec: np.ndarray
     model: object                 # frogsim.engine.coupled.CoupledModel
     stats: dict = field(default_factory=dict)
