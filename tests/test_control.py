@@ -397,7 +397,8 @@ def test_summary_reports_the_closed_loop_metrics(tmp_path):
     assert main(["simulate", str(f), "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())["control"]["hold"]
     assert {"tracking_error_rms_bar", "tracking_error_max_bar", "switchings_per_s", "air_used_L_std",
-            "switchings_charge_valve", "switchings_discharge_valve"} <= set(s)
+            "switchings"} <= set(s)
+    assert set(s["switchings"]) == {"hip"} and set(s["switchings"]["hip"]) == {"charge", "discharge"}
     # air used: the charged mass at the standard state. Filling a rigid volume adiabatically from
     # a source at T_ref: U = c_v p V / R, so dm = V dp / (k R T_ref) (the air in it stays hot)
     p = json.loads((out / "summary.json").read_text())["muscles"]["hip"]["final_pressure_bar_gauge"] * BAR

@@ -138,7 +138,7 @@ def test_python_law_metrics_carry_its_label_and_its_setpoint():
     m = frogsim.simulate(sc, controller=vent).control_metrics()["loop"]
     assert m["kind"] == "python:vent"
     assert "tracking_error_rms_bar" not in m        # no setpoint given: none measured
-    assert m["switchings_charge_valve"] == 0 and m["air_used_L_std"] == 0.0
+    assert m["switchings"]["hip"]["charge"] == 0 and m["air_used_L_std"] == 0.0
 
     class Hold:
         label = "hold-at-atmosphere"

@@ -239,8 +239,11 @@ def test_air_is_conserved_in_closed_loop_and_the_metric_is_the_charged_mass():
     charged = (r.charged[-1, ie] - r.charged[0, ie] + r.charged[-1, jf] - r.charged[0, jf])
     assert m["hip"]["air_used_L_std"] == pytest.approx(charged / RHO_REF * 1e3, rel=1e-12)
     assert m["hip"]["air_used_L_std"] > 0.05
-    # the body is fixed: no distance, so no air per metre
-    assert m["robot"]["air_per_metre_L_std_per_m"] is None and "not reached" in m["robot"]["note"]
+    assert set(m) == {"hip"}                 # one entry per controller, nothing else
+    # the body is fixed: no distance, so no air per metre and no cost of transport, and why
+    s = r.summary()
+    assert s["air_per_metre_L_std_per_m"] is None and s["cost_of_transport"] is None
+    assert s["cost_of_transport_reason"].startswith("not reached: no forward distance")
 
 
 # --- scenario: paths, refusals ------------------------------------------------------------------------------

@@ -29,7 +29,8 @@ from frogsim._parallel import default_threads, map_pieces
 from frogsim.circuit import layout as L
 from frogsim.circuit.model import PARTS, PneumaticModel, assemble, build_model
 from frogsim.engine.integrator import STATUS_OK, run_schedule
-from frogsim.engine.result import Result, valve_switchings
+from frogsim.engine.result import Result
+from frogsim.engine.run_result import valve_switchings
 from frogsim.errors import ScenarioError, SimulationError
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.variants import Variants, group
@@ -273,7 +274,7 @@ def run_models(models, threads: int | None = None) -> list[Result]:
                               stats={"steps": int(stats[0]), "rejected": int(stats[1]),
                                      "rhs_evaluations": int(stats[2]),
                                      "stiff_steps": int(stats[3])},
-                              switchings=valve_switchings(m, cs)))
+                              switchings=valve_switchings(m.laws, m.names, cs)))
     return results
 
 

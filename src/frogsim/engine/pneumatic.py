@@ -27,7 +27,8 @@ from frogsim.control.sampled import (B_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE, KIN
                                      command_from_python, next_control_time)
 from frogsim.engine.integrator import (D_OUT, D_PAUSE, D_T, EPS, STATUS_NONPHYSICAL, STATUS_OK, STATUS_PAUSED,
                                        STATUS_ROWS_UNWRITTEN, STATUS_TEXT, advance, begin)
-from frogsim.engine.result import Result, valve_switchings
+from frogsim.engine.result import Result
+from frogsim.engine.run_result import valve_switchings
 from frogsim.errors import SimulationError
 
 STEPS_PER_CALL = 20_000       # accepted steps between two looks at the clock (about 10-50 ms)
@@ -202,7 +203,7 @@ def _finish(model, status, ds, y_end, out_y, out_u, stats, cs) -> Result:
     return Result(t=model.out_t, y=out_y, u=out_u, model=model,
                   stats={"steps": int(stats[0]), "rejected": int(stats[1]), "rhs_evaluations": int(stats[2]),
                          "stiff_steps": int(stats[3])},
-                  switchings=valve_switchings(model, cs))
+                  switchings=valve_switchings(model.laws, model.names, cs))
 
 
 def python_laws(model: PneumaticModel, every_muscle: bool = False) -> tuple[np.ndarray, list]:

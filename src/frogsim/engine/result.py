@@ -7,41 +7,20 @@ from functools import cached_property
 import numpy as np
 
 from frogsim.circuit import layout as L
-from frogsim.engine.measures import (
-    RiseTimes, charged_in_phase, fraction_of_window, pressurise_window, rise_times, value_at_close,
-)
-
-
-def valve_switchings(model, cs) -> dict:
-    """{muscle: (charge valve switchings, discharge valve switchings)} of the muscles under a
-    closed-loop controller, from the controllers' final state ``cs`` (exact: counted as the
-    commands are applied, not read off the output grid)."""
-    from frogsim.control.sampled import L_MUSCLE, switch_counts
-    counts = switch_counts(model.laws, cs)
-    return {model.names[int(model.laws[c, L_MUSCLE])]: v for c, v in counts.items()}
-
-
-def label_and_setpoint(ctl, law, t: np.ndarray, own) -> tuple:
-    """(the label, the setpoint on the output times or None) a controller's metrics carry.
-
-    The scenario's controller ``ctl`` is labelled with its kind and measured against its own
-    setpoint (``own()``, when it has one); a run driven by a Python ``law`` instead is labelled
-    with the law's ``label`` attribute (else "python:" and its name) and measured against the
-    law's ``setpoint`` attribute (a function of t [s], in the controller's unit), or nothing."""
-    if law is None:
-        return ctl.kind, (own() if ctl.setpoint is not None else None)
-    label = getattr(law, "label", None) or f"python:{getattr(law, '__name__', type(law).__name__)}"
-    fn = getattr(law, "setpoint", None)
-    return label, (None if fn is None else np.array([fn(float(x)) for x in t], float))
+from frogsim.engine.measures import RiseTimes, fraction_of_window, pressurise_window, rise_times, value_at_close
+from frogsim.engine.run_result import RunResult
 
 
 @dataclass
-class Result:
+class Result(RunResult):
     """Time series of one pneumatic run (SI inside).
 
     Attributes: ``t`` [s], ``y`` (state at each output time, see :mod:`frogsim.circuit.layout`),
     ``u`` (valve states and pump state at each output time), ``model`` (the built model), ``status``
     ("ok"), ``stats`` (accepted steps, rejected steps, right-hand-side evaluations).
+
+    What it shares with a robot run's result (the circuit's constants, aeration volume, setpoints,
+    the controllers' metrics) is written once in :class:`frogsim.engine.run_result.RunResult`.
     """
     t: np.ndarray
     y: np.ndarray
@@ -52,60 +31,17 @@ class Result:
     switchings: dict = field(default_factory=dict)   # closed-loop muscles: (charge, discharge) valve switchings
     python_law: object = None      # the Python function that drove the closed-loop muscles, if one did
 
-    # -- closed-loop control (docs/control.md) -------------------------------------------------------
-    def _law_rows(self) -> dict:
-        """{controller name: its row in the model's table of laws} of the closed-loop controllers."""
-        rows = {}
-        c = int(self.model.laws.shape[0]) - sum(1 for k in self.model.scenario.controllers.values()
-                                                 if k.closed_loop)
-        for name, ctl in self.model.scenario.controllers.items():
-            if ctl.closed_loop:
-                rows[name] = c
-                c += 1
-        return rows
+    # -- what the shared methods read (frogsim.engine.run_result) ------------------------------
+    @property
+    def _circuit(self):
+        return self.model
 
-    def setpoint(self, controller: str) -> np.ndarray:
-        """A closed-loop controller's setpoint at the output times [Pa abs] (NaN for open-loop PWM)."""
-        from frogsim.control.sampled import setpoint
-        rows = self._law_rows()
-        if controller not in rows:
-            raise KeyError(f"no closed-loop controller {controller!r}; controllers: {', '.join(rows) or 'none'}")
-        ctl = self.model.scenario.controllers[controller]
-        if ctl.setpoint is None:
-            return np.full(self.t.size, np.nan)
-        laws, c = self.model.laws, rows[controller]
-        return np.array([setpoint(laws, c, float(t))[0] for t in self.t])
+    @property
+    def _laws(self) -> np.ndarray:
+        return self.model.laws
 
-    def control_metrics(self) -> dict:
-        """Per closed-loop controller (docs/control.md): tracking error RMS and max [bar] from its
-        ``settle`` time on (true pressure against the setpoint, on the output grid), valve
-        switchings (charge, discharge, total) and per second of run, air used [L standard].
-
-        A run driven by a Python law (``simulate(..., controller=fn)``) carries the law's label
-        and is measured against the law's own setpoint (Pa abs), or has no tracking error
-        (:func:`label_and_setpoint`)."""
-        out = {}
-        T = float(self.t[-1] - self.t[0]) if self.t.size > 1 else 0.0
-        law = self.python_law
-        for name in self._law_rows():
-            ctl = self.model.scenario.controllers[name]
-            m = ctl.muscle
-            sw_c, sw_d = self.switchings.get(m, (0, 0))
-            label, sp = label_and_setpoint(ctl, law, self.t, lambda: self.setpoint(name))
-            entry = {"kind": label, "muscle": m}
-            if sp is not None:
-                e = sp - self.muscle_pressure(m)
-                after = e[self.t >= ctl.settle_time(self.model.scenario.duration)]
-                entry["settle_s"] = ctl.settle_time(self.model.scenario.duration)
-                entry["tracking_error_rms_bar"] = float(np.sqrt(np.mean(after ** 2)) / 1e5) if after.size else None
-                entry["tracking_error_max_bar"] = float(np.max(np.abs(after)) / 1e5) if after.size else None
-            entry["switchings_charge_valve"] = int(sw_c)
-            entry["switchings_discharge_valve"] = int(sw_d)
-            entry["switchings_per_s"] = (sw_c + sw_d) / T if T > 0 else None
-            entry["air_used_L_std"] = float((self.charged_mass(m)[-1] - self.charged_mass(m)[0])
-                                            / self.reference_density * 1e3)
-            out[name] = entry
-        return out
+    def _charge_valve(self, muscle: str) -> np.ndarray:
+        return self.u[:, 2 * self.index(muscle)]
 
     # -- basic series -------------------------------------------------------------------------
     @property
@@ -115,16 +51,6 @@ class Result:
     @property
     def n(self) -> int:
         return len(self.model.names)
-
-    def index(self, muscle: str) -> int:
-        try:
-            return self.model.names.index(muscle)
-        except ValueError:
-            raise KeyError(f"no muscle {muscle!r}; muscles: {', '.join(self.model.names)}") from None
-
-    @property
-    def atmospheric_pressure(self) -> float:
-        return float(self.model.g[L.G_PATM])
 
     @property
     def source_pressure(self) -> np.ndarray:
@@ -161,10 +87,6 @@ class Result:
     def total_air_mass(self) -> np.ndarray:
         """Air in source, exhaust and all muscles [kg]: constant in the closed circuit."""
         return self.y[:, L.Y_MS] + self.y[:, L.Y_ME] + self.y[:, L.mass_slice(self.n)].sum(axis=1)
-
-    @property
-    def reference_density(self) -> float:
-        return float(self.model.g[L.G_RHOREF])
 
     def temperature(self, which: str) -> np.ndarray:
         """Temperature [K] of "source", "exhaust" or a muscle, from T = p V/(m R)."""
@@ -269,27 +191,6 @@ class Result:
         return self._diagnostics[0][:, 2 * self.n]
 
     # -- derived figures -------------------------------------------------------------------------
-    def charge_open_times(self, muscle: str) -> np.ndarray:
-        """Times at which the muscle's charge valve actually opens [s] (command + dead time)."""
-        return self.model.charge_open_times[self.index(muscle)]
-
-    def _phase(self, muscle: str, stroke: int):
-        """(charge-valve state (1, T), opening time (1,)) of one pressurise phase."""
-        opens = self.charge_open_times(muscle)
-        if stroke >= len(opens):
-            raise IndexError(f"muscle {muscle!r} has {len(opens)} pressurise phases")
-        return self.u[None, :, 2 * self.index(muscle)], np.array([opens[stroke]])
-
-    def aeration_volume(self, muscle: str, stroke: int = 0) -> float:
-        """Standard volume [m^3] (ISO 8778) charged into the muscle during one pressurise phase.
-
-        The paper's aeration volume (Sec. 4.2): the flow of Eq. (8) integrated while the charge
-        valve is open, expressed at the standard state.
-        """
-        u, t_open = self._phase(muscle, stroke)
-        q = charged_in_phase(self.t, self.charged_mass(muscle)[None, :], u, t_open)
-        return float(q[0] / self.reference_density)
-
     def rise(self, muscle: str, fraction: float = 0.9, stroke: int = 0) -> RiseTimes:
         """The full rise-time measurement of one pressurise phase (time, start and target
         pressures, level, fraction of the rise reached, status, reason): see

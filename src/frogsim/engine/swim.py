@@ -17,7 +17,11 @@ Definitions used by :meth:`SwimResult.summary` (all from the run's own records):
   standard state (100 kPa, 293.15 K);
 * cost of transport: E / (m g d), with E the isothermal exergy of the charged air
   (m_air R T_ambient ln(p_source / p_atm), the least work that could have compressed it), m the
-  robot's mass with ballast, d the forward distance;
+  robot's mass with ballast, d the forward distance; null when d <= 0, as is the air per metre,
+  with ``cost_of_transport_reason`` saying why;
+* aeration volume: the air a muscle took in during its first pressurise phase (as
+  :meth:`frogsim.engine.run_result.RunResult.aeration_volume`); null for a muscle whose valves
+  no program opens (one under closed-loop control);
 * joint delay: from the first charge command to the joint having moved 5 % of its excursion in
   that pressurise phase.
 """
@@ -31,20 +35,50 @@ import numpy as np
 
 from frogsim.circuit import layout as CL
 from frogsim.engine import coupled as C
-from frogsim.engine.result import label_and_setpoint
+from frogsim.engine.run_result import RunResult, valve_switchings
 
 DELAY_FRACTION = 0.05
 
 
 @dataclass
-class SwimResult:
-    """Records of one robot run on the output grid (SI inside), with the model that made them."""
+class SwimResult(RunResult):
+    """Records of one robot run on the output grid (SI inside), with the model that made them.
+
+    What it shares with a pneumatic run's result (the circuit's constants, aeration volume,
+    setpoints, the controllers' metrics) is written once in
+    :class:`frogsim.engine.run_result.RunResult`."""
     rec: np.ndarray
     model: object                 # frogsim.engine.coupled.CoupledModel
     stats: dict = field(default_factory=dict)
     wall_s: float = 0.0           # [s] wall time of the steps (compilation excluded)
     compile_s: float = 0.0        # [s] compiling (or loading from the cache) the loop, before the steps
     python_law: object = None     # the Python function that drove the closed-loop muscles, if one did
+
+    # -- what the shared methods read (frogsim.engine.run_result) ------------------------------
+    @property
+    def _circuit(self):
+        return self.model.pneumatic
+
+    @property
+    def _laws(self) -> np.ndarray:
+        return self.model.arrays["laws"]
+
+    def _charge_valve(self, muscle: str) -> np.ndarray:
+        return self.valves[:, 2 * self.index(muscle)]
+
+    @cached_property
+    def switchings(self) -> dict:
+        """{muscle: (charge valve switchings, discharge valve switchings)} of the muscles under a
+        valve law (counted as the commands were applied)."""
+        return valve_switchings(self._laws, self.muscle_names, self.model.arrays["cs"])
+
+    def _clipped_samples(self, muscle: str) -> int:
+        """Controller samples at which the joint-angle law of ``muscle``'s row clipped its pressure
+        targets to [atmosphere, source]."""
+        from frogsim.control.sampled import B_CLIPS, CS_BLOCK, CS_SIZE
+        cs = self.model.arrays["cs"]
+        b = int(CS_SIZE + self._rows_by_muscle()[muscle] * cs[CS_BLOCK])
+        return int(cs[b + B_CLIPS])
 
     # -- basic series ---------------------------------------------------------------------------
     @property
@@ -95,6 +129,14 @@ class SwimResult:
         """Air charged into each muscle since t = 0 [kg]."""
         return self._block("charged")
 
+    def muscle_pressure(self, muscle: str) -> np.ndarray:
+        """Pressure in a muscle [Pa abs]."""
+        return self.pressures[:, self.index(muscle)]
+
+    def charged_mass(self, muscle: str) -> np.ndarray:
+        """Mass that has entered the muscle through its charge valve since t = 0 [kg]."""
+        return self.charged[:, self.index(muscle)]
+
     @property
     def valves(self) -> np.ndarray:
         """Valve states (charge, discharge per muscle; 1 open), shape (time, 2 n)."""
@@ -142,14 +184,6 @@ class SwimResult:
     def total_air_mass(self) -> np.ndarray:
         """Air in source, exhaust and muscles [kg]: constant in the closed circuit."""
         return self.rec[:, C.R_AIR]
-
-    @property
-    def atmospheric_pressure(self) -> float:
-        return float(self.model.pneumatic.g[CL.G_PATM])
-
-    @property
-    def reference_density(self) -> float:
-        return float(self.model.pneumatic.g[CL.G_RHOREF])
 
     @cached_property
     def forward(self) -> np.ndarray:
@@ -205,18 +239,6 @@ class SwimResult:
         j = int(np.argmax(seg >= target))
         ta, tb, ya, yb = t[k0 + j - 1], t[k0 + j], seg[j - 1], seg[j]
         return float(ta + (target - ya) / (yb - ya) * (tb - ta) - t_cmd)
-
-    def aeration_volume(self, muscle: str) -> float:
-        """Standard litres charged into a muscle during its first pressurise phase [L]: from the
-        charge valve's opening (command + dead time) to its closing, as Result.aeration_volume."""
-        from frogsim.engine.measures import charged_in_phase
-        i = self.muscle_names.index(muscle)
-        opens = self.model.pneumatic.charge_open_times[i]
-        if not len(opens):
-            return 0.0
-        q = charged_in_phase(self.t, self.charged[None, :, i], self.valves[None, :, 2 * i],
-                             np.array([opens[0]]))
-        return float(q[0] / self.reference_density * 1e3)
 
     # -- summary --------------------------------------------------------------------------------
     def summary(self) -> dict:
@@ -293,104 +315,24 @@ class SwimResult:
             "exhaust_pressure_after_cycles_bar_gauge": float((self.exhaust_pressure[-1] - patm) / 1e5),
             "air_exergy_J": exergy,
             "cost_of_transport": exergy / (mass * g * dist) if dist > 0 else None,
+            "air_per_metre_L_std_per_m": charged / rho * 1e3 / dist if dist > 0 else None,
+            "cost_of_transport_reason": None if dist > 0 else (f"not reached: no forward distance ({dist:.3g} m; "
+                                                               f"base {rs.options.base!r})"),
             "robot_mass_with_ballast_kg": mass,
             "joint_delay_s": {n: joints[n]["delay_s"] for n in self.joint_names},
             "joint_delay_mean_s": float(np.nanmean(delays)) if np.isfinite(delays).any() else None,
             "joints": joints,
             "max_contraction_percent": {m: float(100 * contraction[:, i].max())
                                         for i, m in enumerate(self.muscle_names)},
-            "aeration_volume_L_std": {m: self.aeration_volume(m) for m in self.muscle_names},
+            "aeration_volume_L_std": {m: self.aeration_volume(m) * 1e3 if len(self.charge_open_times(m)) else None
+                                      for m in self.muscle_names},
             "air_mass_relative_drift": float(np.ptp(air_total) / air_total[0]),
             "solver": {**self.stats, "wall_time_s": self.wall_s, "compile_time_s": self.compile_s,
                        "real_time_factor": float(t[-1]) / self.wall_s if self.wall_s > 0 else None,
                        "timing_note": "wall_time_s and real_time_factor exclude compile_time_s"},
         }
-        if self._control_rows():
+        if self._rows_by_muscle():
             out["control"] = self.control_metrics()
-        return out
-
-    # -- closed-loop control ----------------------------------------------------------------------
-    def _control_rows(self) -> dict:
-        """{muscle: its row in the run's table of laws} of the muscles under closed-loop control."""
-        from frogsim.control.sampled import L_KIND, L_MUSCLE, KIND_PUMP_BAND
-        laws = self.model.arrays["laws"]
-        if laws.ndim == 1:
-            return {}
-        return {self.muscle_names[int(laws[c, L_MUSCLE])]: c for c in range(laws.shape[0])
-                if laws[c, L_KIND] != KIND_PUMP_BAND}
-
-    def setpoint(self, controller: str) -> np.ndarray:
-        """A closed-loop controller's setpoint at the output times: [rad] for a joint-angle
-        controller, [Pa abs] for a pressure controller."""
-        from frogsim.control.sampled import setpoint
-        ctl = self.rs.pneumatic.controllers.get(controller)
-        rows = self._control_rows()
-        if ctl is None or ctl.muscle not in rows:
-            raise KeyError(f"no closed-loop controller {controller!r}")
-        laws, c = self.model.arrays["laws"], rows[ctl.muscle]
-        return np.array([setpoint(laws, c, float(t))[0] for t in self.t])
-
-    def control_metrics(self) -> dict:
-        """Per closed-loop controller (docs/control.md): tracking error RMS and max from its
-        ``settle`` time on, on the output grid (a joint-angle controller: the true joint angle
-        against the angle setpoint [deg]; a pressure controller: the true pressure [bar]), valve
-        switchings per valve and per second of run, air charged into its muscles [L standard],
-        and for a joint-angle controller the controller samples at which the pair's pressure
-        targets were clipped to [atmosphere, source]. Under "robot": the whole robot's air, air
-        per metre and cost of transport (None, with the reason, when it did not move forward)."""
-        from frogsim.control import kinds
-        from frogsim.control.sampled import B_CLIPS, CS_BLOCK, CS_SIZE, switch_counts
-        a = self.model.arrays
-        laws, cs = a["laws"], a["cs"]
-        rows = self._control_rows()
-        counts = switch_counts(laws, cs)
-        T = float(self.t[-1] - self.t[0]) if self.t.size > 1 else 0.0
-        rho = self.reference_density
-        out = {}
-        for name, ctl in self.rs.pneumatic.controllers.items():
-            if not ctl.closed_loop:
-                continue
-            muscles = list(ctl.driven())
-            label, sp = label_and_setpoint(ctl, self.python_law, self.t, lambda: self.setpoint(name))
-            entry = {"kind": label, "muscles": muscles, "settle_s": ctl.settle_time(self.rs.duration)}
-            after = self.t >= ctl.settle_time(self.rs.duration)
-            declared = kinds.of(ctl)
-            angle = declared.tracks == "angle"      # the controller tracks its joint's angle
-            if angle:
-                entry["joint"] = ctl.joint
-            if sp is not None and angle:
-                j = self.joint_names.index(ctl.joint)
-                e = np.degrees(sp - self.joint_angles[:, j])[after]
-                entry["tracking_error_rms_deg"] = float(np.sqrt(np.mean(e ** 2))) if e.size else None
-                entry["tracking_error_max_deg"] = float(np.max(np.abs(e))) if e.size else None
-            if "samples_pressure_target_clipped" in declared.metrics:
-                b = int(CS_SIZE + rows[ctl.muscle] * cs[CS_BLOCK])
-                entry["samples_pressure_target_clipped"] = int(cs[b + B_CLIPS])
-            if sp is not None and not angle:        # a pressure (a Python law's setpoint too)
-                i = self.muscle_names.index(ctl.muscle)
-                e = (sp - self.pressures[:, i])[after]
-                entry["tracking_error_rms_bar"] = float(np.sqrt(np.mean(e ** 2)) / 1e5) if e.size else None
-                entry["tracking_error_max_bar"] = float(np.max(np.abs(e)) / 1e5) if e.size else None
-            sw = {mu: dict(zip(("charge", "discharge"), counts.get(rows[mu], (0, 0)))) for mu in muscles}
-            entry["switchings"] = sw
-            total = sum(v["charge"] + v["discharge"] for v in sw.values())
-            entry["switchings_per_s"] = total / T if T > 0 else None
-            charged = sum(float(self.charged[-1, self.muscle_names.index(mu)]
-                                - self.charged[0, self.muscle_names.index(mu)]) for mu in muscles)
-            entry["air_used_L_std"] = charged / rho * 1e3
-            out[name] = entry
-        charged = float(self.rec[-1, C.R_CHARGED] - self.rec[0, C.R_CHARGED])
-        air = charged / rho * 1e3
-        dist = float(self.forward[-1])
-        moved = dist > 0.0
-        why = None if moved else (f"not reached: no forward distance ({dist:.3g} m; base "
-                                  f"{self.rs.options.base!r})")
-        exergy = float(self.rec[-1, C.R_EXERGY])
-        g = self.rs.robot.water.gravity
-        out["robot"] = {"air_used_L_std": air,
-                        "air_per_metre_L_std_per_m": air / dist if moved else None,
-                        "cost_of_transport": exergy / (self.rs.layout.total_mass * g * dist) if moved else None,
-                        "distance_m": dist, "note": why}
         return out
 
     # -- table ----------------------------------------------------------------------------------

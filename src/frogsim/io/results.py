@@ -136,7 +136,7 @@ def plot_run(result, path: str) -> None:
             ",\n".join(", ".join(names[k:k + 2]) for k in range(0, len(names), 2)) + f"\n(one curve, within {SAME_PA:g} Pa)"
         a.plot(result.t, (p - patm) / 1e5, color=c, label=label)
     # each closed-loop controller's setpoint, dashed in its muscle's colour (PWM without one: none)
-    from frogsim.engine.result import label_and_setpoint
+    from frogsim.engine.run_result import label_and_setpoint
     for name in result._law_rows():
         ctl = result.model.scenario.controllers[name]
         kind, sp = label_and_setpoint(ctl, result.python_law, result.t, lambda name=name: result.setpoint(name))

@@ -64,8 +64,7 @@ def control_pressure() -> StudyData:
             patm = r.atmospheric_pressure
             m = r.control_metrics()["hip"]
             metrics[exp][ctl] = {k: m[k] for k in ("tracking_error_rms_bar", "tracking_error_max_bar",
-                                                   "switchings_per_s", "switchings_charge_valve",
-                                                   "switchings_discharge_valve", "air_used_L_std", "settle_s")}
+                                                   "switchings_per_s", "switchings", "air_used_L_std", "settle_s")}
             frames.append(pd.DataFrame({
                 "experiment": exp, "controller": ctl, TIME: r.t,
                 SETPOINT: (r.setpoint("hip") - patm) / BAR,

@@ -94,7 +94,7 @@ def heat_study() -> StudyData:
             "hold_pressure_sag_bar": p_close - float(p_hold[-1]),
             "hold_pressure_sag_percent_of_gauge": 100.0 * (p_close - float(p_hold[-1])) / p_close,
             "bang_bang_switchings_per_s": m["switchings_per_s"],
-            "bang_bang_charge_valve_openings": m["switchings_charge_valve"],
+            "bang_bang_charge_valve_openings": int(opened.size),
             "bang_bang_charge_openings_last_second": last,
             "bang_bang_air_used_L_std": m["air_used_L_std"],
             "bang_bang_tracking_error_rms_bar": m["tracking_error_rms_bar"],
