@@ -275,8 +275,7 @@ def test_the_program_kind_has_no_row_nothing_to_tune_and_no_metrics():
 
 # --- what the engines read: setpoint and metrics ------------------------------------------------------
 #: the keys every closed-loop controller's metrics carry, whatever its kind
-COMMON = {"kind", "muscle", "muscles", "joint", "settle_s", "switchings", "switchings_charge_valve",
-          "switchings_discharge_valve", "switchings_per_s", "air_used_L_std"}
+COMMON = {"kind", "muscles", "joint", "settle_s", "switchings", "switchings_per_s", "air_used_L_std"}
 
 
 @pytest.mark.parametrize("kind", ["bang-bang", "pwm", "sliding-mode"])
