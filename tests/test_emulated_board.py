@@ -231,3 +231,65 @@ def test_a_sleeping_core_stops_and_takes_an_input_at_the_cycle_asked(tmp_path):
             assert len(rises) == 1, rises
             delays.append(rises[0] - at)
     assert len(set(delays)) == 1 and 0 < delays[0] < 40, delays
+
+
+def test_the_periods_reader_gives_what_the_raw_pin_events_show(probe_elf):
+    """The SIL reads the pin events of each period in C (``track``/``drain``: executions of the
+    interrupt, Timer1's compare matches, valve mode changes). The same run read as raw events
+    gives the expected values: an execution is a high pulse of the busy pin, its decision the
+    valve's mode at the pulse's end, its write the last mode change inside it; a compare match is
+    the vector's flag raised; a mode change is each edge of the "charge" pin (here the probe's
+    conversion pin, its "discharge" pin one that stays low; the mode starts at 0). The reader's arrays hold one entry
+    each, so every drain leaves events queued and is called again."""
+    pins = board.pin_map()
+
+    def run_probe(tracked: bool):
+        with EmulatedBoard(probe_elf) as b:
+            busy, conv, low = b.watch(pins[22]), b.watch(pins[23]), b.watch(pins[24])
+            tick = b.watch_vector(17)
+            for ch, mv in {0: 1000, 1: 2500, 2: 4999}.items():
+                b.set_analog(ch, mv)
+            if tracked:
+                b.track(busy, tick, [(conv, low)], changes=1, executions=1, ticks=1)
+            ex, ticks, changes, drains = [], [], [], 0
+            for k in range(60):
+                b.run_until((k + 1) * PERIOD)
+                if not tracked:
+                    continue
+                more = True
+                while more:
+                    more = b.drain()
+                    drains += 1
+                    n = b.counters
+                    s, e, w, d = b.executions
+                    ex += [(int(s[j]), int(e[j]), int(w[j]), int(d[j, 0])) for j in range(n[b.TR_EXECUTIONS])]
+                    ticks += [int(x) for x in b.ticks[:n[b.TR_TICKS]]]
+                    c, m, mode = b.changes
+                    changes += [(int(c[j]), int(m[j]), int(mode[j])) for j in range(n[b.TR_CHANGES])]
+            if tracked:
+                return ex, ticks, changes, drains, int(b.counters[b.TR_BOTH_OPEN])
+            return b.events(), busy, conv, tick
+
+    ex, ticks, changes, drains, both = run_probe(True)
+    (c, i, v), busy, conv, tick = run_probe(False)
+    edges = [(int(cc), int(vv)) for cc, ii, vv in zip(c, i, v) if ii == conv]
+    want_changes, mode = [], 0                    # a mode change: the mode differs from the last
+    for cc, vv in edges:
+        if (1 if vv else 0) != mode:
+            mode = 1 if vv else 0
+            want_changes.append((cc, 0, mode))
+    want_ex = []
+    for rise, width in pulses(c, i, v, busy):
+        end = rise + width
+        before = [(cc, vv) for cc, vv in edges if cc <= end]
+        level = before[-1][1] if before else 0
+        inside = [cc for cc, _ in before if cc >= rise]
+        want_ex.append((rise, end, inside[-1] if inside else -1, 1 if level else 0))
+    want_ticks = [int(cc) for cc, ii, vv in zip(c, i, v) if ii == tick and vv == 1]
+    assert len(want_ex) >= 59 and len(want_changes) >= 118
+    assert ex == want_ex
+    assert ticks == want_ticks
+    assert changes == want_changes
+    assert both == 0
+    # a drain reads at most one change (one-entry arrays): two a period needed a second drain
+    assert drains >= len(want_changes) > 60

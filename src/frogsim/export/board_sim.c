@@ -28,6 +28,8 @@
 #define ADC_INPUTS 16
 #define EVENT_CAP (1 << 16)
 #define UART_CAP (1 << 20)
+#define MAX_VALVES 32
+#define MAX_ENC 16
 
 typedef struct board_t board_t;
 typedef struct { board_t *b; int index; int last; } watch_t;
@@ -61,7 +63,28 @@ struct board_t {
     int snap_len;
     uint8_t *snap_buf;
     long snap_n, snap_max;
+    /* board_track: the pin events read into what a controller period gives (board_drain) */
+    int tr_on, tr_busy, tr_tick, tr_nv;
+    int tr_owner[MAX_WATCH];                 /* the valve a watch belongs to, or -1 */
+    int tr_charge[MAX_VALVES], tr_dis[MAX_VALVES];
+    int tr_level[MAX_WATCH];
+    int8_t tr_modes[MAX_VALVES];
+    int64_t *tr_cnt;                         /* TR_* below, the caller's */
+    uint64_t *ch_cycle; int32_t *ch_j; int8_t *ch_mode; long ch_max;
+    uint64_t *ex_start, *ex_end; int64_t *ex_write; int8_t *ex_dec; long ex_max;
+    uint64_t *tk; long tk_max;
+    /* board_frame_setup: what board_frame sets and runs each period */
+    int fr_on, fr_nadc, fr_shift, fr_nenc, fr_snap_index, fr_snap_len;
+    uint32_t fr_vref, fr_snap_addr;
+    const int32_t *fr_inputs; const int64_t *fr_counts;
+    char fr_a_port[MAX_ENC], fr_b_port[MAX_ENC];
+    int32_t fr_a_bit[MAX_ENC], fr_b_bit[MAX_ENC];
+    int32_t *fr_count; const int32_t *fr_target; long fr_most;
+    uint8_t *fr_snaps; long fr_max_snaps;
 };
+
+/* board_track's counters (int64, the caller's array) */
+enum { TR_CHANGES, TR_EXECUTIONS, TR_TICKS, TR_BOTH_OPEN, TR_RISE, TR_LAST_EDGE, TR_MORE, TR_SIZE };
 
 static void pin_changed(struct avr_irq_t *irq, uint32_t value, void *param) {
     watch_t *w = (watch_t *)param;
@@ -363,7 +386,6 @@ long board_run_frame_enc(board_t *b, uint64_t start, uint64_t end, int n_enc, co
                          const int32_t *a_bit, const char *b_port, const int32_t *b_bit, int32_t *count,
                          const int32_t *target, long most, int snap_index, uint32_t snap_addr, int snap_len,
                          uint8_t *snaps, long max_snaps) {
-    enum { MAX_ENC = 16 };
     if (n_enc < 0 || n_enc > MAX_ENC)
         return -1;
     for (int e = 0; e < n_enc; e++) {            /* more than `most` counts: refused, nothing run */
@@ -458,3 +480,168 @@ long board_uart_read(board_t *b, uint8_t *out, uint64_t *cycle, long max) {
 }
 
 long board_lost(board_t *b) { return b->ev_lost + b->uart_lost; }
+
+/* --- a controller period in one call ---------------------------------------------------------
+ * frogsim.export.sil.BoardRun reads the queued pin events into the period's valve mode changes,
+ * the control interrupt's executions and Timer1's compare matches (board_drain); board_frame
+ * sets the analog inputs, runs the period with its encoder edges (board_run_frame_enc) and
+ * drains, all in one call, with the arrays registered once (board_track, board_frame_setup). */
+
+/* Track watch `busy` (the firmware's busy pin: an execution from its rise to its fall), watch
+ * `tick` (Timer1's compare flag: a match at each raise) and `nv` valves (valve j's charge pin is
+ * watch charge[j], its discharge pin watch dis[j]; mode 1 charge alone open, -1 discharge alone,
+ * 0 otherwise). board_drain writes into the caller's arrays: the mode changes (cycle, valve, mode;
+ * at most ch_max), the executions that ended (start, end, the cycle of the execution's last valve
+ * change or -1, the valves' modes at its end as row k of ex_dec (ex_max rows of nv); at most
+ * ex_max), the compare matches' cycles (at most tk_max), and the counters cnt[TR_SIZE].
+ * Returns 0, or -1 for an index out of range. */
+int board_track(board_t *b, int busy, int tick, int nv, const int32_t *charge, const int32_t *dis, int64_t *cnt,
+                uint64_t *ch_cycle, int32_t *ch_j, int8_t *ch_mode, long ch_max, uint64_t *ex_start,
+                uint64_t *ex_end, int64_t *ex_write, int8_t *ex_dec, long ex_max, uint64_t *tk, long tk_max) {
+    if (nv < 0 || nv > MAX_VALVES || busy < 0 || busy >= MAX_WATCH || tick < -1 || tick >= MAX_WATCH)
+        return -1;
+    for (int w = 0; w < MAX_WATCH; w++) {
+        b->tr_owner[w] = -1;
+        b->tr_level[w] = 0;
+    }
+    for (int j = 0; j < nv; j++) {
+        if (charge[j] < 0 || charge[j] >= MAX_WATCH || dis[j] < 0 || dis[j] >= MAX_WATCH)
+            return -1;
+        b->tr_charge[j] = charge[j];
+        b->tr_dis[j] = dis[j];
+        b->tr_owner[charge[j]] = j;
+        b->tr_owner[dis[j]] = j;
+        b->tr_modes[j] = 0;
+    }
+    b->tr_busy = busy;
+    b->tr_tick = tick;
+    b->tr_nv = nv;
+    b->tr_cnt = cnt;
+    for (int k = 0; k < TR_SIZE; k++)
+        cnt[k] = 0;
+    cnt[TR_RISE] = -1;
+    cnt[TR_LAST_EDGE] = -1;
+    b->ch_cycle = ch_cycle; b->ch_j = ch_j; b->ch_mode = ch_mode; b->ch_max = ch_max;
+    b->ex_start = ex_start; b->ex_end = ex_end; b->ex_write = ex_write; b->ex_dec = ex_dec; b->ex_max = ex_max;
+    b->tk = tk; b->tk_max = tk_max;
+    b->tr_on = 1;
+    return 0;
+}
+
+/* Read the queued pin events, in order, into board_track's arrays (their counts start at 0 at
+ * each call). An event that would overfill an array stays queued for the next call:
+ * cnt[TR_MORE] is 1 then. Returns -1 without board_track, else cnt[TR_MORE]. */
+long board_drain(board_t *b) {
+    if (!b->tr_on)
+        return -1;
+    int64_t *cnt = b->tr_cnt;
+    cnt[TR_CHANGES] = cnt[TR_EXECUTIONS] = cnt[TR_TICKS] = 0;
+    cnt[TR_MORE] = 0;
+    while (b->ev_head < b->ev_tail) {
+        long k = b->ev_head % EVENT_CAP;
+        uint64_t c = b->ev_cycle[k];
+        int i = b->ev_index[k];
+        int v = b->ev_value[k];
+        if (i < 0 || i >= MAX_WATCH) {                      /* not a tracked watch */
+            b->ev_head++;
+            continue;
+        }
+        if (i == b->tr_busy) {
+            if (!v && cnt[TR_RISE] >= 0 && cnt[TR_EXECUTIONS] >= b->ex_max) {
+                cnt[TR_MORE] = 1;
+                break;
+            }
+            b->tr_level[i] = v;
+            if (v) {
+                cnt[TR_RISE] = (int64_t)c;
+            } else if (cnt[TR_RISE] >= 0) {
+                long e = cnt[TR_EXECUTIONS]++;
+                b->ex_start[e] = (uint64_t)cnt[TR_RISE];
+                b->ex_end[e] = c;
+                memcpy(b->ex_dec + e * b->tr_nv, b->tr_modes, (size_t)b->tr_nv);
+                b->ex_write[e] = (cnt[TR_LAST_EDGE] >= 0 && cnt[TR_LAST_EDGE] >= cnt[TR_RISE]) ? cnt[TR_LAST_EDGE] : -1;
+                cnt[TR_RISE] = -1;
+            }
+        } else if (i == b->tr_tick) {
+            if (v && cnt[TR_TICKS] >= b->tk_max) {
+                cnt[TR_MORE] = 1;
+                break;
+            }
+            b->tr_level[i] = v;
+            if (v)
+                b->tk[cnt[TR_TICKS]++] = c;
+        } else {
+            int j = b->tr_owner[i];
+            if (j < 0) {
+                b->tr_level[i] = v;
+                b->ev_head++;
+                continue;
+            }
+            int old = b->tr_level[i];
+            b->tr_level[i] = v;
+            int ch = b->tr_level[b->tr_charge[j]], dis = b->tr_level[b->tr_dis[j]];
+            int mode = (ch && !dis) ? 1 : ((dis && !ch) ? -1 : 0);
+            if (mode != b->tr_modes[j] && cnt[TR_CHANGES] >= b->ch_max) {
+                b->tr_level[i] = old;                    /* read again at the next call */
+                cnt[TR_MORE] = 1;
+                break;
+            }
+            if (ch && dis)
+                cnt[TR_BOTH_OPEN]++;
+            if (mode != b->tr_modes[j]) {
+                long n = cnt[TR_CHANGES]++;
+                b->tr_modes[j] = (int8_t)mode;
+                cnt[TR_LAST_EDGE] = (int64_t)c;
+                b->ch_cycle[n] = c;
+                b->ch_j[n] = j;
+                b->ch_mode[n] = (int8_t)mode;
+            }
+        }
+        b->ev_head++;
+    }
+    return cnt[TR_MORE];
+}
+
+/* What board_frame does each period: the `n_adc` analog inputs `inputs` read counts[i] << shift
+ * (board_set_adc_counts, over `vref_mv`); the `n_enc` encoders (A at a_port/a_bit, B at
+ * b_port/b_bit) move from count[] to target[] (board_run_frame_enc, at most `most` counts);
+ * at each fall of watch `snap_index`, `snap_len` bytes at `snap_addr` go into `snaps` (at most
+ * `max_snaps`). The arrays are the caller's, read at each board_frame. Returns 0, or -1. */
+int board_frame_setup(board_t *b, int n_adc, const int32_t *inputs, const int64_t *counts, int shift,
+                      uint32_t vref_mv, int n_enc, const char *a_port, const int32_t *a_bit, const char *b_port,
+                      const int32_t *b_bit, int32_t *count, const int32_t *target, long most, int snap_index,
+                      uint32_t snap_addr, int snap_len, uint8_t *snaps, long max_snaps) {
+    if (n_adc < 0 || n_adc > ADC_INPUTS || n_enc < 0 || n_enc > MAX_ENC)
+        return -1;
+    b->fr_nadc = n_adc; b->fr_inputs = inputs; b->fr_counts = counts; b->fr_shift = shift; b->fr_vref = vref_mv;
+    b->fr_nenc = n_enc;
+    for (int e = 0; e < n_enc; e++) {
+        b->fr_a_port[e] = a_port[e]; b->fr_a_bit[e] = a_bit[e];
+        b->fr_b_port[e] = b_port[e]; b->fr_b_bit[e] = b_bit[e];
+    }
+    b->fr_count = count; b->fr_target = target; b->fr_most = most;
+    b->fr_snap_index = snap_index; b->fr_snap_addr = snap_addr; b->fr_snap_len = snap_len;
+    b->fr_snaps = snaps; b->fr_max_snaps = max_snaps;
+    b->fr_on = 1;
+    return 0;
+}
+
+/* One controller period from cycle `start` to `end` as board_frame_setup says, then
+ * board_drain. Returns the number of falls of the snap watch (as board_run_frame); -1 if the
+ * firmware stopped or crashed; -2 - e if encoder e would move more than `most` counts; -1000 - i
+ * if analog count i is outside the converter's range (nothing is run in these two cases); -3
+ * without board_frame_setup or board_track. */
+long board_frame(board_t *b, uint64_t start, uint64_t end) {
+    if (!b->fr_on || !b->tr_on)
+        return -3;
+    long bad = board_set_adc_counts(b, b->fr_nadc, b->fr_inputs, b->fr_counts, b->fr_shift, b->fr_vref);
+    if (bad >= 0)
+        return -1000 - bad;
+    long got = board_run_frame_enc(b, start, end, b->fr_nenc, b->fr_a_port, b->fr_a_bit, b->fr_b_port,
+                                   b->fr_b_bit, b->fr_count, b->fr_target, b->fr_most, b->fr_snap_index,
+                                   b->fr_snap_addr, b->fr_snap_len, b->fr_snaps, b->fr_max_snaps);
+    if (got < 0)
+        return got;
+    board_drain(b);
+    return got;
+}

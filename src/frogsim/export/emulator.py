@@ -126,6 +126,17 @@ def _lib():
         lib.board_uart_read.argtypes = [vp, ptr(np.uint8), ptr(np.uint64), ctypes.c_long]
         lib.board_lost.restype = ctypes.c_long
         lib.board_lost.argtypes = [vp]
+        lib.board_track.restype = ctypes.c_int
+        lib.board_track.argtypes = [vp, ctypes.c_int, ctypes.c_int, ctypes.c_int, vp, vp, vp, vp, vp, vp,
+                                    ctypes.c_long, vp, vp, vp, vp, ctypes.c_long, vp, ctypes.c_long]
+        lib.board_drain.restype = ctypes.c_long
+        lib.board_drain.argtypes = [vp]
+        lib.board_frame_setup.restype = ctypes.c_int
+        lib.board_frame_setup.argtypes = [vp, ctypes.c_int, vp, vp, ctypes.c_int, ctypes.c_uint32, ctypes.c_int,
+                                          vp, vp, vp, vp, vp, vp, ctypes.c_long, ctypes.c_int, ctypes.c_uint32,
+                                          ctypes.c_int, vp, ctypes.c_long]
+        lib.board_frame.restype = ctypes.c_long
+        lib.board_frame.argtypes = [vp, u64, u64]
         del i32
         _LIB = lib
     return _LIB
@@ -435,6 +446,82 @@ class EmulatedBoard:
         if got < 0:
             raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
         return int(got)
+
+    # -- a controller period in one call (frogsim.export.sil.BoardRun) ---------------------------
+    #: board_track's counters: valve mode changes, executions and compare matches read by the last
+    #: drain, valve-pin events with both valves of a muscle open, the busy pin's last rise (-1:
+    #: low), the cycle of the last valve mode change (-1: none), 1 if events are still queued
+    TR_CHANGES, TR_EXECUTIONS, TR_TICKS, TR_BOTH_OPEN, TR_RISE, TR_LAST_EDGE, TR_MORE = range(7)
+
+    def track(self, busy: int, tick: int, valves, changes: int = 1 << 12, executions: int = 64,
+              ticks: int = 64) -> None:
+        """Read the queued pin events in C from now on (:meth:`drain`): watch ``busy`` is the
+        firmware's busy pin (an execution of its interrupt from a rise to the next fall), watch
+        ``tick`` Timer1's compare flag (a match at each raise), ``valves`` the (charge watch,
+        discharge watch) of each muscle, whose mode is 1 (charge alone open), -1 (discharge
+        alone) or 0. Each drain fills, from their starts, :attr:`changes` (cycle, muscle, mode
+        arrays), :attr:`executions` (start, end, last valve change's cycle or -1, the modes at
+        its end) and :attr:`ticks`, and the counters :attr:`counters` (``TR_*``)."""
+        nv = len(valves)
+        self._tr_charge = np.array([c for c, _ in valves], np.int32)
+        self._tr_dis = np.array([d for _, d in valves], np.int32)
+        self.counters = np.zeros(7, np.int64)
+        self.changes = (np.zeros(changes, np.uint64), np.zeros(changes, np.int32), np.zeros(changes, np.int8))
+        self.executions = (np.zeros(executions, np.uint64), np.zeros(executions, np.uint64),
+                           np.zeros(executions, np.int64), np.zeros((executions, max(nv, 1)), np.int8))
+        self.ticks = np.zeros(ticks, np.uint64)
+        ch, ex = self.changes, self.executions
+        if self._lib.board_track(self._h, int(busy), int(tick), nv, self._tr_charge.ctypes.data,
+                                 self._tr_dis.ctypes.data, self.counters.ctypes.data, ch[0].ctypes.data,
+                                 ch[1].ctypes.data, ch[2].ctypes.data, changes, ex[0].ctypes.data, ex[1].ctypes.data,
+                                 ex[2].ctypes.data, ex[3].ctypes.data, executions, self.ticks.ctypes.data, ticks) != 0:
+            raise FrogsimError(f"cannot track {nv} valves on watches {busy}, {tick}: outside the harness's range")
+
+    def drain(self) -> bool:
+        """Read the queued pin events (:meth:`track`); True if some are still queued (an array
+        was full: drain again after reading these)."""
+        return self._lib.board_drain(self._h) > 0
+
+    def frame_setup(self, inputs: np.ndarray, counts: np.ndarray, shift: int, encoders, enc_counts: np.ndarray,
+                    targets: np.ndarray, most: int, snap_index: int, snap_address: int, snaps: np.ndarray) -> None:
+        """What :meth:`frame` does each period, with the caller's arrays read at each call (so
+        the caller writes into them between calls): analog inputs A<inputs[i]> (int32) at
+        ``counts[i] << shift`` (int64, :meth:`set_analog_counts`); ``encoders`` (A pin, B pin)
+        moving from ``enc_counts`` to ``targets`` (int32; :meth:`run_frame_encoders`, at most
+        ``most`` counts); snapshots of ``snaps.shape[1]`` bytes at ``snap_address`` at each fall
+        of watch ``snap_index`` into the rows of ``snaps`` (uint8)."""
+        self._fr_shift = int(shift)
+        self._fr = (inputs, counts, enc_counts, targets, snaps,
+                    np.array([ord(a.port) for a, _ in encoders], np.uint8), np.array([a.bit for a, _ in encoders], np.int32),
+                    np.array([ord(b.port) for _, b in encoders], np.uint8), np.array([b.bit for _, b in encoders], np.int32))
+        _, _, _, _, _, ap, ab, bp, bb = self._fr
+        for a in (inputs, counts, enc_counts, targets, snaps):
+            if not a.flags.c_contiguous:
+                raise ValueError("frame_setup: every array must be contiguous")
+        if self._lib.board_frame_setup(self._h, int(inputs.size), inputs.ctypes.data, counts.ctypes.data, int(shift),
+                                       int(round(self.vref * 1000)), len(encoders), ap.ctypes.data, ab.ctypes.data,
+                                       bp.ctypes.data, bb.ctypes.data, enc_counts.ctypes.data, targets.ctypes.data,
+                                       int(most), int(snap_index), int(snap_address), int(snaps.shape[1]),
+                                       snaps.ctypes.data, int(snaps.shape[0])) != 0:
+            raise ValueError(f"frame_setup: {inputs.size} analog inputs and {len(encoders)} encoders: at most 16 each")
+
+    def frame(self, start: int, end: int) -> int:
+        """One controller period as :meth:`frame_setup` says, from cycle ``start`` to ``end``,
+        then :meth:`drain`. Returns the number of falls of the snap watch; FrogsimError if the
+        firmware stopped; ``-1 - e`` (nothing run) if encoder e would move too far; ValueError
+        (nothing run) for an analog count outside the converter's range."""
+        got = self._lib.board_frame(self._h, start, end)
+        if got >= 0:
+            return got
+        if got <= -1000:
+            i = -1000 - got
+            inputs, counts = self._fr[0], self._fr[1]
+            raise ValueError(f"analog input A{int(inputs[i])}: count {int(counts[i])} is outside the "
+                             f"converter's 0..{1023 >> int(self._fr_shift)}")
+        if got <= -2:
+            return got + 1
+        raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}"
+                           if got == -1 else "frame: call track and frame_setup first")
 
     def events_into(self, c: np.ndarray, i: np.ndarray, v: np.ndarray) -> int:
         """Move up to len(c) queued pin changes into the given arrays (uint64, int32, int32: no

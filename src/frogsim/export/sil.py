@@ -89,7 +89,6 @@ class BoardRun:
         for j, (ic, idis) in enumerate(self.valve_index):
             self.owner[ic] = j
             self.owner[idis] = j
-        self.level = np.zeros(len(self.board.watched), np.int32)
         self.shift = 10 - int(rec["adc"]["bits"])
         chans = rec["channels"]
         self.analog = [i for i, ch in enumerate(chans) if "analog_input" in ch]
@@ -121,58 +120,67 @@ class BoardRun:
         # the counts each interrupt read, copied from RAM at its end (the busy pin's fall)
         self.snap_address = self.adc_address if chans else 0
         self.snap = np.zeros((8, 2 * len(chans)), np.uint8)
-        self.modes_now = np.zeros(len(self.valve_index), np.int8)
-        self.ev_c = np.empty(256, np.uint64)
-        self.ev_i = np.empty(256, np.int32)
-        self.ev_v = np.empty(256, np.int32)
+        # the pin events are read in C (EmulatedBoard.track), each period set and run in one call
+        # (EmulatedBoard.frame) on these arrays, written here before each call
+        self.board.track(self.busy, self.tick, self.valve_index)
+        self.adc_counts = np.zeros(len(self.inputs), np.int64)
+        self.enc_targets = self.enc_count.copy()
+        self.board.frame_setup(self.input_array, self.adc_counts, self.shift, self.enc_pins, self.enc_count,
+                               self.enc_targets, self.most_counts, self.busy, self.snap_address, self.snap)
         self.s0 = None
         self.frames = 0
-        self.rise = None
-        self.last_edge = None
         self.ticks = []            # cycles of Timer1's compare matches (flag raised)
         self.starts, self.ends = [], []     # busy pin rise and fall of each execution
         self.decisions = []        # the muscles' modes at each execution's end
         self.counts_read = []      # the counts each execution read
         self.write_cycle = []      # cycle of each execution's last valve change (-1: none)
-        self.both_open = 0
         self.fed = []              # the counts fed in each frame
         self.avr_s = 0.0
 
     # -- the run ---------------------------------------------------------------------------------
-    def _drain(self, out) -> None:
-        """Process the queued pin events in order; valve mode changes go to ``out``."""
+    def _drain(self, out, drained: bool = False) -> None:
+        """Read the queued pin events (in C, :meth:`EmulatedBoard.drain`; ``drained``: the last
+        call did, as :meth:`EmulatedBoard.frame` does for its period): the executions that ended,
+        the compare matches and, into ``out``, the valve mode changes [(cycle, muscle index,
+        mode)], in order."""
         b = self.board
-        while True:
-            n = b.events_into(self.ev_c, self.ev_i, self.ev_v)
-            for c, i, v in zip(self.ev_c[:n].tolist(), self.ev_i[:n].tolist(), self.ev_v[:n].tolist()):
-                self.level[i] = v
-                if i == self.busy:
-                    if v:
-                        self.rise = c
-                    elif self.rise is not None:
-                        self.starts.append(self.rise)
-                        self.ends.append(c)
-                        self.decisions.append(self.modes_now.copy())
-                        self.write_cycle.append(self.last_edge if self.last_edge is not None
-                                                and self.last_edge >= self.rise else -1)
-                        self.rise = None
-                elif i == self.tick:
-                    if v:
-                        self.ticks.append(c)
-                else:
-                    j = self.owner[i]
-                    ic, idis = self.valve_index[j]
-                    ch, dis = self.level[ic], self.level[idis]
-                    if ch and dis:
-                        self.both_open += 1
-                    mode = 1 if ch and not dis else (-1 if dis and not ch else 0)
-                    if mode != self.modes_now[j]:
-                        self.modes_now[j] = mode
-                        self.last_edge = c
-                        if out is not None:
-                            out.append((c, j, mode))
-            if n < self.ev_c.size:
-                break
+        if not drained:
+            b.drain()
+        more = self._take(out)
+        while more:
+            b.drain()
+            more = self._take(out)
+
+    def _take(self, out) -> bool:
+        """What the last drain read, into the run's lists; True if events are still queued."""
+        b = self.board
+        cnt = b.counters
+        n_ex, n_tk = int(cnt[b.TR_EXECUTIONS]), int(cnt[b.TR_TICKS])
+        if n_ex:
+            start, end, write, dec = b.executions
+            self.starts += start[:n_ex].tolist()
+            self.ends += end[:n_ex].tolist()
+            self.write_cycle += write[:n_ex].tolist()
+            self.decisions += list(dec[:n_ex, :len(self.valve_index)].copy())
+        if n_tk:
+            self.ticks += b.ticks[:n_tk].tolist()
+        n_ch = int(cnt[b.TR_CHANGES])
+        if out is not None and n_ch:
+            c, j, m = b.changes
+            out += zip(c[:n_ch].tolist(), j[:n_ch].tolist(), m[:n_ch].tolist())
+        cnt[b.TR_EXECUTIONS] = cnt[b.TR_TICKS] = cnt[b.TR_CHANGES] = 0
+        return bool(cnt[b.TR_MORE])
+
+    @property
+    def rise(self):
+        """The cycle of the busy pin's last rise while it is high, else None."""
+        r = int(self.board.counters[self.board.TR_RISE])
+        return r if r >= 0 else None
+
+    @property
+    def both_open(self) -> int:
+        """Valve pin changes that left a muscle's charge and discharge valves both open."""
+        return int(self.board.counters[self.board.TR_BOTH_OPEN])
 
     def begin(self) -> None:
         """Run the board's setup until its first control interrupt has begun (the busy pin's first
@@ -208,25 +216,24 @@ class BoardRun:
         counts = np.array(counts, np.int64)
         self.fed.append(counts)
         if self.inputs:                   # each at millivolts_for_count(count << shift)
-            b.set_analog_counts(self.input_array, counts[self.analog_slice], self.shift)
+            self.adc_counts[:] = counts[self.analog_slice]
         start = self.s0 + self.frames * self.period
         end = start + self.period
         if encoder_counts is not None and self.encoders:
-            targets = np.array(encoder_counts, np.int32)
-            falls = b.run_frame_encoders(start, end, self.enc_pins, self.enc_count, targets, self.most_counts,
-                                         self.busy, self.snap_address, self.snap.shape[1], self.snap)
-            if falls < 0:                 # edges closer than MIN_EDGE_CYCLES: nothing was run
-                e = -1 - falls
-                n = abs(int(targets[e]) - int(self.enc_count[e]))
-                raise SimulationError(f"encoder of {self.rec['channels'][self.encoders[e][0]]['signal']!r}: {n} "
-                                      f"counts in one controller period ({self.period / (n + 1):.0f} CPU cycles "
-                                      "apart): faster than the firmware counts them; use fewer counts per revolution")
+            self.enc_targets[:] = encoder_counts
         else:
-            falls = b.run_frame(end, None, self.busy, self.snap_address, self.snap.shape[1], self.snap)
+            self.enc_targets[:] = self.enc_count
+        falls = b.frame(start, end)
+        if falls < 0:                     # edges closer than MIN_EDGE_CYCLES: nothing was run
+            e = -1 - falls
+            n = abs(int(self.enc_targets[e]) - int(self.enc_count[e]))
+            raise SimulationError(f"encoder of {self.rec['channels'][self.encoders[e][0]]['signal']!r}: {n} "
+                                  f"counts in one controller period ({self.period / (n + 1):.0f} CPU cycles "
+                                  "apart): faster than the firmware counts them; use fewer counts per revolution")
         if falls > self.snap.shape[0]:
             raise SimulationError(f"firmware {self.rec['name']!r}: {falls} interrupts ended in one period")
         out = []
-        self._drain(out)
+        self._drain(out, drained=True)
         for j in range(falls):
             self.counts_read.append(self.snap[j].view("<u2").astype(np.int64))
         self.frames += 1
