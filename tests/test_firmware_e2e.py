@@ -310,3 +310,25 @@ trace = "{trace}"
     c, b = fitted["valves.charge.sonic_conductance"], fitted["valves.charge.critical_ratio"]
     assert c["ci_low_si"] <= 0.4e-3 / 1e5 <= c["ci_high_si"], c
     assert b["ci_low_si"] <= 0.38 <= b["ci_high_si"], b
+
+
+def test_the_checks_see_a_firmware_that_is_not_the_twins(hold):
+    """The checks can fail: the firmware built for a 3 bar setpoint, run against the twin of a
+    plan for 2.5 bar, decides otherwise wherever the pressure lies between the two bands (the
+    twin vents or holds where the firmware still charges): mismatched samples, the first one
+    named with both decisions. The shadow, the compiled law of the 3 bar scenario the plant runs,
+    agrees with the firmware at every sample: no sample off the on-time model."""
+    from frogsim.circuit.model import build_model
+    from frogsim.control import firmware as fw
+    tmp, rec, _, _ = hold
+    elf = tmp / "fw" / "build" / f"{rec['name']}.elf"
+    sc = frogsim.load_scenario("hold-3bar")
+    model = build_model(sc)
+    other = fw.firmware_plan(build_model(sc.replace({"controllers.hold.setpoint.value": 2.5e5})))
+    record = sketch.read_plan_record(tmp / "fw")
+    s = sil.run_pneumatic(model, record, elf, other, fw.adc_counts, compare=False, timing="grid").sil
+    assert s["mismatched_samples"] > 0
+    first = s["first_mismatch"]
+    assert first["firmware"] != first["twin"]
+    assert s["samples_off_the_on_time_model"] == 0 and "first_off_the_on_time_model" not in s
+    assert any("differ from the integer twin" in w for w in s["warnings"])

@@ -430,15 +430,16 @@ class SilRun:
     serial: bytes
 
 
-class _BoardSide:
-    """The board's half of the loop: the firmware on the emulated board (:class:`BoardRun`), one
-    frame per call of :meth:`step`, and the checks of each execution against the integer twin
-    and the on-time model (:meth:`_check`), and at the end the summary's board figures. It runs
-    in the plant's process, or in a process of its own (:class:`_BoardProcess`)."""
+class _Checks:
+    """Each execution of the control interrupt checked (module docstring): its decision against
+    the integer twin on the counts it read (``mismatched_samples``) and against the compiled law
+    on the plant at its own sample (the on-time model, :class:`Shadow`: differs when the firmware
+    read other counts, late). It runs in the plant's process, where the shadow's decisions are
+    made, on what the board reports of each execution (:meth:`_BoardSide.step`)."""
 
-    def __init__(self, rec, elf, plan):
-        self.rec, self.plan = rec, plan
-        self.board = BoardRun(rec, elf)
+    def __init__(self, rec, plan):
+        self.rate = float(rec["rate_hz"])
+        self.plan = plan
         # the integer twin of frogsim_sample on the counts the firmware read (a plan made by
         # frogsim.control.firmware has it; a hand-written one is checked against the shadow)
         self.twin_mem = None
@@ -446,62 +447,95 @@ class _BoardSide:
             from frogsim.control.firmware import firmware_memory
             self.twin_mem = firmware_memory(plan)
         self.shadow_modes = []       # the compiled law on the plant's state, per sample
+        self.fed = []                # the counts each frame was given
         self.checked = 0
         self.mismatched = 0
         self.first_mismatch = None
         self.off_model = 0
         self.first_off_model = None
 
-    def step(self, counts, encoder_counts, shadow_row) -> tuple:
-        """Sample k's shadow decision ``shadow_row`` noted, then one frame run on ``counts`` (None:
-        no frame yet, the first sample with encoders; ``encoder_counts`` as :meth:`BoardRun.frame`
-        takes them). Returns (the frame's valve mode changes as [(plant time [s], muscle index,
-        mode)], the decision of the last execution that ended in it or None)."""
-        self.shadow_modes.append(shadow_row)
-        if counts is None:
-            return [], None
-        b = self.board
-        before = len(b.decisions)
-        changes = b.frame(counts, encoder_counts)
-        self._check()
-        t0 = (b.frames - 1) / float(self.rec["rate_hz"])     # the frame's start (a write in the
-        timed = [(max(t0, b.cycle_time(c)), j, m) for c, j, m in changes]    # setup: at sample 0)
-        return timed, (b.decisions[-1] if len(b.decisions) > before else None)
+    def sample(self, row, counts) -> None:
+        """Sample k's shadow decision ``row``, and the counts its frame is given (None: no frame)."""
+        self.shadow_modes.append(np.asarray(row, np.int8))
+        if counts is not None:
+            self.fed.append(counts)
 
-    def _check(self) -> None:
-        """Each execution that has ended: its decision against the integer twin on the counts it
-        read (mismatched), and against the compiled law on the plant at its own sample (the
-        on-time model: differs when the firmware read other counts, late)."""
+    def executions(self, ended) -> None:
+        """The executions that ended since the last call, in order: (sample, decision, counts read)."""
         from frogsim.control.firmware import firmware_modes
-        b = self.board
-        while self.checked < len(b.decisions):
+        for f, got, read in ended:
             j = self.checked
-            got = b.decisions[j]
             if self.twin_mem is not None:
-                want = firmware_modes(self.plan, j, b.counts_read[j], self.twin_mem)
+                want = firmware_modes(self.plan, j, read, self.twin_mem)
             else:
                 want = self.shadow_modes[j] if j < len(self.shadow_modes) else got
             if got.tobytes() != np.asarray(want, np.int8).tobytes():
                 self.mismatched += 1
                 if self.first_mismatch is None:
-                    self.first_mismatch = {"sample": j, "time_s": j / float(self.rec["rate_hz"]),
-                                           "counts_read": b.counts_read[j].tolist(),
+                    self.first_mismatch = {"sample": j, "time_s": j / self.rate, "counts_read": read.tolist(),
                                            "firmware": got.tolist(), "twin": np.asarray(want).tolist()}
-            f = b.sample_of(j)            # the sample it belongs to (j until a sample is skipped)
             if f < len(self.shadow_modes) and got.tobytes() != self.shadow_modes[f].tobytes():
                 self.off_model += 1
                 if self.first_off_model is None:
-                    self.first_off_model = {"sample": f, "execution": j, "counts_fed": b.fed[f].tolist(),
-                                            "counts_read": b.counts_read[j].tolist(),
-                                            "firmware": got.tolist(), "model": self.shadow_modes[f].tolist()}
+                    self.first_off_model = {"sample": f, "execution": j, "counts_fed": self.fed[f].tolist(),
+                                            "counts_read": read.tolist(), "firmware": got.tolist(),
+                                            "model": self.shadow_modes[f].tolist()}
             self.checked += 1
+
+    def into(self, s: dict) -> dict:
+        """The board's summary ``s`` with the checks' figures in their places."""
+        out = {}
+        for key, value in s.items():
+            if key == "mismatched_samples":
+                out[key] = self.mismatched
+                if self.first_mismatch:
+                    out["first_mismatch"] = self.first_mismatch
+            elif key == "samples_off_the_on_time_model":
+                out[key] = self.off_model
+                if self.first_off_model:
+                    out["first_off_the_on_time_model"] = self.first_off_model
+            else:
+                out[key] = value
+        return out
+
+
+class _BoardSide:
+    """The board's half of the loop: the firmware on the emulated board (:class:`BoardRun`), one
+    frame per call of :meth:`step`, which reports each execution that ended for the checks
+    (:class:`_Checks`, on the plant's side), and at the end the summary's board figures. It runs
+    in the plant's process, or in a process of its own (:class:`_BoardProcess`)."""
+
+    def __init__(self, rec, elf, plan):
+        self.rec, self.plan = rec, plan
+        self.board = BoardRun(rec, elf)
+        self.reported = 0            # executions reported so far
+
+    def step(self, counts, encoder_counts) -> tuple:
+        """One frame run on ``counts`` (None: no frame yet, the first sample with encoders;
+        ``encoder_counts`` as :meth:`BoardRun.frame` takes them). Returns (the frame's valve mode
+        changes as [(plant time [s], muscle index, mode)], the decision of the last execution
+        that ended in it or None, the executions that ended in it as [(sample, decision, counts
+        read)])."""
+        if counts is None:
+            return [], None, []
+        b = self.board
+        before = len(b.decisions)
+        changes = b.frame(counts, encoder_counts)
+        t0 = (b.frames - 1) / float(self.rec["rate_hz"])     # the frame's start (a write in the
+        timed = [(max(t0, b.cycle_time(c)), j, m) for c, j, m in changes]    # setup: at sample 0)
+        return timed, (b.decisions[-1] if len(b.decisions) > before else None), self._ended()
+
+    def _ended(self) -> list:
+        b = self.board
+        out = [(b.sample_of(j), b.decisions[j], b.counts_read[j]) for j in range(self.reported, len(b.decisions))]
+        self.reported = len(b.decisions)
+        return out
 
     def summary(self, rec) -> tuple:
         """(the summary's board figures, the serial bytes): the board run to its end
         (:meth:`BoardRun.finish`, the log's last records sent)."""
         from frogsim.export.serial_log import parse_log
         b = self.board
-        self._check()
         b.finish()
         ran = b.frames                              # the plant's samples (periods run)
         done = sum(1 for e in b.ends if e < b.s0 + ran * b.period) if b.s0 is not None else 0
@@ -526,10 +560,8 @@ class _BoardSide:
             "effective_rate_hz": done / span if span > 0 else None,
             "samples_skipped": ran - done,
             "samples_late": timing["samples_late"],
-            "mismatched_samples": self.mismatched,
-            **({"first_mismatch": self.first_mismatch} if self.first_mismatch else {}),
-            "samples_off_the_on_time_model": self.off_model,
-            **({"first_off_the_on_time_model": self.first_off_model} if self.first_off_model else {}),
+            "mismatched_samples": None,              # the checks' (_Checks.into)
+            "samples_off_the_on_time_model": None,
             "cpu_load_percent": timing["cpu_load_percent"],
             "response_us": timing["response_us"],
             "valve_write_latency_us": timing["valve_write_latency_us"],
@@ -549,7 +581,6 @@ class _BoardSide:
             "avr_wall_s": b.avr_s,
             "log_csv": "serial.csv",
         }
-        s["warnings"] = warnings_of(s, rec)
         return s, bytes(b.serial)
 
     def adc_differs(self, response, period) -> int:
@@ -582,55 +613,62 @@ def _portable(exc: BaseException) -> BaseException:
 
 class _Wire:
     """The per-frame messages between the plant and the board's process, as raw bytes (pickling
-    the arrays each period cost more than the frame's own Python): to the board ``F`` (sample k's
-    shadow decision, no frame: the first sample with encoders) or ``S`` (counts int64, encoder
-    counts int32, shadow decision int8), ``E`` for the summary; back ``K`` + the result (a frame's
-    changes as float64 times, int32 muscles, int8 modes, then its decision or nothing), ``X`` +
-    a pickled exception."""
+    the arrays each period cost more than the frame's own Python): to the board ``S`` (counts
+    int64, encoder counts int32), ``E`` for the summary; back ``K`` + the result (a frame's
+    changes as float64 times, int32 muscles, int8 modes; its decision or nothing; the executions
+    that ended as int32 samples, int8 decisions, int64 counts read), ``X`` + a pickled exception."""
 
     def __init__(self, rec):
         self.n_ch = len(rec["channels"])
         self.n_enc = sum(1 for ch in rec["channels"] if "pins" in ch)
         self.n_m = len(rec["muscles"])
 
-    def step(self, counts, encoder_counts, shadow_row) -> bytes:
-        row = np.asarray(shadow_row, np.int8).tobytes()
-        if counts is None:
-            return b"F" + row
+    def step(self, counts, encoder_counts) -> bytes:
         enc = np.asarray(encoder_counts if encoder_counts is not None else [], np.int32).tobytes()
-        return b"S" + np.asarray(counts, np.int64).tobytes() + enc + row
+        return b"S" + np.asarray(counts, np.int64).tobytes() + enc
 
     def read_step(self, msg: bytes) -> tuple:
         m = memoryview(msg)
-        if msg[:1] == b"F":
-            return None, None, np.frombuffer(m[1:], np.int8).copy()
         c_end = 1 + 8 * self.n_ch
-        e_end = c_end + 4 * self.n_enc
         counts = np.frombuffer(m[1:c_end], np.int64).copy()
-        enc = np.frombuffer(m[c_end:e_end], np.int32).copy() if self.n_enc else None
-        return counts, enc, np.frombuffer(m[e_end:], np.int8).copy()
+        enc = np.frombuffer(m[c_end:c_end + 4 * self.n_enc], np.int32).copy() if self.n_enc else None
+        return counts, enc
 
-    @staticmethod
-    def result(changes, decision) -> bytes:
-        n = len(changes)
-        head = np.array([n, 0 if decision is None else 1], np.int32).tobytes()
+    def result(self, changes, decision, ended) -> bytes:
+        n, ne = len(changes), len(ended)
+        parts = [b"K", np.array([n, 0 if decision is None else 1, ne], np.int32).tobytes()]
         if n:
             t, j, mode = zip(*changes)
-            body = (np.array(t, np.float64).tobytes() + np.array(j, np.int32).tobytes()
-                    + np.array(mode, np.int8).tobytes())
-        else:
-            body = b""
-        return b"K" + head + body + (b"" if decision is None else np.asarray(decision, np.int8).tobytes())
+            parts += [np.array(t, np.float64).tobytes(), np.array(j, np.int32).tobytes(),
+                      np.array(mode, np.int8).tobytes()]
+        if decision is not None:
+            parts.append(np.asarray(decision, np.int8).tobytes())
+        if ne:
+            f, dec, read = zip(*ended)
+            parts += [np.array(f, np.int32).tobytes(), np.asarray(dec, np.int8).tobytes(),
+                      np.asarray(read, np.int64).tobytes()]
+        return b"".join(parts)
 
-    @staticmethod
-    def read_result(m: memoryview) -> tuple:
-        n, has = np.frombuffer(m[:8], np.int32).tolist()
-        at = 8
+    def read_result(self, m: memoryview) -> tuple:
+        n, has, ne = np.frombuffer(m[:12], np.int32).tolist()
+        at = 12
         t = np.frombuffer(m[at:at + 8 * n], np.float64).tolist()
         j = np.frombuffer(m[at + 8 * n:at + 12 * n], np.int32).tolist()
         mode = np.frombuffer(m[at + 12 * n:at + 13 * n], np.int8).tolist()
-        decision = np.frombuffer(m[at + 13 * n:], np.int8).copy() if has else None
-        return list(zip(t, j, mode)), decision
+        at += 13 * n
+        decision = None
+        if has:
+            decision = np.frombuffer(m[at:at + self.n_m], np.int8).copy()
+            at += self.n_m
+        ended = []
+        if ne:
+            f = np.frombuffer(m[at:at + 4 * ne], np.int32).tolist()
+            at += 4 * ne
+            dec = np.frombuffer(m[at:at + ne * self.n_m], np.int8).reshape(ne, self.n_m).copy()
+            at += ne * self.n_m
+            read = np.frombuffer(m[at:at + 8 * ne * self.n_ch], np.int64).reshape(ne, self.n_ch).copy()
+            ended = list(zip(f, dec, read))
+        return list(zip(t, j, mode)), decision, ended
 
 
 def _serve_board(conn, rec, elf, plan) -> None:
@@ -645,7 +683,7 @@ def _serve_board(conn, rec, elf, plan) -> None:
         conn.send_bytes(b"K")
         while True:
             msg = conn.recv_bytes()
-            if msg[:1] in (b"S", b"F"):
+            if msg[:1] == b"S":
                 conn.send_bytes(wire.result(*side.step(*wire.read_step(msg))))
             elif msg[:1] == b"E":
                 conn.send_bytes(b"K" + pickle.dumps(side.summary(rec)))
@@ -712,21 +750,25 @@ class _BoardProcess:
             while True:
                 self._get()              # raises its error, or that it ended unexpectedly
 
-    def step(self, counts, encoder_counts, shadow_row) -> tuple:
-        self._send(self.wire.step(counts, encoder_counts, shadow_row))
-        out = self.wire.read_result(self._get()) if self.waiting else ([], None)
+    def step(self, counts, encoder_counts) -> tuple:
+        if counts is None:
+            return [], None, []
+        self._send(self.wire.step(counts, encoder_counts))
+        out = self.wire.read_result(self._get()) if self.waiting else ([], None, [])
         self.waiting = True
         return out
 
     def summary(self, rec) -> tuple:
+        """(the board's figures, the serial bytes, the executions that ended in the last frame)."""
         import pickle
+        ended = []
         if self.waiting:               # the last frame's result: its writes act after the run
-            self._get()
+            ended = self.wire.read_result(self._get())[2]
             self.waiting = False
         self._send(b"E")
-        out = pickle.loads(self._get())
+        s, serial = pickle.loads(self._get())
         self.close()
-        return out
+        return s, serial, ended
 
     def close(self) -> None:
         try:
@@ -807,6 +849,7 @@ class _Loop:
         self.rec, self.plan, self.counts, self.shadow, self.model = rec, plan, counts, shadow, model
         self.parallel = bool(parallel)
         self.side = _BoardProcess(rec, elf, plan) if self.parallel else _BoardSide(rec, elf, plan)
+        self.checks = _Checks(rec, plan)
         self.muscles = list(rec["muscles"])
         self.robot = robot
         self.joint_names, self.joint_qpos = robot if robot else ((), ())
@@ -843,13 +886,17 @@ class _Loop:
                         raise SimulationError(f"the joint of {self.rec['channels'][i]['signal']!r} starts at encoder "
                                               f"count {c}, not at the count the firmware starts from ({c0}, angle "
                                               "0): the robot must start at its encoders' zero")
-                changes, decision = self.side.step(None, None, row)
+                self.checks.sample(row, None)
+                changes, decision, ended = self.side.step(None, None)
             else:
-                changes, decision = self.side.step(self.pending, enc, row)
+                self.checks.sample(row, self.pending)
+                changes, decision, ended = self.side.step(self.pending, enc)
             self.pending = counts
             t = (self.k - 1) / float(self.rec["rate_hz"]) if self.k else t
         else:
-            changes, decision = self.side.step(counts, None, row)
+            self.checks.sample(row, counts)
+            changes, decision, ended = self.side.step(counts, None)
+        self.checks.executions(ended)
         self.k += 1
         now = time.perf_counter()
         if self.progress is not None and now - self.shown > 2.0:
@@ -863,7 +910,13 @@ class _Loop:
         return [(tc, self.muscles[j], int(m)) for tc, j, m in changes]
 
     def summary(self, rec) -> dict:
-        s, self.serial = self.side.summary(rec)
+        if self.parallel:
+            s, self.serial, ended = self.side.summary(rec)
+            self.checks.executions(ended)
+        else:
+            s, self.serial = self.side.summary(rec)
+        s = self.checks.into(s)
+        s["warnings"] = warnings_of(s, rec)
         s["board_process"] = self.parallel
         if self.parallel:
             s["plant_waited_s"] = self.side.wait_s
