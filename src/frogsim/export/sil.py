@@ -795,9 +795,11 @@ def pipeline_depth(rec: dict, dead: float | None) -> int:
 
 def free_core() -> bool:
     """Whether a second core is free for the board's process: this process may run on two or
-    more, and the load average of the last minute leaves one of them idle (the pipeline hands a
-    frame over every period: on a machine whose cores are all busy each hand-over waits for the
-    scheduler, and one process is faster). Without fork (not Linux) there is no board process."""
+    more, and one of them is idle now (the pipeline hands a frame over every period: on a machine
+    whose cores are all busy each hand-over waits for the scheduler, and one process is faster).
+    "Now" is the share of idle time of all cores over a fifth of a second (:func:`idle_cores`),
+    not the load average, which trails a change of load by a minute. Without fork (not Linux)
+    there is no board process."""
     import multiprocessing
     import os
     if "fork" not in multiprocessing.get_all_start_methods():
@@ -808,11 +810,32 @@ def free_core() -> bool:
         n = os.cpu_count() or 1
     if n < 2:
         return False
+    idle = idle_cores()
+    if idle is None:
+        try:
+            return os.getloadavg()[0] < n - 0.5
+        except OSError:
+            return True
+    return idle >= 0.8
+
+
+def idle_cores(window: float = 0.2) -> float | None:
+    """Cores' worth of idle time over the next ``window`` seconds (from /proc/stat: the idle and
+    I/O-wait ticks of all cores, over the ticks of one core); None where /proc/stat is not."""
+    def ticks():
+        with open("/proc/stat") as f:
+            fields = [int(x) for x in f.readline().split()[1:]]
+        return fields[3] + fields[4], sum(fields[:8]), os.cpu_count() or 1
+    import os
     try:
-        load = os.getloadavg()[0]
-    except OSError:
-        return True
-    return load < n - 0.5
+        idle0, total0, n = ticks()
+        time.sleep(window)
+        idle1, total1, _ = ticks()
+    except (OSError, ValueError, IndexError):
+        return None
+    if total1 <= total0:
+        return None
+    return n * (idle1 - idle0) / (total1 - total0)
 
 
 def _parallel(rec: dict, valves, asked: bool | None, timing: str) -> bool:
