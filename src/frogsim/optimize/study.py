@@ -63,11 +63,12 @@ def storage(url: str):
                                                    f"{exc})", 200)) from None
 
 
-def sampler(seed: int):
-    """The TPE sampler every search uses (module docstring)."""
+def sampler(seed: int, constraints=None):
+    """The TPE sampler every search uses (module docstring); ``constraints(frozen_trial) ->
+    [c, ...]`` (feasible where every c <= 0) steers it away from infeasible trials."""
     import optuna
     return optuna.samplers.TPESampler(seed=seed, n_startup_trials=STARTUP_TRIALS, constant_liar=True,
-                                      multivariate=True)
+                                      multivariate=True, constraints_func=constraints)
 
 
 def median_pruner():
@@ -75,10 +76,12 @@ def median_pruner():
     return optuna.pruners.MedianPruner(n_startup_trials=PRUNE_STARTUP_TRIALS, n_warmup_steps=PRUNE_WARMUP_STEPS)
 
 
-def open_study(store, name: str, directions, seed: int, pruner=None, fresh_file: Path | None = None):
+def open_study(store, name: str, directions, seed: int, pruner=None, fresh_file: Path | None = None,
+               constraints=None):
     """The study ``name`` in ``store`` (a URL or a storage), made if absent, else loaded to be
     continued. ``directions``: one ("minimize" / "maximize") or several (a Pareto front).
-    ``fresh_file``: an SQLite file deleted first (a search started afresh)."""
+    ``fresh_file``: an SQLite file deleted first (a search started afresh); ``constraints``: see
+    :func:`sampler`."""
     import optuna
     quiet_optuna()
     if fresh_file is not None and Path(fresh_file).exists():
@@ -87,7 +90,7 @@ def open_study(store, name: str, directions, seed: int, pruner=None, fresh_file:
         store = storage(store)
     dirs = [directions] if isinstance(directions, str) else list(directions)
     kw = {"direction": dirs[0]} if len(dirs) == 1 else {"directions": dirs}
-    return optuna.create_study(study_name=name, storage=store, sampler=sampler(seed),
+    return optuna.create_study(study_name=name, storage=store, sampler=sampler(seed, constraints),
                                pruner=pruner or optuna.pruners.NopPruner(), load_if_exists=True, **kw)
 
 
@@ -127,15 +130,16 @@ def count(study, states=("COMPLETE",)) -> int:
     return sum(t.state.name in states for t in study.get_trials(deepcopy=False))
 
 
-def run_batches(study, total: int, workers: int, ask, evaluate, tell, done=None, after_batch=None) -> int:
+def run_batches(study, total: int, workers: int, ask, evaluate, tell, done=None, after_batch=None,
+                stop=None) -> int:
     """Run trials until ``done()`` (default: complete trials) reaches ``total``: ``workers`` at a
     time, ``ask(study) -> (trial, job)``, ``evaluate(trial, job) -> outcome`` on a thread pool,
-    then ``tell(trial, outcome)`` for each in the order asked; ``after_batch()`` after each batch.
-    Returns the trials run."""
+    then ``tell(trial, outcome)`` for each in the order asked; ``after_batch()`` after each batch;
+    no new batch once ``stop()`` is true (a time limit). Returns the trials run."""
     done = done or (lambda: count(study))
     ran = 0
     with ThreadPoolExecutor(workers) as pool:
-        while done() < total:
+        while done() < total and not (stop is not None and stop()):
             batch = [ask(study) for _ in range(min(workers, total - done()))]
             outcomes = list(pool.map(lambda tj: evaluate(*tj), batch))
             for (trial, _), outcome in zip(batch, outcomes):
