@@ -235,3 +235,13 @@ def test_the_tuned_band_of_a_bang_bang_hold_is_where_eq8_and_the_dead_time_put_i
     assert 0.95 * low <= band <= high, (band / BAR, low / BAR, high / BAR)
     assert s["best"]["controllers"]["hold"]["tracking_rms"] * BAR <= r * DT / 2
     assert s["start"]["controllers"]["hold"]["tracking_rms"] * BAR > r * DT / 2    # the start was not there yet
+
+
+def test_a_bar_with_the_best_so_far_on_stderr_and_nothing_under_quiet(tmp_path, capsys):
+    sc = write(tmp_path, HOLD)
+    capsys.readouterr()
+    assert main(["tune", str(sc), "--trials", "2", "--out", str(tmp_path / "loud")]) == 0
+    err = capsys.readouterr().err
+    assert "2/2 trials" in err and "best " in err and "(start 1)" in err, err[-1000:]
+    assert main(["tune", str(sc), "--trials", "2", "--out", str(tmp_path / "quiet"), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""

@@ -308,12 +308,13 @@ def _patched(args):
     return with_patch(args.scenario, args.patch)
 
 
-def _inputs(scenario, args) -> list:
-    """The manifest's described inputs of a run: the scenario's files, and the patch file."""
+def _inputs(scenario, args, extra: str = "patch") -> list:
+    """The manifest's described inputs of a run: the scenario's files, and the file of the option
+    ``extra`` (--patch, --spec) when given."""
     from frogsim.io.outputs import scenario_inputs
     from frogsim.sweep.spec import describe_inputs
-    patch = getattr(args, "patch", None)
-    return scenario_inputs(scenario, args.scenario) + (describe_inputs([("patch", Path(patch))]) if patch else [])
+    path = getattr(args, extra, None)
+    return scenario_inputs(scenario, args.scenario) + (describe_inputs([(extra, Path(path))]) if path else [])
 
 
 def _write_simulate(out: Path, result, extra: dict | None = None) -> None:
@@ -853,7 +854,7 @@ def cmd_tune(args) -> int:
     done = T.check_resumable(tune, url) if (not local or (resume and db.exists())) else 0
     figure = "pareto.png" if args.pareto else "history.png"
     files = ["best.toml", "trials.csv", figure, "summary.json"] + (["study.db"] if local else [])
-    inputs = _inputs(tune.pneumatic, argparse.Namespace(scenario=args.scenario, patch=args.spec))
+    inputs = _inputs(tune.pneumatic, args, "spec")
     folder = _folder(argparse.Namespace(out=args.out, argv=args.argv, overwrite=args.overwrite or resume),
                      "tune", files=files, scenario=scenario_record(tune.name, inputs))
     if resume and local:      # continuing: the study stays, everything else is written again

@@ -63,12 +63,13 @@ def storage(url: str):
                                                    f"{exc})", 200)) from None
 
 
-def sampler(seed: int, constraints=None):
-    """The TPE sampler every search uses (module docstring); ``constraints(frozen_trial) ->
-    [c, ...]`` (feasible where every c <= 0) steers it away from infeasible trials."""
+def sampler(seed: int):
+    """The TPE sampler every search uses (module docstring). It reads the constraints a search
+    sets on a trial before telling it (``trial.set_constraint``: feasible where every value is
+    <= 0) and models the infeasible trials apart."""
     import optuna
     return optuna.samplers.TPESampler(seed=seed, n_startup_trials=STARTUP_TRIALS, constant_liar=True,
-                                      multivariate=True, constraints_func=constraints)
+                                      multivariate=True)
 
 
 def median_pruner():
@@ -76,12 +77,10 @@ def median_pruner():
     return optuna.pruners.MedianPruner(n_startup_trials=PRUNE_STARTUP_TRIALS, n_warmup_steps=PRUNE_WARMUP_STEPS)
 
 
-def open_study(store, name: str, directions, seed: int, pruner=None, fresh_file: Path | None = None,
-               constraints=None):
+def open_study(store, name: str, directions, seed: int, pruner=None, fresh_file: Path | None = None):
     """The study ``name`` in ``store`` (a URL or a storage), made if absent, else loaded to be
     continued. ``directions``: one ("minimize" / "maximize") or several (a Pareto front).
-    ``fresh_file``: an SQLite file deleted first (a search started afresh); ``constraints``: see
-    :func:`sampler`."""
+    ``fresh_file``: an SQLite file deleted first (a search started afresh)."""
     import optuna
     quiet_optuna()
     if fresh_file is not None and Path(fresh_file).exists():
@@ -90,7 +89,7 @@ def open_study(store, name: str, directions, seed: int, pruner=None, fresh_file:
         store = storage(store)
     dirs = [directions] if isinstance(directions, str) else list(directions)
     kw = {"direction": dirs[0]} if len(dirs) == 1 else {"directions": dirs}
-    return optuna.create_study(study_name=name, storage=store, sampler=sampler(seed, constraints),
+    return optuna.create_study(study_name=name, storage=store, sampler=sampler(seed),
                                pruner=pruner or optuna.pruners.NopPruner(), load_if_exists=True, **kw)
 
 

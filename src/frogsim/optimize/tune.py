@@ -184,6 +184,7 @@ class Tune:
     seed: int = 0
     workers: int = 1
     timeout: float | None = None
+    written: tuple = ()        # the keys of the searched gains whose range [tune.gains] wrote
 
     @property
     def pneumatic(self):
@@ -341,6 +342,7 @@ def prepare(source, trials: int, *, workers: int = 1, seed: int = 0, timeout: fl
                             "no controller of the scenario has a setpoint to track: weigh switchings or air")
     tune = Tune(source, raw, base, robot, sc.name, scenario, searched, fixed, [list(g) for g in ties], weights,
                 pareto_terms, at_most, trials, pareto, seed, workers, timeout)
+    tune.written = tuple(f"{c}.{n}" for (c, n), e in entries.items() if e[0] == "range")
     _check_ends(tune, where)
     return tune
 
@@ -414,8 +416,10 @@ def _check_ends(tune: Tune, where: str) -> None:
                     raise ScenarioError(f"{where}.gains.{exc.field.split('.', 1)[1]}", tune.fixed[exc.field],
                                         exc.allowed) from None
                 raise
+            hint = ("" if hit.key in tune.written else f" (the kind's default range: write a narrower one in "
+                                                       f"[tune.gains.{hit.controllers[0]}])")
             raise ScenarioError(f"{where}.gains.{hit.key}", f"{hit.low:g}..{hit.high:g} {hit.unit}",
-                                f"its {end} end is refused by the scenario: {exc}") from None
+                                f"its {end} end is refused by the scenario{hint}: {exc}") from None
 
 
 def _load(raw: dict, base: str, robot: bool, texts: dict):
@@ -586,13 +590,7 @@ def run_search(tune: Tune, url: str, fresh_file: Path | None = None, progress: b
 
     from frogsim.optimize import study as S
     pruner = None if (tune.pareto or not tune.robot) else S.median_pruner()
-    constraints = None
-    if tune.at_most:
-        def constraints(frozen):
-            terms = frozen.user_attrs.get("terms")
-            return excess(terms, tune.at_most) if terms else [0.0] * len(tune.at_most)
-    st = S.open_study(url, STUDY_NAME, tune.directions, tune.seed, pruner=pruner, fresh_file=fresh_file,
-                      constraints=constraints)
+    st = S.open_study(url, STUDY_NAME, tune.directions, tune.seed, pruner=pruner, fresh_file=fresh_file)
     S.check_key(st, tune.key(), "gains study", "--storage", "use --overwrite or another --storage / --out")
     st.set_user_attr("key", tune.key())
     S.close_unfinished(st)
@@ -626,6 +624,8 @@ def run_search(tune: Tune, url: str, fresh_file: Path | None = None, progress: b
         tr.set_user_attr("metrics", _compact(out.metrics))
         if out.failure:
             tr.set_user_attr("failure", out.failure)
+        for (term, _), x in zip(tune.at_most.items(), excess(out.terms, tune.at_most)):
+            tr.set_constraint(f"{term} over its bound", x)       # the sampler models infeasible trials apart
         st.tell(tr, score(tune, out.terms))
 
     def finished():
