@@ -245,3 +245,15 @@ def test_a_bar_with_the_best_so_far_on_stderr_and_nothing_under_quiet(tmp_path, 
     assert "2/2 trials" in err and "best " in err and "(start 1)" in err, err[-1000:]
     assert main(["tune", str(sc), "--trials", "2", "--out", str(tmp_path / "quiet"), "--quiet"]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_two_runs_sharing_a_storage_url_share_one_study(tmp_path):
+    """--storage: the study lives at the URL (as for several machines), not in --out; a run from
+    another folder continues its count."""
+    sc = write(tmp_path, HOLD)
+    url = f"sqlite:///{tmp_path / 'shared.db'}"
+    assert run([sc, "--trials", "2", "--storage", url, "--out", tmp_path / "m1"]) == 0
+    assert run([sc, "--trials", "4", "--storage", url, "--out", tmp_path / "m2"]) == 0
+    s = json.loads((tmp_path / "m2" / "summary.json").read_text())
+    assert s["trials"] == 4 and s["trials_run_now"] == 2 and s["storage"] == url
+    assert not (tmp_path / "m1" / "study.db").exists() and not (tmp_path / "m2" / "study.db").exists()

@@ -201,7 +201,7 @@ class Tune:
     def objective_text(self) -> str:
         if self.pareto:
             return "Pareto front of " + ", ".join(self.pareto_terms)
-        return " + ".join(f"{w:g} {t}" for t, w in self.weights.items() if w > 0)
+        return "minimise " + " + ".join(t if w == 1 else f"{w:g} x {t}" for t, w in self.weights.items() if w > 0)
 
     def key(self) -> dict:
         """What a stored study must match to be continued."""
@@ -876,8 +876,11 @@ def plot_pareto(st, tune: Tune, base_terms: dict, path) -> None:
             fig.colorbar(sc, ax=ax, label=f"{c3} [-]")
         else:
             ax.plot(x, y, "o", ms=3.5, color="0.6", label="trial")
-        ax.plot([t.user_attrs["terms"][a] for t in fr], [t.user_attrs["terms"][b] for t in fr], "o-",
-                color="C0", ms=5, label="Pareto front")
+        fx, fy = [t.user_attrs["terms"][a] for t in fr], [t.user_attrs["terms"][b] for t in fr]
+        if c3:      # a front in three terms is not a line in the plane of two: its members ringed
+            ax.plot(fx, fy, "o", ms=9, mfc="none", mec="C3", mew=1.2, label=f"Pareto front (of {a}, {b}, {c3})")
+        else:
+            ax.plot(fx, fy, "o-", color="C0", ms=5, label="Pareto front")
         ax.plot([base_terms[a]], [base_terms[b]], "*", ms=12, color="C3", label="starting gains")
         ax.set_xlabel(f"{a} [-] ({TERM_TEXT[a]})", fontsize=9)
         ax.set_ylabel(f"{b} [-] ({TERM_TEXT[b]})", fontsize=9)
