@@ -33,6 +33,12 @@ HEAT_SLOWDOWN_TARGET = 1.15
 
 
 def scenario(controlled: bool, parameters: str | None = None):
+    return frogsim.load_robot_scenario(case_raw(controlled, parameters))
+
+
+def case_raw(controlled: bool, parameters: str | None = None) -> dict:
+    """The case as a scenario's raw dict (its parameter set merged in, ``base_dir`` set):
+    ``bench_tune_joint.py`` writes it as a file for ``frogsim tune``."""
     raw, base = merged_raw("swim")
     if parameters is not None:              # the robot's scenario over another parameter set
         raw, base = merged_raw({**raw_file("swim"), "parameters": parameters, "base_dir": base})
@@ -52,7 +58,7 @@ def scenario(controlled: bool, parameters: str | None = None):
                     "setpoint": {"kind": "sine", "mean": f"{rng / 2:.3f} deg", "amplitude": f"{rng / 4:.3f} deg",
                                  "frequency": "1 Hz"}}
         raw["controllers"] = ctls
-    return frogsim.load_robot_scenario(raw)
+    return raw
 
 
 def raw_file(name: str) -> dict:

@@ -127,7 +127,9 @@ def _computed_once(folder, name: str, compute):
 #: states, "-" a pure number, "period" a fraction of the gait period, "1/min" a rate
 CSV_UNITS = {"s", "K", "m", "mm", "m/s", "N", "kg", "kg/s", "deg", "deg/s", "rad/s", "%", "cm^3", "L",
              "L/min", "L std", "L/min std", "bar gauge", "Pa abs", "L/(s bar)", "1/min", "-", "period",
-             "m/L", "1 = open", "1 = on", "1 = yes"}
+             "m/L", "1 = open", "1 = on", "1 = yes",
+             # tune's trials.csv: pressure differences, the gains in their declared units, rates
+             "bar", "1/s", "bar/rad", "bar*s/rad", "bar/(rad*s)", "ms", "Hz"}
 #: the unitless label columns frogsim documents (docs/metrics.md, "CSV columns")
 CSV_LABELS = {"mode", "experiment", "controller", "joint", "trial", "state", "failure"}
 

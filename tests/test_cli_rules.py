@@ -49,6 +49,7 @@ def commands(res: Path) -> dict[str, tuple[list[str], str]]:
         "fit": (["fit", str(ROOT / "examples" / "fit" / "FIT.toml")], "dir"),
         "optimize-gait": (["optimize-gait", "swim", "--trials", "1", "--objective", "speed", "--cycles", "1"],
                           "dir"),
+        "tune": (["tune", "hip-angle-in-air", "--trials", "1"], "dir"),
         "sweep": (["sweep", str(res / "spec.toml")], ".nc"),
         "plot": (["plot", str(res / "r.nc"), "--x", "source.initial_pressure_gauge", "--metric", "rise_time"],
                  ".png"),

@@ -7,7 +7,8 @@
     frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
     frogsim control [STUDY ...] --out DIR   the closed-loop control studies (control-pressure, control-joint,
                                             hysteresis, heat)
-    frogsim simulate SCENARIO --out DIR     run one scenario (TOML path or shipped name)
+    frogsim simulate SCENARIO [--patch PATCH.toml] --out DIR
+                                            run one scenario (TOML path or shipped name)
     frogsim swim SCENARIO [--cycles N] [--output-interval T] --out DIR
                                             run the robot in MuJoCo (swim, leg-in-air): CSV,
                                             figure, summary.json, MJCF, animation
@@ -18,6 +19,8 @@
     frogsim fit FIT.toml --out DIR          calibrate parameters to measured traces (docs/fitting.md)
     frogsim optimize-gait SCENARIO --trials N --objective speed|distance-per-litre --out DIR
                                             search the gait's phase timing (resumable; docs/control.md)
+    frogsim tune SCENARIO --trials N [--pareto] [--storage URL] --out DIR
+                                            search the controllers' gains (resumable; docs/control.md)
     frogsim compare RUN[:SIGNAL] ... [--signal NAME] --out DIR
                                             overlay one signal of several runs or scenarios
     frogsim firmware SCENARIO --out DIR [--build]
@@ -273,12 +276,12 @@ def _studies_into(args, folder, out: Path, names: list[str], summaries: dict) ->
 
 def cmd_simulate(args) -> int:
     from frogsim.engine.pneumatic import simulate
-    from frogsim.io.outputs import scenario_inputs, scenario_record
+    from frogsim.io.outputs import scenario_record
     from frogsim.scenario.load import load_scenario
     out = out_folder(args.out)
-    scenario = load_scenario(args.scenario)          # all validation happens here, before any write
+    scenario = load_scenario(_patched(args))          # all validation happens here, before any write
     folder = _folder(args, "simulate", files=["timeseries.csv", "pressures.png", "summary.json"],
-                     scenario=scenario_record(scenario.name, scenario_inputs(scenario, args.scenario)))
+                     scenario=scenario_record(scenario.name, _inputs(scenario, args)))
 
     def work():
         from frogsim.engine.integrator import advance
@@ -296,6 +299,24 @@ def cmd_simulate(args) -> int:
     return _finishing(folder, work)
 
 
+def _patched(args):
+    """The scenario to run: SCENARIO as named, or with ``--patch``'s controllers' settings laid
+    over it (:func:`frogsim.scenario.load.with_patch`)."""
+    if getattr(args, "patch", None) is None:
+        return args.scenario
+    from frogsim.scenario.load import with_patch
+    return with_patch(args.scenario, args.patch)
+
+
+def _inputs(scenario, args, extra: str = "patch") -> list:
+    """The manifest's described inputs of a run: the scenario's files, and the file of the option
+    ``extra`` (--patch, --spec) when given."""
+    from frogsim.io.outputs import scenario_inputs
+    from frogsim.sweep.spec import describe_inputs
+    path = getattr(args, extra, None)
+    return scenario_inputs(scenario, args.scenario) + (describe_inputs([(extra, Path(path))]) if path else [])
+
+
 def _write_simulate(out: Path, result, extra: dict | None = None) -> None:
     """What simulate writes: timeseries.csv, pressures.png, summary.json (plus ``extra`` sections)."""
     from frogsim._files import write_csv, write_figure, write_json
@@ -307,13 +328,13 @@ def _write_simulate(out: Path, result, extra: dict | None = None) -> None:
 
 
 def cmd_swim(args) -> int:
-    from frogsim.io.outputs import scenario_inputs, scenario_record
+    from frogsim.io.outputs import scenario_record
     from frogsim.robot.scenario import load_robot_scenario
     from frogsim.errors import ScenarioError
     out = out_folder(args.out)
     interval = _time_text("--output-interval", args.output_interval)
     try:
-        rs = load_robot_scenario(args.scenario, cycles=args.cycles,   # all validation before any write
+        rs = load_robot_scenario(_patched(args), cycles=args.cycles,   # all validation before any write
                                  output_interval=interval)
     except ScenarioError as exc:
         if interval is None or exc.field != "output_interval":
@@ -321,8 +342,7 @@ def cmd_swim(args) -> int:
         raise ScenarioError("--output-interval", args.output_interval, exc.allowed) from None
     planned = ["timeseries.csv", "swim.png", "frog.xml", "summary.json"] + ([] if args.no_animation else
                                                                            ["animation.gif"])
-    folder = _folder(args, "swim", files=planned,
-                     scenario=scenario_record(rs.name, scenario_inputs(rs.pneumatic, args.scenario)))
+    folder = _folder(args, "swim", files=planned, scenario=scenario_record(rs.name, _inputs(rs.pneumatic, args)))
     return _finishing(folder, lambda: _swim_into(args, folder, out, rs))
 
 
@@ -814,6 +834,91 @@ def cmd_optimize_gait(args) -> int:
     return _finishing(folder, work)
 
 
+def cmd_tune(args) -> int:
+    from frogsim.io.outputs import read_manifest, scenario_record
+    from frogsim.optimize import study as S
+    from frogsim.optimize import tune as T
+    out = out_folder(args.out)
+    # every input checked before anything is written or run
+    tune = T.prepare(args.scenario, args.trials, workers=args.workers, seed=args.seed, timeout=args.timeout,
+                     pareto=args.pareto, spec=args.spec)
+    db = out / "study.db"
+    url = args.storage or S.sqlite_url(db)
+    local = args.storage is None or S.is_sqlite_file(args.storage, db)
+    prev = read_manifest(out) if out.exists() else None
+    resume = not args.overwrite and prev is not None and prev["command"] == "tune"
+    if local and not args.overwrite and db.exists() and prev is None:
+        return _err(f"--out = {str(out)!r}: holds a study.db of no tune run; use --overwrite", 2)
+    if not (local and (args.overwrite or not db.exists())):
+        S.storage(url)                     # a URL that cannot be opened: refused before anything is written
+    done = T.check_resumable(tune, url) if (not local or (resume and db.exists())) else 0
+    figure = "pareto.png" if args.pareto else "history.png"
+    files = ["best.toml", "trials.csv", figure, "summary.json"] + (["study.db"] if local else [])
+    inputs = _inputs(tune.pneumatic, args, "spec")
+    folder = _folder(argparse.Namespace(out=args.out, argv=args.argv, overwrite=args.overwrite or resume),
+                     "tune", files=files, scenario=scenario_record(tune.name, inputs))
+    if resume and local:      # continuing: the study stays, everything else is written again
+        folder.keep("study.db")
+
+    def work():
+        from frogsim._files import atomic_write, write_csv, write_json
+        _progress(("continuing" if done else "starting") + f" a gains search on {tune.name!r}: "
+                  f"{_count(len(tune.searched), 'gain')} searched, {tune.objective_text()}, "
+                  f"{_count(tune.trials, 'trial')} ({done} done), {_count(tune.workers, 'worker')} ...")
+        if tune.robot:
+            from frogsim.engine.coupled_loop import run_steps
+            _compiling(run_steps, "swim")
+        else:
+            from frogsim.engine.integrator import advance
+            _compiling(advance, "pneumatic")
+        res = T.run_search(tune, url, fresh_file=db if (local and not resume) else None, progress=not _QUIET,
+                           say=_progress)
+        st = res["study"]
+        best = T.best_trial(st, tune)
+        table = T.trials_table(st, tune)
+        write_csv(out / "trials.csv", table)
+        if args.pareto:
+            T.plot_pareto(st, tune, res["baseline"].terms, out / figure)
+        else:
+            T.plot_history(table, tune, T.score(tune, res["baseline"].terms), out / figure)
+        written = {"trials": "trials.csv", "figure": figure, "summary": "summary.json"}
+        if best is not None:
+            text = T.best_patch_text(tune, best, args.scenario)
+            atomic_write(out / "best.toml", lambda tmp: Path(tmp).write_text(text))
+            written["best"] = "best.toml"
+        if local:
+            written["study"] = "study.db"
+        s = T.summary_of(res, tune, written, _storage_shown(url))
+        write_json(out / "summary.json", s)
+        folder.finish()
+        if res["timed_out"]:
+            _warn(f"--timeout {args.timeout:g} s reached after {_count(res['ran'], 'trial')}: the study holds "
+                  f"{s['trials']} of the {tune.trials} asked; run the same command again to continue it")
+        if best is None:
+            _warn("no trial finished without failing" + (" within the bounds of [tune.at_most]" if tune.at_most else "")
+                  + ": no best.toml (trials.csv says why each failed)")
+            return 1
+        word = "" if not args.pareto else ", the front's best by the weights"
+        w_best = T.weighted(s["best"]["terms"], tune.weights)
+        w_start = T.weighted(s["start"]["terms"], tune.weights)
+        _progress(f"best trial {best.number}{word}: {tune.objective_text() if not args.pareto else 'weighted sum'} "
+                  f"{w_best:.4g} against {w_start:.4g} for the starting gains; trials {s['trials_complete']} complete, {s['trials_pruned']} pruned, "
+                  f"{s['trials_failed']} failed; run it with: frogsim {'swim' if tune.robot else 'simulate'} "
+                  f"{args.scenario} --patch {out / 'best.toml'} --out DIR")
+        _progress("wrote " + ", ".join(str(out / f) for f in list(written.values()) + ["manifest.json"]))
+        return 0
+    return _finishing(folder, work)
+
+
+def _storage_shown(url: str) -> str:
+    """A storage URL as the summary records it: its password hidden."""
+    try:
+        from sqlalchemy.engine import make_url
+        return make_url(url).render_as_string(hide_password=True)
+    except Exception:
+        return "(a storage URL)"
+
+
 #: every option's meaning, the same in every command that has it (README, "Flags", lists them;
 #: tests/test_cli_flags.py checks the table against each command's --help)
 FLAGS = {
@@ -845,6 +950,11 @@ FLAGS = {
     "--reduce": "average over the swept parameters neither on an axis nor selected",
     "--starts": "least-squares starts",
     "--trials": "trials in all (>= 1)",
+    "--patch": "a TOML file of [controllers.NAME] settings laid over the scenario's (frogsim tune's best.toml)",
+    "--storage": "the Optuna storage URL of the study, e.g. postgresql://host/db to share it between machines",
+    "--timeout": "seconds after which no new trials are started, finite and > 0",
+    "--pareto": "search the Pareto front of the objectives instead of their weighted sum",
+    "--spec": "a TOML file whose [tune] section replaces the scenario's",
     "--objective": "speed or distance-per-litre",
     "--seed": "sampler seed",
     "--build": "compile the sketch for the ATmega2560 (arduino-mk) into DIR/build and report flash and RAM",
@@ -914,6 +1024,7 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("simulate", help="run one scenario: timeseries.csv, pressures.png, summary.json")
     s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file, or a shipped name "
                                                         "(`frogsim scenarios` lists them)")
+    _flag(s, "--patch", "none", default=None, metavar="PATCH.toml")
     _writes(s)
     s.set_defaults(func=cmd_simulate)
     s = sub.add_parser("swim", help="run the robot in MuJoCo (swim, leg-in-air): timeseries.csv, swim.png, "
@@ -923,6 +1034,7 @@ def build_parser() -> argparse.ArgumentParser:
     _flag(s, "--cycles", "the scenario's", type=int, default=None, metavar="N")
     _flag(s, "--output-interval", "the scenario's", default=None, metavar="T")
     _flag(s, "--no-animation", action="store_true")
+    _flag(s, "--patch", "none", default=None, metavar="PATCH.toml")
     _writes(s)
     s.set_defaults(func=cmd_swim)
     s = sub.add_parser("compare", help="overlay one signal of several runs (folders of frogsim simulate or "
@@ -1009,6 +1121,19 @@ def build_parser() -> argparse.ArgumentParser:
     _flag(s, "--seed", "0", type=int, default=0, metavar="N")
     _writes(s, workers="2; the trials of a batch are asked together, so N changes the search")
     s.set_defaults(func=cmd_optimize_gait, workers=2)
+    s = sub.add_parser("tune", help="search the gains of the scenario's controllers (Optuna TPE) for tracking, "
+                                    "switchings and air: best.toml, trials.csv, history.png or pareto.png, "
+                                    "summary.json; running again continues the search (docs/control.md)")
+    s.add_argument("scenario", metavar="SCENARIO", help="scenario TOML file or shipped name with closed-loop "
+                                                        "controllers (robot or pneumatic)")
+    _flag(s, "--trials", type=int, required=True, metavar="N")
+    _flag(s, "--seed", "0", type=int, default=0, metavar="N")
+    _flag(s, "--storage", "an SQLite file, DIR/study.db", default=None, metavar="URL")
+    _flag(s, "--timeout", "none", type=float, default=None, metavar="S")
+    _flag(s, "--pareto", action="store_true")
+    _flag(s, "--spec", "the scenario's own [tune]", default=None, metavar="TUNE.toml")
+    _writes(s, workers="1; the trials of a batch are asked together, so N changes the search")
+    s.set_defaults(func=cmd_tune, workers=1)
     return p
 
 

@@ -30,8 +30,9 @@ records the cycles evaluated (``summary.json``: ``cycles_evaluated``, ``steady``
 
 The sampler is Optuna's TPE, seeded; trials are asked in batches of ``workers``, run on a thread
 pool (the engine's compiled kernel and MuJoCo's step release the GIL), and told in order, so a
-search is the same for the same seed and worker count. The study lives in an SQLite file: running
-the search again continues it to the requested total of trials. The scenario's own gait is run
+search is the same for the same seed and worker count (the plumbing ``frogsim tune`` shares:
+:mod:`frogsim.optimize.study`). The study lives in an SQLite file: running the search again
+continues it to the requested total of trials. The scenario's own gait is run
 as the baseline and the best gait is compared with it.
 """
 from __future__ import annotations
@@ -233,16 +234,9 @@ def prepare(source, objective: str, trials: int, cycles: int | None = None, seed
 
 
 def _study(search: Search, storage_path: Path, fresh: bool):
-    import optuna
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    storage = f"sqlite:///{storage_path}"
-    if fresh and storage_path.exists():
-        storage_path.unlink()
-    sampler = optuna.samplers.TPESampler(seed=search.seed, n_startup_trials=10,
-                                         constant_liar=True, multivariate=True)
-    study = optuna.create_study(study_name=STUDY_NAME, storage=storage, direction="maximize",
-                                sampler=sampler, load_if_exists=True)
-    return study
+    from frogsim.optimize import study as S
+    return S.open_study(S.sqlite_url(storage_path), STUDY_NAME, "maximize", search.seed,
+                        fresh_file=storage_path if fresh else None)
 
 
 def check_resumable(search: Search, storage_path: Path) -> int:
@@ -250,39 +244,33 @@ def check_resumable(search: Search, storage_path: Path) -> int:
     was made for another objective, scenario, cycle count, seed or search space."""
     if not storage_path.exists():
         return 0
-    import optuna
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    from frogsim.optimize import study as S
     try:
-        study = optuna.load_study(study_name=STUDY_NAME, storage=f"sqlite:///{storage_path}")
+        study = S.existing(S.sqlite_url(storage_path), STUDY_NAME)
     except Exception:
+        study = None
+    if study is None:
         raise ScenarioError("--out", str(storage_path.parent),
                             f"holds {storage_path.name}, which is not a gait study; use "
-                            "--overwrite to start afresh") from None
-    key = study.user_attrs.get("key")
-    if key is not None and key != search.key():
-        diff = [k for k in search.key() if key.get(k) != search.key()[k]]
-        raise ScenarioError("--out", str(storage_path.parent),
-                            f"holds a gait study with another {', '.join(diff)} "
-                            f"({', '.join(f'{k} = {key.get(k)!r}' for k in diff)}); use --overwrite "
-                            "to start afresh, or another --out")
-    from optuna.trial import TrialState
-    return sum(t.state == TrialState.COMPLETE for t in study.trials)
+                            "--overwrite to start afresh")
+    try:
+        S.check_key(study, search.key(), "gait study", "--out", "use --overwrite to start afresh, or another --out")
+    except ScenarioError as exc:
+        raise ScenarioError("--out", str(storage_path.parent), exc.allowed) from None
+    return S.count(study)
 
 
 def run_search(search: Search, storage_path: Path, fresh: bool = False, progress=None) -> dict:
     """Run (or continue) the search to ``search.trials`` trials in all; returns the results:
     the trials table, the baseline, the best trial and its gait."""
-    import optuna
     from optuna.distributions import FloatDistribution
     from optuna.trial import TrialState
 
     from frogsim.control.gait import gait_table_of
+    from frogsim.optimize import study as S
     study = _study(search, storage_path, fresh)
     study.set_user_attr("key", search.key())
-    # trials an interrupted run left open are failed, then asked again
-    for t in study.trials:
-        if t.state in (TrialState.RUNNING, TrialState.WAITING):
-            study._storage.set_trial_state_values(t._trial_id, TrialState.FAIL)
+    S.close_unfinished(study)        # trials an interrupted run left open are failed, then asked again
     dists = {k: FloatDistribution(*b) for k, b in search_bounds(search.rs).items()}
     t0 = time.perf_counter()
     base_gait = gait_table_of(search.rs.gait)
@@ -295,34 +283,32 @@ def run_search(search: Search, storage_path: Path, fresh: bool = False, progress
     steady = steadiness(baseline.summary)
     if "warning" in steady and progress is not None:
         progress(f"warning: {steady['warning']}")
-    from concurrent.futures import ThreadPoolExecutor
 
-    def done():
-        return sum(t.state == TrialState.COMPLETE for t in study.trials)
+    def ask(st):
+        tr = st.ask(dists)
+        g = gait_of(tr.params, search.period, search.cycles)
+        tr.set_user_attr("gait", g)
+        return tr, g
 
-    ran = 0
-    with ThreadPoolExecutor(search.workers) as pool:
-        while done() < search.trials:
-            batch = [study.ask(dists) for _ in range(min(search.workers, search.trials - done()))]
-            gaits = [gait_of(tr.params, search.period, search.cycles) for tr in batch]
-            for tr, g in zip(batch, gaits):
-                tr.set_user_attr("gait", g)
-            results = list(pool.map(lambda g: evaluate(search.raw, search.base_dir, g,
-                                                       search.objective), gaits))
-            for tr, ev in zip(batch, results):
-                if ev.failure or not math.isfinite(ev.value):
-                    tr.set_user_attr("failure", ev.failure or "no air used")
-                    study.tell(tr, state=TrialState.FAIL)
-                    continue
-                for k in ("mean_speed_m_per_s", "distance_m", "air_used_L_std",
-                          "air_used_per_cycle_L_std"):
-                    tr.set_user_attr(k, ev.summary[k])
-                study.tell(tr, ev.value)
-            ran += len(batch)
-            if progress is not None:
-                best = study.best_value if done() else float("nan")
-                progress(f"  {done()}/{search.trials} trials, best {best:.4g} "
-                         f"{OBJECTIVES[search.objective][1]} (baseline {baseline.value:.4g})")
+    def tell(tr, ev):
+        if ev.failure or not math.isfinite(ev.value):
+            tr.set_user_attr("failure", ev.failure or "no air used")
+            study.tell(tr, state=TrialState.FAIL)
+            return
+        for k in ("mean_speed_m_per_s", "distance_m", "air_used_L_std", "air_used_per_cycle_L_std"):
+            tr.set_user_attr(k, ev.summary[k])
+        study.tell(tr, ev.value)
+
+    def report():
+        if progress is not None:
+            n = S.count(study)
+            best = study.best_value if n else float("nan")
+            progress(f"  {n}/{search.trials} trials, best {best:.4g} "
+                     f"{OBJECTIVES[search.objective][1]} (baseline {baseline.value:.4g})")
+
+    ran = S.run_batches(study, search.trials, search.workers, ask,
+                        lambda tr, g: evaluate(search.raw, search.base_dir, g, search.objective), tell,
+                        after_batch=report)
     wall = time.perf_counter() - t0
     best = study.best_trial
     return {"study": study, "baseline": baseline, "baseline_gait": base_gait, "best": best,

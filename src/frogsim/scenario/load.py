@@ -35,7 +35,9 @@ RUN_KEYS = ("name", "description", "parameters", "duration", "output_interval", 
             # robot scenarios (frogsim.robot.scenario): options and gait instead of muscles
             "robot", "gait",
             # the board the valve controllers run on (frogsim.scenario.firmware)
-            "firmware")
+            "firmware",
+            # what `frogsim tune` searches (frogsim.optimize.tune; the runs themselves ignore it)
+            "tune")
 
 
 def read_toml(path: str | os.PathLike, what: str) -> dict:
@@ -323,6 +325,44 @@ def _read_tables(ctl, base_dir: str, path: str):
     tables = {f.name: with_table(getattr(ctl, f.name), base_dir, f"{path}.{f.name}")
               for f in dataclasses.fields(ctl) if isinstance(getattr(ctl, f.name), Setpoint)}
     return dataclasses.replace(ctl, **tables) if tables else ctl
+
+
+def with_patch(source, patch_path) -> dict:
+    """The scenario ``source`` (a path or shipped name) as a raw dict with ``base_dir``, the
+    controllers' settings of the TOML file ``patch_path`` laid over its own, key by key: what
+    ``frogsim simulate`` and ``frogsim swim`` run with ``--patch`` (``frogsim tune`` writes such a
+    file, ``best.toml``). A patch holds one table, ``[controllers.NAME]``, for controllers the
+    scenario has (a patch cannot add one: it would run a controller the scenario never had);
+    ScenarioError (naming the key) otherwise. The settings are then checked by the loader as the
+    scenario's own."""
+    path = scenario_path(source)
+    raw = read_toml(path, "scenario")
+    patch = read_toml(patch_path, "--patch")
+    where = f"--patch {Path(patch_path).name}"
+    for key in patch:
+        if key != "controllers":
+            raise ScenarioError(f"{where}: {key}", "(a table)" if isinstance(patch[key], dict) else patch[key],
+                                "a patch sets controllers' settings only: [controllers.NAME] tables")
+    ctls = patch.get("controllers", {})
+    own = raw.get("controllers", {})
+    if not isinstance(ctls, dict) or not isinstance(own, dict):
+        raise ScenarioError(f"{where}: controllers", ctls, "expected [controllers.NAME] tables")
+    for name, table in ctls.items():
+        if name not in own or not isinstance(own[name], dict):
+            raise ScenarioError(f"{where}: controllers.{name}", "(a table)",
+                                f"must name a controller of the scenario ({', '.join(own) or 'it has none'})")
+        if not isinstance(table, dict):
+            raise ScenarioError(f"{where}: controllers.{name}", table, "expected a table of settings")
+        if "kind" in table and table["kind"] != own[name].get("kind"):
+            raise ScenarioError(f"{where}: controllers.{name}.kind", table["kind"],
+                                f"a patch keeps the controller's kind ({own[name].get('kind')!r})")
+    raw = deep_merge(raw, {"controllers": ctls})
+    params = raw.get("parameters")
+    base = str(path.resolve().parent)
+    if isinstance(params, str) and not os.path.isabs(params) and (Path(base) / params).exists():
+        raw["parameters"] = str((Path(base) / params).resolve())
+    raw["base_dir"] = base
+    return raw
 
 
 def with_overrides(raw: dict, overrides: dict, share: bool = False) -> dict:

@@ -555,10 +555,17 @@ KIND = ControllerKind(
     gains=(
         # the shipped robot scenarios use Kp 30 bar/rad, Kd 1 bar*s/rad, Ki 0 or 30 bar/(rad*s)
         Gain("proportional_gain", "bar/rad", 1.0, 100.0, log=True),
-        Gain("derivative_gain", "bar*s/rad", 0.0, 3.0),
+        # up to 8: in water the hip's best Kd lay at the old top, 3 bar*s/rad (a tune of the
+        # swimming robot, benchmarks/bench_tune_joint.py): the water's drag asks for a pressure
+        # difference in step with the joint's rate, which Kd (dsp/dt - w) gives. The top stays under
+        # the rules' bound (a Kd that spans the source's 6 bar for a change of 0.1 % of the joint's
+        # range per period is a relay): 6 bar over the hip's 41 deg, 8.4 bar*s/rad with fan2017
+        Gain("derivative_gain", "bar*s/rad", 0.0, 8.0),
         Gain("integral_gain", "bar/(rad*s)", 0.0, 100.0),
         # the pair's common pressure (stiffness), below fan2017's 6 bar source with room for dp/2
         Gain("co_contraction", "bar", 0.5, 4.0),
-        # the inner relays' band
-        Gain("band", "bar", 0.02, 0.5, log=True),
+        # the inner relays' band, as the bang-bang kind's: from about one count of a 10-bit ADC on a
+        # 10 bar transducer (0.01 bar) to 1 bar (in water the knee's best band lay at the old top,
+        # 0.5 bar, the hip's and ankle's near the old bottom, 0.02 bar)
+        Gain("band", "bar", 0.01, 1.0, log=True),
     ))
