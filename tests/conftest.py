@@ -129,7 +129,7 @@ CSV_UNITS = {"s", "K", "m", "mm", "m/s", "N", "kg", "kg/s", "deg", "deg/s", "rad
              "L/min", "L std", "L/min std", "bar gauge", "Pa abs", "L/(s bar)", "1/min", "-", "period",
              "m/L", "1 = open", "1 = on", "1 = yes"}
 #: the unitless label columns frogsim documents (docs/metrics.md, "CSV columns")
-CSV_LABELS = {"mode", "experiment", "controller", "joint", "trial", "state", "failure"}
+CSV_LABELS = {"mode", "experiment", "controller", "valve", "joint", "trial", "state", "failure"}
 
 
 def assert_unit_headers(path):

@@ -152,7 +152,8 @@ def _conclusion(m: dict) -> str:
         f"{pr['full_open_flow_L_per_min']:.0f} L/min fully open from the 6 bar source, the MHJ9 switching valve "
         f"{sw['full_open_flow_L_per_min']:.0f} L/min: against this proportional valve the paper's \"flow rate "
         f"relatively small\" does not hold (the paper speaks of a pressure proportional valve, a pressure "
-        f"regulator rather than a flow-metering spool, which this study does not model). Speed: the 0 -> {STEP_BAR:g} bar step rises to 90 % in {ms(pr['rise_time_s'])} "
+        f"regulator rather than a flow-metering spool, which this study does not model). Speed: the "
+        f"0 -> {STEP_BAR:g} bar step rises to 90 % in {ms(pr['rise_time_s'])} "
         f"with the proportional valve and PID against {ms(sw['rise_time_s'])} (bang-bang) and "
         f"{ms(sm['rise_time_s'])} (sliding mode) with the switching valves; the {STEP_BAR:g} -> {FALL_BAR:g} bar "
         f"step falls in {ms(pr['fall_time_s'])} against {ms(sw['fall_time_s'])} and {ms(sm['fall_time_s'])}: "
@@ -204,7 +205,8 @@ def _draw(data: StudyData, path: str) -> None:
     b.set_ylabel("hip pressure [bar gauge]")
     b.set_title(f"{SINE_HZ:g} Hz sine {SINE_MEAN_BAR - SINE_AMPLITUDE_BAR:g}-{SINE_MEAN_BAR + SINE_AMPLITUDE_BAR:g} bar "
                 "(last two cycles)")
-    b.legend(fontsize=8, loc="lower right")
+    b.set_ylim(SINE_MEAN_BAR - SINE_AMPLITUDE_BAR - 0.5, SINE_MEAN_BAR + 2.4 * SINE_AMPLITUDE_BAR)   # room for the legend
+    b.legend(fontsize=8, loc="upper center")
     c = ax[1, 0]
     names = list(RUNS)
     x = np.arange(len(names))
@@ -219,7 +221,8 @@ def _draw(data: StudyData, path: str) -> None:
     c.set_xticks(x, [n.replace(" / ", "\n") for n in names], fontsize=8)
     c.set_ylabel("time [ms]")
     c.set_title("Pressurizing and depressurizing speed")
-    c.legend(fontsize=8, loc="center right")
+    c.set_ylim(0.0, 1.6 * max(max(rise), max(fall)))       # room for the legend above the bars
+    c.legend(fontsize=8, loc="upper right")
     e = ax[1, 1]
     keys = (("full_open_flow_L_per_min", "fully open flow [L/min std]", 1.0),
             ("air_per_cycle_L_std", "air per sine cycle [L std] x 100", 100.0),
@@ -229,12 +232,13 @@ def _draw(data: StudyData, path: str) -> None:
     h = 0.8 / len(names)
     for k, n in enumerate(names):
         vals = [m[n][key] * f for key, _, f in keys]
-        e.barh(y + (k - (len(names) - 1) / 2) * h, vals, h, color=colours[n], label=n)
+        # from the axis' left end (1): a bar from 0 has no left end on a log scale
+        e.barh(y + (k - (len(names) - 1) / 2) * h, [v - 1.0 for v in vals], h, left=1.0, color=colours[n], label=n)
         for yi, v in zip(y, vals):
             e.text(v, yi + (k - (len(names) - 1) / 2) * h, f" {v:.0f}", va="center", fontsize=7)
     e.set_yticks(y, [lab for _, lab, _ in keys], fontsize=8)
     e.set_xscale("log")
-    e.set_xlim(10.0, 2e4)           # the bars end left of the legend's corner
+    e.set_xlim(1.0, 2e4)            # the bars end left of the legend's corner
     e.set_xlabel("value (log scale)")
     e.set_title("Flow, air, mass and price\n(mass, price: catalogue orders of magnitude)", fontsize=10)
     e.legend(fontsize=7, loc="center right")
