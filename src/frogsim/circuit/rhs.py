@@ -1,8 +1,9 @@
 """Right-hand side of the pneumatic circuit: Eqs. (2)-(9) assembled for n muscles.
 
 ``rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)`` writes dy/dt. ``u`` holds
-the valve states (u[2i] charge, u[2i+1] discharge of muscle i, 1 = open), constant over the call's
-segment; muscle lengths come from the motion tables (cubic Hermite knots, see
+the valve states (u[2i] the charge path, u[2i+1] the discharge path of muscle i, each its opening:
+1 = open, 0 = shut; a proportional valve's edges open in between), constant over the call's
+segment, turned into mass flows by the muscle's valve type (:mod:`frogsim.circuit.valves`); muscle lengths come from the motion tables (cubic Hermite knots, see
 :func:`motion_length`). ``aux`` receives per-muscle charge and discharge mass flows [kg/s] (2n) and
 the pump flow (last entry) for diagnostics; ``work`` is scratch space of length 4n (no allocation
 in the hot loop).
@@ -158,7 +159,9 @@ def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
 def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
     """Physical tube mode: pressure where the main tube feeds the open branches [Pa abs].
 
-    Solves main-tube flow(p_s -> pm) = sum of open charge-valve flows(pm -> p_i); the residual is
+    Solves main-tube flow(p_s -> pm) = sum of open charge-path flows(pm -> p_i) (a path of zero
+    opening is left out of the balance: a proportional valve's leakage through a shut edge too); the
+    residual is
     monotonically decreasing in pm, so a bracketed Illinois (regula falsi) iteration converges.
     """
     lo = p_s
