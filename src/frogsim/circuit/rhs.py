@@ -161,8 +161,8 @@ def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
 
     Solves main-tube flow(p_s -> pm) = sum of open charge-path flows(pm -> p_i) (a path of zero
     opening is left out of the balance: a proportional valve's leakage through a shut edge too); the
-    residual is
-    monotonically decreasing in pm, so a bracketed Illinois (regula falsi) iteration converges.
+    residual is monotonically decreasing in pm, so a bracketed Illinois (regula falsi) iteration
+    converges.
     """
     lo = p_s
     hi = p_s
