@@ -33,8 +33,10 @@ kinds (:mod:`frogsim.control.kinds`: one branch per kind with a law, or with a t
 the chain of closures :func:`_law_chain` and :func:`_twin_chain` make; Numba compiles calls to
 the functions a closure holds as it does to named ones), so no list of kinds is kept here, and a
 code no kind declares stops the run with an error instead of holding the valves. A law returns a
-mode; :func:`command_valves` turns it into valve commands due one dead time later, kept with
-their due times in ``cs``; :func:`next_control_time` returns the earliest of the next sample and
+mode (or, for a valve that takes one, a continuous command in -1..1); :func:`command_valve` turns
+it into the muscle's two valve-vector entries through its valve type's view
+(:func:`frogsim.circuit.valves.valve_openings`) and :func:`command_openings` queues them due one
+dead time later, kept with their due times in ``cs``; :func:`next_control_time` returns the earliest of the next sample and
 the due times, and :func:`apply_due` writes a command into u when its time has come.
 """
 from __future__ import annotations
