@@ -47,6 +47,30 @@ def test_an_unknown_valve_type_is_refused_naming_the_field_and_the_types():
         frogsim.load_scenario(closed_loop({"kind": "bang-bang", "setpoint": "3 bar"}, valves={"type": "piezo"}))
 
 
+BASE_TOML = ('name = "v"\nduration = "0.1 s"\n[supply]\nmode = "none"\n'
+             '[muscles.hip]\ntype = "hip"\nmotion = { kind = "constant" }\n'
+             '[controllers.loop]\nkind = "bang-bang"\nmuscle = "hip"\nsetpoint = "3 bar"\n')
+
+
+@pytest.mark.parametrize("valves, field", [
+    ('[valves]\ntype = "piezo"\n', "valves.type = 'piezo'"),
+    ('[valves]\ntype = "proportional"\nbandwidth = "-5 Hz"\n', "valves.bandwidth"),
+    ('[valves]\ntype = "proportional"\nnominal_flow = "700"\n', "valves.nominal_flow"),
+    ('[valves]\ntype = "proportional"\nsignal_span = "6 V"\n', "valves.signal_span = 6 V"),
+])
+def test_a_bad_valve_setting_exits_2_in_one_line_writing_nothing(tmp_path, capsys, valves, field):
+    from frogsim.cli import main
+    path = tmp_path / "bad.toml"
+    path.write_text(BASE_TOML + valves)
+    out = tmp_path / "out"
+    code = main(["simulate", str(path), "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert field in err, err
+    assert not out.exists()
+
+
 def test_a_scenario_naming_another_type_drops_the_parameter_sets_valves():
     """fan2017's [valves.charge] and [valves.discharge] are the switching valve's: a scenario of type
     proportional loads without them (no unknown-key error) and with the catalogue's defaults."""

@@ -33,7 +33,7 @@ from frogsim._jit import jit
 from frogsim.circuit.layout import M_VP
 from frogsim.circuit.valves.spec import ValveType
 from frogsim.components.valves import MPYE_5_1_8_HF as CAT, value
-from frogsim.errors import ScenarioError
+from frogsim.errors import ScenarioError, Shown
 from frogsim.physics.flow import iso6358_mass_flow, sonic_conductance_from_nominal_flow, spool_conductance, spool_lag
 from frogsim.scenario.fields import quantity
 from frogsim.scenario.schema import GAUGE_MAX, Valve
@@ -114,10 +114,10 @@ class ProportionalValve(ValveSettings):
             raise ScenarioError(f"{path}.laminar_ratio", self.laminar_ratio,
                                 f"must exceed critical_ratio ({self.critical_ratio:g})")
         if self.nominal_drop >= NOMINAL_ATMOSPHERE + self.nominal_inlet_gauge:
-            raise ScenarioError(f"{path}.nominal_drop", f"{self.nominal_drop / 1e5:g} bar",
+            raise ScenarioError(f"{path}.nominal_drop", Shown(f"{self.nominal_drop / 1e5:g} bar"),
                                 "must be below the nominal inlet's absolute pressure")
         if self.signal_span > self.signal_center:
-            raise ScenarioError(f"{path}.signal_span", f"{self.signal_span:g} V",
+            raise ScenarioError(f"{path}.signal_span", Shown(f"{self.signal_span:g} V"),
                                 f"must not exceed signal_center ({self.signal_center:g} V): the command "
                                 "voltage of full vent would be negative")
 
