@@ -209,6 +209,22 @@ def test_pid_tracks_a_step_on_the_proportional_valve_and_never_opens_both_edges(
     assert r.control_metrics()["loop"]["tracking_error_rms_bar"] < 0.01
 
 
+def test_air_is_conserved_through_the_spool_and_its_counters_balance():
+    """A 1 Hz sine tracked through the proportional valve (charge and vent edges in turn, with a
+    leakage so that both edges pass air at once): the circuit's air stays constant to rounding, and
+    the muscle's mass changes by what its counters say entered minus what left."""
+    r = frogsim.simulate(frogsim.load_scenario(_proportional(
+        {"kind": "pid", "setpoint": {"kind": "sine", "mean": "3 bar", "amplitude": "2 bar", "frequency": "1 Hz"}},
+        1.0, valves={"type": "proportional", "leakage_conductance": "0.01 L/(s*bar)"})))
+    m = r.total_air_mass
+    assert np.max(np.abs(m - m[0])) < 1e-12 * m[0] * 1e3
+    i = r.model.names.index("hip")
+    from frogsim.circuit import layout as L
+    own = r.y[:, L.mass_index(i)]
+    np.testing.assert_allclose(own - own[0], r.charged_mass("hip") - r.vented_mass("hip"), rtol=0, atol=1e-9 * own[0])
+    assert r.vented_mass("hip")[-1] > 0.0 and r.charged_mass("hip")[-1] > 0.0
+
+
 def test_pid_on_switching_valves_is_refused_naming_the_controller():
     with pytest.raises(ScenarioError, match=r"controllers\.loop\.kind = 'pid': commands a proportional valve's "
                                             r"spool, but valves\.type is 'switching'"):
