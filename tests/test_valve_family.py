@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 
 import numpy as np
 import pytest
@@ -16,8 +17,6 @@ from frogsim.errors import ScenarioError
 from tests.conftest import P_ATM
 from tests.test_control import closed_loop
 from tests.test_controller_kinds import PACKAGE, _run_copy
-
-import shutil
 
 BAR = 1e5
 L_PER_MIN = 1e-3 / 60.0

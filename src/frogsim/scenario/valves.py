@@ -21,7 +21,6 @@ queue, the stiffness hint, the sliding-mode law's rate tables):
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -77,8 +76,3 @@ def from_raw(raw, path: str = "valves") -> ValveSettings:
     cls = TYPES[name]
     table = {k: v for k, v in raw.items() if k != "type"}
     return build(cls, table, path)
-
-
-def settings_fields(cls) -> dict:
-    """{name: field} of the settings a file may write for valve type ``cls``."""
-    return {f.name: f for f in dataclasses.fields(cls) if f.init}

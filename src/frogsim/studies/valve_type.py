@@ -91,7 +91,7 @@ def crossing_time(t, p, t0: float, level: float, rising: bool) -> float:
     return float(t[k - 1] + frac * (t[k] - t[k - 1]) - t0)
 
 
-def full_open_flow(valves, p_source_abs: float, rho_ref: float) -> float:
+def full_open_flow(valves, p_source_abs: float) -> float:
     """A fully open charge path's standard flow [m^3/s ANR] from the source, choked (Eq. (8), omega = 1,
     T = T_ref): C p_s."""
     return valves.charge.sonic_conductance * p_source_abs
@@ -124,8 +124,8 @@ def design_valve_type() -> StudyData:
                 out["sine_max_bar"] = m["tracking_error_max_bar"]
                 out["air_per_cycle_L_std"] = float((q[-1] - q[k0]) / cycles / r.reference_density * 1e3)
                 out["switchings_per_s"] = m["switchings_per_s"]
-                out["full_open_flow_L_per_min"] = full_open_flow(sc.valves, patm + sc.source.initial_pressure_gauge,
-                                                                 r.reference_density) / L_PER_MIN
+                out["full_open_flow_L_per_min"] = full_open_flow(
+                    sc.valves, patm + sc.source.initial_pressure_gauge) / L_PER_MIN
         part = MPYE_5_1_8_HF if run.startswith("proportional") else MHJ9
         count = part["valves_per_muscle"].value
         out["valves_per_muscle"] = count
