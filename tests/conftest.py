@@ -131,7 +131,7 @@ CSV_UNITS = {"s", "K", "m", "mm", "m/s", "N", "kg", "kg/s", "deg", "deg/s", "rad
              # tune's trials.csv: pressure differences, the gains in their declared units, rates
              "bar", "1/s", "bar/rad", "bar*s/rad", "bar/(rad*s)", "ms", "Hz"}
 #: the unitless label columns frogsim documents (docs/metrics.md, "CSV columns")
-CSV_LABELS = {"mode", "experiment", "controller", "joint", "trial", "state", "failure"}
+CSV_LABELS = {"mode", "experiment", "controller", "valve", "joint", "trial", "state", "failure"}
 
 
 def assert_unit_headers(path):

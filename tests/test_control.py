@@ -140,7 +140,9 @@ def test_sliding_mode_row_holds_no_valve_constant_and_its_model_follows_the_scen
                                             "valves.discharge.subsonic_index": 0.45,
                                             "valves.discharge.laminar_ratio": 0.98}))
     assert np.array_equal(base.laws, other.laws)
-    assert other.mp[0, L.M_CC] == 3 * C_MHJ9 and other.mp[0, L.M_DB] == 0.25
+    from frogsim.circuit.valves import switching
+    assert other.mp[0, L.M_VALVE] == switching.CODE
+    assert other.mp[0, L.M_VP + switching.P_CC] == 3 * C_MHJ9 and other.mp[0, L.M_VP + switching.P_DB] == 0.25
     [c] = [c for c in range(base.laws.shape[0]) if base.laws[c, table.L_KIND] == sliding_mode.CODE]
     T = base.g[L.G_TAMB]
     p_s = P_ATM + 6.0 * BAR

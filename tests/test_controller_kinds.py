@@ -163,12 +163,12 @@ def test_python_law_metrics_carry_its_label_and_its_setpoint():
 def test_the_registry_finds_every_shipped_kind_and_the_loader_knows_the_same_names():
     from frogsim.control import kinds
     from frogsim.scenario.kinds import KINDS as LOADER
-    shipped = {"bang-bang": 2.0, "joint-angle": 6.0, "program": None, "pwm": 3.0, "sliding-mode": 4.0}
+    shipped = {"bang-bang": 2.0, "joint-angle": 6.0, "program": None, "pwm": 3.0, "sliding-mode": 4.0, "pid": 10.0}
     assert {k.name: k.code for k in kinds.KINDS.values() if k.name in shipped} == shipped
     assert list(LOADER) == list(kinds.KINDS)
     assert all(LOADER[n] is k.settings for n, k in kinds.KINDS.items())
     # each shipped kind has a twin; the C defines them program first, then by code
-    twins = [k.name for k in kinds.with_twin() if k.name in shipped]
+    twins = [k.name for k in kinds.with_twin() if k.name in shipped]         # pid has none (no DAC on the board)
     assert twins == ["program", "bang-bang", "pwm", "sliding-mode", "joint-angle"]
 
 
@@ -239,13 +239,15 @@ def test_a_gain_range_is_converted_by_its_unit():
         spec.Gain("band", "ms", 0.1, 1.0).bounds(bang_bang.BangBangSettings)
 
 
-def _scenario_of(kind: str):
+def _scenario_of(kind: str, duration: float = 1.0):
     if kind == "joint-angle":
         return frogsim.load_robot_scenario("hip-angle-in-air").pneumatic, "hip"
-    return frogsim.load_scenario(closed_loop({"kind": kind, "setpoint": "3 bar"}, 1.0)), "loop"
+    # pid commands a proportional valve's spool (valve type "proportional")
+    extra = {"valves": {"type": "proportional"}} if kind == "pid" else {}
+    return frogsim.load_scenario(closed_loop({"kind": kind, "setpoint": "3 bar"}, duration, **extra)), "loop"
 
 
-@pytest.mark.parametrize("kind", ["bang-bang", "pwm", "sliding-mode", "joint-angle"])
+@pytest.mark.parametrize("kind", ["bang-bang", "pwm", "sliding-mode", "joint-angle", "pid"])
 def test_every_gain_range_holds_the_shipped_default_and_the_loader_takes_its_ends(kind):
     """A search may start from the default and propose any value of the ranges: all gains at
     their lows at once, and at their highs, pass every rule (bounds, cross-field checks)."""
@@ -278,11 +280,11 @@ def test_the_program_kind_has_no_row_nothing_to_tune_and_no_metrics():
 COMMON = {"kind", "muscles", "joint", "settle_s", "switchings", "switchings_per_s", "air_used_L_std"}
 
 
-@pytest.mark.parametrize("kind", ["bang-bang", "pwm", "sliding-mode"])
+@pytest.mark.parametrize("kind", ["bang-bang", "pwm", "sliding-mode", "pid"])
 def test_a_pressure_kind_reports_the_metrics_it_declares(kind):
     from frogsim.control import kinds
     from frogsim.scenario.kinds import ControllerSettings
-    r = frogsim.simulate(frogsim.load_scenario(closed_loop({"kind": kind, "setpoint": "3 bar"}, 0.3)))
+    r = frogsim.simulate(_scenario_of(kind, 0.3)[0])
     entry = r.control_metrics()["loop"]
     declared = kinds.KINDS[kind]
     assert set(entry) - COMMON == set(declared.metrics)

@@ -224,3 +224,39 @@ def test_the_kinds_are_reached_through_their_registry(tmp_path):
     target = copy / "control" / "sampled.py"
     target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.control.kinds import pwm\n")
     assert kind_imports(copy) == ["frogsim.control.sampled imports frogsim.control.kinds.pwm"]
+
+
+#: modules outside circuit/valves/ that import a valve type's module by name, each with what it
+#: reads there that no declaration holds: none; the engines, the laws and the studies reach the
+#: valve types through their registry (frogsim.circuit.valves), so that a new valve type is one new
+#: module
+VALVE_IMPORTS: dict = {}
+
+
+def valve_imports(root: Path = PACKAGE) -> list[str]:
+    """Imports of a valve type's module from outside circuit/valves/ that VALVE_IMPORTS does not list."""
+    folder = root / "circuit" / "valves"
+    found = {p.stem for p in folder.glob("*.py")} - {"__init__", "spec"}
+    bad = []
+    for mod, deps in imports(root).items():
+        if mod.startswith("frogsim.circuit.valves"):
+            continue
+        for dep in deps:
+            parts = dep.split(".")
+            if parts[:3] == ["frogsim", "circuit", "valves"] and len(parts) > 3 and parts[3] in found \
+                    and parts[3] not in VALVE_IMPORTS.get(mod, ()):
+                bad.append(f"{mod} imports {dep}")
+    return sorted(bad)
+
+
+def test_the_valve_types_are_reached_through_their_registry(tmp_path):
+    """The valve family (circuit/valves/, layer 4) is read through its registry only; a planted
+    import of one valve type's module from the right-hand side is caught."""
+    assert (PACKAGE / "circuit" / "valves" / "__init__.py").exists()
+    assert _layer("frogsim.circuit.valves.proportional") == "circuit"
+    assert valve_imports() == []
+    copy = tmp_path / "frogsim"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    target = copy / "circuit" / "rhs.py"
+    target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.circuit.valves import proportional\n")
+    assert valve_imports(copy) == ["frogsim.circuit.rhs imports frogsim.circuit.valves.proportional"]

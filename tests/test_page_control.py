@@ -187,3 +187,27 @@ def test_the_joint_control_benchmarks_robot_tracks_and_steps_as_the_page_says():
     cost = " ".join(section(DOC, "### Cost (benchmarks/bench_joint_control.py)").split())
     check(cost, [(r"the pneumatic driver \(about " + NUM + " right-hand sides of the 12-muscle circuit per step",
                   r.stats["rhs_evaluations"] / r.stats["mujoco_steps"])])
+
+
+# --- the design-valve-type study ------------------------------------------------------------------
+def test_design_valve_type_table_and_text(study):
+    runs = study("design-valve-type").summary["design_valve_type"]["runs"]
+    rows = table_rows(DOC, "### The `design-valve-type` study")
+    assert set(rows) == {"valve / law", *runs}, rows
+    for name, r in runs.items():
+        cells = rows[name]
+        check(cells[1], [(r"^" + NUM + " ms$", 1e3 * r["rise_time_s"])])
+        check(cells[2], [(r"^" + NUM + " ms$", 1e3 * r["fall_time_s"])])
+        check(cells[3], [(r"^" + NUM + r" mbar", 1e3 * r["sine_rms_bar"]), (r"\(" + NUM + r"\)$", 1e3 * r["sine_max_bar"])])
+        check(cells[4], [(r"^" + NUM + " L std$", r["air_per_cycle_L_std"])])
+        check(cells[5], [(r"^" + NUM + " L/min$", r["full_open_flow_L_per_min"])])
+        check(cells[6], [(r"^" + NUM + " g", 1e3 * r["mass_per_muscle_kg"]), (NUM + " EUR$", r["price_per_muscle_EUR"])])
+    pr, sw = runs["proportional / pid"], runs["switching / bang-bang"]
+    text = section(DOC, "### The `design-valve-type` study")
+    check(text, [(NUM + " times the mass", pr["mass_per_muscle_kg"] / sw["mass_per_muscle_kg"]),
+                 (NUM + " times the price", pr["price_per_muscle_EUR"] / sw["price_per_muscle_EUR"])])
+    # the valve's conductance the section above quotes: from the catalogue's nominal flow
+    from frogsim.circuit.valves.proportional import ProportionalValve
+    above = section(DOC, "## The proportional valve and the `pid` kind", "### The `design-valve-type` study")
+    C = ProportionalValve().sonic_conductance
+    check(above, [(r"C = " + NUM + r" L/\(s bar\) fully open", C * 1e8), (r"\(" + NUM + " times the MHJ9", C / 0.4e-8)])

@@ -85,6 +85,18 @@ def test_design_table(study):
         (r"C\^−" + NUM, -v["rise_time_exponent_in_C"]),
         (r"changes it by " + NUM + " %", 100 * v["rise_time_spread_over_b_at_C_0p4"]),
     ])
+    runs = study("design-valve-type").summary["design_valve_type"]["runs"]
+    pr, sw, sm = runs["proportional / pid"], runs["switching / bang-bang"], runs["switching / sliding-mode"]
+    check(rows["`design-valve-type`"][2], [
+        (r"proportional: " + NUM + " /", 1e3 * pr["rise_time_s"]),
+        (r"/ " + NUM + " ms rise / fall", 1e3 * pr["fall_time_s"]),
+        (r"and " + NUM + " mbar RMS", 1e3 * pr["sine_rms_bar"]),
+        (r"against " + NUM + " /", 1e3 * sm["rise_time_s"]),
+        (r"/ " + NUM + " ms and", 1e3 * sm["fall_time_s"]),
+        (r"and " + NUM + r" mbar \(sliding mode\)", 1e3 * sm["sine_rms_bar"]),
+        (NUM + " times the mass", pr["mass_per_muscle_kg"] / sw["mass_per_muscle_kg"]),
+        (NUM + " times the price", pr["price_per_muscle_EUR"] / sw["price_per_muscle_EUR"]),
+    ])
 
 
 def test_readme_check_catches_a_moved_number():

@@ -1139,7 +1139,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 #: the studies ``frogsim design`` and ``frogsim control`` run, named in their --help (written out, not
 #: read from the registry, which would make every command import the studies; a test compares them)
-GROUP_STUDIES = {"design": ("design-tubes", "design-endurance", "design-valve"),
+GROUP_STUDIES = {"design": ("design-tubes", "design-endurance", "design-valve", "design-valve-type"),
                  "control": ("control-pressure", "control-joint", "hysteresis", "heat")}
 #: what ``frogsim --help`` says first (the module docstring's first line is for programmers)
 DESCRIPTION = textwrap.fill("frogsim simulates the frog-inspired swimming robot powered by pneumatic muscles (Chinese "

@@ -61,17 +61,12 @@ M_B0 = 0        # braid thread length [m]
 M_N = 1         # braid turns [-]
 M_DEAD = 2      # dead volume of fittings and branch tube [m^3]
 M_FIXEDV = 3    # fixed total volume [m^3], or <= 0 when the volume follows the length
-M_CC = 4        # charge valve sonic conductance [m^3/(s Pa)]
-M_CB = 5        # charge valve critical ratio [-]
-M_CM = 6        # charge valve subsonic index [-]
-M_CRL = 7       # charge valve laminar ratio [-]
-M_DC = 8        # discharge valve sonic conductance
-M_DB = 9
-M_DM = 10
-M_DRL = 11
-M_L0 = 12       # rest length [m]
-M_H = 13        # heat transfer coefficient air-wall [W/(m^2 K)] (0: adiabatic)
-M_SIZE = 14
+M_L0 = 4        # rest length [m]
+M_H = 5         # heat transfer coefficient air-wall [W/(m^2 K)] (0: adiabatic)
+M_VALVE = 6     # the muscle's valve type: its CODE in the valve family (frogsim.circuit.valves)
+M_VP = 7        # the valve type's parameter block: VALVE_PARAMS columns from here, each type's own
+VALVE_PARAMS = 12
+M_SIZE = M_VP + VALVE_PARAMS
 
 # fixed part of the state: the source and exhaust chambers
 Y_MS = 0

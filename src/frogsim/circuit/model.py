@@ -9,6 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from frogsim.circuit import layout as L
+from frogsim.circuit.valves import write_block
 from frogsim.scenario import kinds
 from frogsim.scenario.core import Scenario
 from frogsim.scenario.motion import command_time, muscle_knots, output_times
@@ -327,17 +328,14 @@ def _globals_part(air, source, exhaust, pump, supply, valves) -> np.ndarray:
 
 @functools.lru_cache(maxsize=_CACHE)
 def _muscle_part(valves, types: tuple) -> np.ndarray:
-    """The per-muscle parameter matrix mp: braid, dead volume, both valves' ISO 6358 constants,
-    the wall's heat transfer coefficient (the fixed-volume column comes with the motions)."""
-    vc, vd = valves.charge, valves.discharge
+    """The per-muscle parameter matrix mp: braid, dead volume, rest length, the wall's heat transfer
+    coefficient, and the valve's code and parameter block, written by its valve type
+    (:func:`frogsim.circuit.valves.write_block`; the fixed-volume column comes with the motions)."""
     mp = np.zeros((len(types), L.M_SIZE))
     for i, mt in enumerate(types):
         b0, nt = braid_parameters(mt.nominal_length, mt.inner_diameter, mt.braid_angle)
         mp[i, L.M_B0], mp[i, L.M_N], mp[i, L.M_DEAD] = b0, nt, mt.dead_volume
-        mp[i, L.M_CC], mp[i, L.M_CB], mp[i, L.M_CM], mp[i, L.M_CRL] = (
-            vc.sonic_conductance, vc.critical_ratio, vc.subsonic_index, vc.laminar_ratio)
-        mp[i, L.M_DC], mp[i, L.M_DB], mp[i, L.M_DM], mp[i, L.M_DRL] = (
-            vd.sonic_conductance, vd.critical_ratio, vd.subsonic_index, vd.laminar_ratio)
+        write_block(mp[i], valves)
         mp[i, L.M_L0] = mt.nominal_length
         mp[i, L.M_H] = mt.heat_transfer_coefficient
     return mp

@@ -1,8 +1,9 @@
 """Right-hand side of the pneumatic circuit: Eqs. (2)-(9) assembled for n muscles.
 
 ``rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)`` writes dy/dt. ``u`` holds
-the valve states (u[2i] charge, u[2i+1] discharge of muscle i, 1 = open), constant over the call's
-segment; muscle lengths come from the motion tables (cubic Hermite knots, see
+the valve states (u[2i] the charge path, u[2i+1] the discharge path of muscle i, each its opening:
+1 = open, 0 = shut; a proportional valve's edges open in between), constant over the call's
+segment, turned into mass flows by the muscle's valve type (:mod:`frogsim.circuit.valves`); muscle lengths come from the motion tables (cubic Hermite knots, see
 :func:`motion_length`). ``aux`` receives per-muscle charge and discharge mass flows [kg/s] (2n) and
 the pump flow (last entry) for diagnostics; ``work`` is scratch space of length 4n (no allocation
 in the hot loop).
@@ -21,10 +22,11 @@ import math
 import numpy as np
 from frogsim._jit import jit, jit_step
 
+from frogsim.circuit.valves import valve_flows
 from frogsim.circuit.layout import (
     G_A_E, G_A_S, G_BRANCH_LIMIT, G_H_E, G_H_S, G_HEAT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF,
-    G_SUPPLY_MODE, G_TAMB, G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_B0, M_CB, M_CC, M_CM, M_CRL, M_DB,
-    M_DC, M_DEAD, M_DM, M_DRL, M_FIXEDV, M_H, M_N, SUPPLY_PAPER, SUPPLY_PHYSICAL, Y_ME, Y_MS, Y_PE, Y_PS,
+    G_SUPPLY_MODE, G_TAMB, G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_B0, M_DEAD, M_FIXEDV, M_H, M_N,
+    M_VALVE, SUPPLY_PAPER, SUPPLY_PHYSICAL, Y_ME, Y_MS, Y_PE, Y_PS,
     charged_index, mass_index, pressure_index, pump_index, vented_index,
 )
 from frogsim.physics.flow import iso6358_mass_flow, pump_mass_flow
@@ -145,10 +147,11 @@ def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
     f = iso6358_mass_flow(p_s, T_s, pm, T_s, g[G_TUBE_C], g[G_TUBE_B], 0.5, g[G_TUBE_RLAM],
                           rho_ref, T_ref)
     for i in range(n):
-        if u[2 * i] > 0.5:
+        if u[2 * i] > 0.0:
             p_i = y[pressure_index(i)]
-            f -= iso6358_mass_flow(pm, T_s, p_i, T_mus[i], mp[i, M_CC], mp[i, M_CB], mp[i, M_CM],
-                                   mp[i, M_CRL], rho_ref, T_ref)
+            mc, _ = valve_flows(mp[i, M_VALVE], mp, i, u[2 * i], 0.0, pm, T_s, p_i, T_mus[i], p_i, T_mus[i],
+                                rho_ref, T_ref)
+            f -= mc
     return f
 
 
@@ -156,14 +159,16 @@ def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
 def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
     """Physical tube mode: pressure where the main tube feeds the open branches [Pa abs].
 
-    Solves main-tube flow(p_s -> pm) = sum of open charge-valve flows(pm -> p_i); the residual is
-    monotonically decreasing in pm, so a bracketed Illinois (regula falsi) iteration converges.
+    Solves main-tube flow(p_s -> pm) = sum of open charge-path flows(pm -> p_i) (a path of zero
+    opening is left out of the balance: a proportional valve's leakage through a shut edge too); the
+    residual is monotonically decreasing in pm, so a bracketed Illinois (regula falsi) iteration
+    converges.
     """
     lo = p_s
     hi = p_s
     any_open = False
     for i in range(n):
-        if u[2 * i] > 0.5:
+        if u[2 * i] > 0.0:
             any_open = True
             p_i = y[pressure_index(i)]
             lo = min(lo, p_i)
@@ -257,11 +262,10 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
         T_i = work[i]
         hin_i = 0.0
         out_i = 0.0
-        mc = 0.0
-        md = 0.0
-        if u[2 * i] > 0.5:
-            mc = iso6358_mass_flow(p_up, T_s, p_i, T_i, mp[i, M_CC], mp[i, M_CB], mp[i, M_CM],
-                                   mp[i, M_CRL], rho_ref, T_ref)
+        # the muscle's valve type (frogsim.circuit.valves): 0.0 exactly through a shut path
+        mc, md = valve_flows(mp[i, M_VALVE], mp, i, u[2 * i], u[2 * i + 1], p_up, T_s, p_i, T_i, p_e, T_e,
+                             rho_ref, T_ref)
+        if mc != 0.0:
             if mode == SUPPLY_PAPER:
                 mc = min(max(mc, -limit), limit)
             if mc >= 0.0:          # source -> muscle, at the source temperature
@@ -271,9 +275,7 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
                 out_i -= mc
                 min_s -= mc
                 hin_s -= mc * T_i
-        if u[2 * i + 1] > 0.5:
-            md = iso6358_mass_flow(p_i, T_i, p_e, T_e, mp[i, M_DC], mp[i, M_DB], mp[i, M_DM],
-                                   mp[i, M_DRL], rho_ref, T_ref)
+        if md != 0.0:
             if md >= 0.0:          # muscle -> exhaust, at the muscle temperature
                 out_i += md
                 min_e += md

@@ -33,8 +33,10 @@ kinds (:mod:`frogsim.control.kinds`: one branch per kind with a law, or with a t
 the chain of closures :func:`_law_chain` and :func:`_twin_chain` make; Numba compiles calls to
 the functions a closure holds as it does to named ones), so no list of kinds is kept here, and a
 code no kind declares stops the run with an error instead of holding the valves. A law returns a
-mode; :func:`command_valves` turns it into valve commands due one dead time later, kept with
-their due times in ``cs``; :func:`next_control_time` returns the earliest of the next sample and
+mode (or, for a valve that takes one, a continuous command in -1..1); :func:`command_valve` turns
+it into the muscle's two valve-vector entries through its valve type's view
+(:func:`frogsim.circuit.valves.valve_openings`) and :func:`command_openings` queues them due one
+dead time later, kept with their due times in ``cs``; :func:`next_control_time` returns the earliest of the next sample and
 the due times, and :func:`apply_due` writes a command into u when its time has come.
 """
 from __future__ import annotations
@@ -44,12 +46,13 @@ import math
 import numpy as np
 
 from frogsim._jit import jit, jit_alloc, jit_inner, jit_step
-from frogsim.circuit.layout import pressure_index
+from frogsim.circuit.layout import M_VALVE, pressure_index
+from frogsim.circuit.valves import valve_openings
 from frogsim.control import kinds
 from frogsim.control.signals import (  # noqa: F401  (the memory layout and signals, re-exported)
     B_A_FILT, B_A_FILT_ON, B_A_SENSED, B_ANGLE, B_CLIPS, B_CMD_C, B_CMD_D, B_FILT, B_FILT_ON, B_INT, B_MODE,
     B_OMEGA, B_PHASE, B_PULSE, B_Q0, B_QC_HEAD, B_QC_N, B_QD_HEAD, B_QD_N, B_SENSED, B_SP, B_SW_C, B_SW_D,
-    B_TARGET, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_FW, CS_PUMP, CS_Q, CS_SAMPLE, CS_SIZE, MODE_CHARGE,
+    B_TARGET, B_VALVE, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_FW, CS_PUMP, CS_Q, CS_SAMPLE, CS_SIZE, MODE_CHARGE,
     MODE_HOLD, MODE_VENT, TOL, B_FAULT_A, B_FAULT_P, B_FW0, FW_MEM, adc_count, fw_fault, pump_band, sense,
     sense_joint, sensor_noise, setpoint)
 from frogsim.control.table import (  # noqa: F401  (the table's layout, re-exported)
@@ -100,32 +103,50 @@ def _push(cs, b, head, q0, due, state):
 
 
 @jit
-def command_valves(laws, c, cs, mode, ts):
-    """Law c commands ``mode`` at sample time ts: each valve whose state changes gets a queued
-    command due one dead time later. Charge opens only with discharge shut and the other way
-    round; an opening is never due before the other valve's closing (with unequal dead times the
-    valves are never open together)."""
+def command_openings(laws, c, cs, want_c, want_d, ts, mode):
+    """Law c sets its muscle's two valve-vector entries to ``want_c`` (charge path) and ``want_d``
+    (discharge path) at sample time ts: each entry whose value changes gets a queued command due
+    one dead time later (a switching valve's entries are 0 or 1, a proportional valve's its
+    edges' openings, :mod:`frogsim.circuit.valves`). A path's opening never comes due before the
+    other path's closing (with unequal dead times both are never open together)."""
     b = _block(cs, c)
     Q = int(cs[CS_Q])
-    want_c = 1.0 if mode > 0 else 0.0
-    want_d = 1.0 if mode < 0 else 0.0
     close_c = -math.inf
     close_d = -math.inf
     if want_c < cs[b + B_CMD_C]:
         close_c = ts + laws[c, L_DEAD_C]
-        _push(cs, b, B_QC_HEAD, B_Q0, close_c, 0.0)
-        cs[b + B_CMD_C] = 0.0
+        _push(cs, b, B_QC_HEAD, B_Q0, close_c, want_c)
+        cs[b + B_CMD_C] = want_c
     if want_d < cs[b + B_CMD_D]:
         close_d = ts + laws[c, L_DEAD_D]
-        _push(cs, b, B_QD_HEAD, B_Q0 + 2 * Q, close_d, 0.0)
-        cs[b + B_CMD_D] = 0.0
+        _push(cs, b, B_QD_HEAD, B_Q0 + 2 * Q, close_d, want_d)
+        cs[b + B_CMD_D] = want_d
     if want_c > cs[b + B_CMD_C]:
-        _push(cs, b, B_QC_HEAD, B_Q0, max(ts + laws[c, L_DEAD_C], close_d), 1.0)
-        cs[b + B_CMD_C] = 1.0
+        _push(cs, b, B_QC_HEAD, B_Q0, max(ts + laws[c, L_DEAD_C], close_d), want_c)
+        cs[b + B_CMD_C] = want_c
     if want_d > cs[b + B_CMD_D]:
-        _push(cs, b, B_QD_HEAD, B_Q0 + 2 * Q, max(ts + laws[c, L_DEAD_D], close_c), 1.0)
-        cs[b + B_CMD_D] = 1.0
+        _push(cs, b, B_QD_HEAD, B_Q0 + 2 * Q, max(ts + laws[c, L_DEAD_D], close_c), want_d)
+        cs[b + B_CMD_D] = want_d
     cs[b + B_MODE] = mode
+
+
+@jit
+def command_valves(laws, c, cs, mode, ts):
+    """Law c commands ``mode`` at sample time ts, open-or-shut: charge opens the charge path
+    (entry 1) with the discharge path shut, vent the other way round, hold shuts both (the
+    commands of a Python controller function, whatever the valve type: a proportional valve's
+    edges then open fully at once)."""
+    command_openings(laws, c, cs, 1.0 if mode > 0 else 0.0, 1.0 if mode < 0 else 0.0, ts, mode)
+
+
+@jit
+def command_valve(laws, mp, c, cs, b, i, command, ts):
+    """Law c's command at sample time ts (a mode, or a continuous command in -1..1) through the
+    controllers' view of muscle i's valve type (:func:`frogsim.circuit.valves.valve_openings`:
+    the valve-vector entries over the next period and the valve's memory, kept at B_VALVE)."""
+    want_c, want_d, memory = valve_openings(mp[i, M_VALVE], mp, i, command, cs[b + B_VALVE], cs[CS_DT])
+    cs[b + B_VALVE] = memory
+    command_openings(laws, c, cs, want_c, want_d, ts, command)
 
 
 @jit
@@ -253,7 +274,7 @@ def sample_controllers(laws, mp, t, y, u, cs):
         i = int(laws[c, L_MUSCLE])
         if firmware and laws[c, L_FW] > 0.0 and kind != KIND_EXTERNAL:
             # [firmware]: the law's integer twin on the ADC's counts (frogsim.control.fixed)
-            command_valves(laws, c, cs, firmware_mode(laws, c, cs, b, y, k, ts), ts)
+            command_valve(laws, mp, c, cs, b, i, firmware_mode(laws, c, cs, b, y, k, ts), ts)
             continue
         p = sense(laws, c, y[pressure_index(i)], cs, b, k, dt)
         cs[b + B_SENSED] = p
@@ -262,7 +283,7 @@ def sample_controllers(laws, mp, t, y, u, cs):
                 sense_joint(laws, c, cs, b, k, dt)
             continue                # commanded from Python (command_valves)
         # the kind's law, by its code (the registry's dispatch, law_mode)
-        command_valves(laws, c, cs, law_mode(kind, laws, mp, c, cs, b, y, p, ts), ts)
+        command_valve(laws, mp, c, cs, b, i, law_mode(kind, laws, mp, c, cs, b, y, p, ts), ts)
     if valves and apply_due(laws, t, u, cs):       # commands without dead time act at once
         changed = True
     return changed

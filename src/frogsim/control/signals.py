@@ -54,14 +54,17 @@ B_W_FILT = 18
 B_A_FILT_ON = 19
 B_A_SENSED = 20  # the angle and velocity the law read at the last sample
 B_W_SENSED = 21
-B_INT = 22       # integral of the angle error [rad s]
+B_INT = 22       # integral of the tracked error: joint-angle [rad s], pid [Pa s]
 B_TARGET = 23    # this muscle's pressure target at the last sample [Pa abs]
 B_CLIPS = 24     # samples at which the pair's targets p0 +- dp/2 were clipped to [atmosphere, source]
 B_FW0 = 25       # [firmware]: the integer twin's memory (FW_MEM slots, whole numbers; the C
 FW_MEM = 8       # twin's int32_t mem[FW_MEM]), see frogsim.control.fixed
 B_FAULT_P = 33   # [firmware]: good samples still needed after a fault of the pressure channel (0: none)
 B_FAULT_A = 34   # ... of the angle channel
-B_Q0 = 35        # queues: charge (due, state) x Q, then discharge (due, state) x Q
+B_VALVE = 35     # the valve's memory between samples (a proportional valve: its spool position [-]),
+                 # carried by the valve type's controller view (frogsim.circuit.valves)
+B_ERR = 36       # pid: the pressure error at the last sample [Pa]
+B_Q0 = 37        # queues: charge (due, state) x Q, then discharge (due, state) x Q
 TOL = 1e-9       # [s] a due time this close to a sample is that sample
 
 

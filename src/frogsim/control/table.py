@@ -10,7 +10,7 @@ constants for Numba) and assembles the table; :func:`build_table` is registered 
 (the circuit layer does not import this one). A row is L_SIZE columns plus the setpoint's knots
 (t_j [s], p_j [Pa abs]) in pairs from column L_SP0 on; the table is as wide as its widest row.
 The table holds no valve constant: a law that models the valves (the sliding-mode kind's) reads
-their ISO 6358 constants from the model's muscle rows ``mp[i, M_CC..M_DRL]`` (i = the row's
+their constants from the model's muscle rows ``mp[i, M_VALVE:]`` (valve code and block; i = the row's
 L_MUSCLE), the plant's own numbers, which the compiled sample receives with the table.
 
 With a ``[firmware]`` section each valve row also carries its sensors' transfer functions

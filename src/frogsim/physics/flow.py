@@ -118,3 +118,64 @@ def pump_mass_flow(p_in: float, T_in: float, p_out: float, displacement: float,
     elif eff < 0.0:
         eff = 0.0
     return p_in / (R * T_in) * displacement * eff
+
+
+# --- proportional (spool) valves ------------------------------------------------------------------------
+@jit
+def spool_conductance(opening: float, C_max: float, overlap: float, C_leak: float) -> float:
+    """Sonic conductance of one metering edge of a spool valve at spool opening ``opening``  [m^3/(s Pa)].
+
+        C(a) = C_leak + (C_max - C_leak) clip((a - a_o) / (1 - a_o), 0, 1)
+
+    a in [0, 1] is the spool's travel towards this edge (1: fully open), a_o the overlap (the
+    travel before the edge starts to open: 0 for a critical-centre spool), C_leak the edge's
+    conductance shut (leakage past the lands). Assumes the metering area, and with it the ISO 6358
+    conductance, grows linearly with the travel past the overlap (rectangular ports; the critical
+    ratio b of the fully open edge kept at every opening).
+
+    Worked numbers: C_max = 2.8 L/(s bar), no overlap, no leak: a = 0.25 gives 0.7 L/(s bar); with
+    a_o = 0.1, a = 0.1 gives C_leak exactly and a = 1 gives C_max exactly.
+    """
+    x = (opening - overlap) / (1.0 - overlap)
+    if x <= 0.0:
+        return C_leak
+    if x >= 1.0:
+        return C_max
+    return C_leak + (C_max - C_leak) * x
+
+
+def sonic_conductance_from_nominal_flow(q_n: float, p1: float, p2: float, b: float, m: float = 0.5,
+                                        r_lam: float = 1.0) -> float:
+    """The ISO 6358 sonic conductance C [m^3/(s Pa)] of a valve whose catalogue gives its standard
+    nominal flow ``q_n`` [m^3/s, ANR] at upstream pressure p1 and downstream p2 [Pa abs]:
+
+        C = q_n / (p1 omega(p2/p1, b, m))              (Eq. (8) solved for C, T1 = T_ref)
+
+    Catalogues (FESTO's "standard nominal flow rate" q_nN) quote the flow at p1 = 6 bar gauge,
+    p2 = 5 bar gauge; b is the fully open valve's critical ratio.
+
+    Worked number: 700 L/min at 7.013 -> 6.013 bar abs with b = 0.3: sigma = 0.8574, omega =
+    sqrt(1 - ((0.8574 - 0.3)/0.7)^2) = 0.6049 and C = 11.67 L/s / (7.013 bar 0.6049) = 2.75 L/(s bar).
+    """
+    return q_n / (p1 * iso6358_flow_function(p2 / p1, b, m, r_lam))
+
+
+@jit
+def spool_lag(x0: float, xc: float, dt: float, tau: float):
+    """First-order spool response to a command held over one period: (position at the period's
+    end, mean position over the period) [-].
+
+        tau dx/dt = xc - x       =>  x(t) = xc + (x0 - xc) exp(-t / tau)
+        x(dt)  = xc + (x0 - xc) a,                    a = exp(-dt / tau)
+        mean x = xc + (x0 - xc) (tau / dt) (1 - a)
+
+    x0: the position at the period's start, xc: the commanded position, dt [s] the period, tau [s]
+    the time constant (1 / (2 pi f_c) for a -3 dB bandwidth f_c); tau = 0: the spool follows at
+    once. Exact for a command constant over the period (the driver's assumption).
+
+    Worked numbers: x0 = 0, xc = 1, dt = tau: end 1 - 1/e = 0.632, mean 1/e = 0.368.
+    """
+    if tau <= 0.0:
+        return xc, xc
+    a = math.exp(-dt / tau)
+    return xc + (x0 - xc) * a, xc + (x0 - xc) * (tau / dt) * (1.0 - a)

@@ -23,6 +23,7 @@ from frogsim.scenario.schema import (
 )
 from frogsim.scenario.firmware import Firmware
 from frogsim.scenario.kinds import ControllerSettings
+from frogsim.scenario.valves import from_raw as valve_settings, type_of as valve_type_of
 from frogsim.errors import MISSING, ScenarioError, Shown
 
 PARAMS_DIR = Path(__file__).resolve().parent.parent / "params"
@@ -225,7 +226,11 @@ def merged_raw(source) -> tuple[dict, str]:
     params_name = raw.get("parameters", "fan2017")
     if not isinstance(params_name, str) or not params_name:
         raise ScenarioError("parameters", params_name, "expected a parameter set name or path")
-    merged = deep_merge(load_parameter_set(params_name, base_dir), raw)
+    params = load_parameter_set(params_name, base_dir)
+    if "valves" in raw and "valves" in params and valve_type_of(raw["valves"]) != valve_type_of(params["valves"]):
+        # another valve type: its settings are its own, none of the parameter set's valves' apply
+        params = {k: v for k, v in params.items() if k != "valves"}
+    merged = deep_merge(params, raw)
     merged["parameters"] = params_name
     return merged, base_dir
 
@@ -281,7 +286,7 @@ def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None 
         table = raw[key]
         if key in _GAUGE_SECTIONS:      # air is built first: its atmosphere converts *_abs values
             table = gauge_from_abs(table, cls, key, sections["air"].atmospheric_pressure_abs)
-        sections[key] = build(cls, table, key)
+        sections[key] = valve_settings(table, key) if key == "valves" else build(cls, table, key)
     controller = build(Controller, raw.get("controller", {}), "controller")
     solver = build(Solver, raw.get("solver", {}), "solver")
     types_raw = raw.get("muscle_types", {})

@@ -80,6 +80,7 @@ def _check_pump(sc) -> None:
 
 
 def _check_valves(sc) -> None:
+    sc.valves.check("valves")           # the valve type's own checks
     for vname in ("charge", "discharge"):
         v = getattr(sc.valves, vname)
         if v.laminar_ratio <= v.critical_ratio:

@@ -15,6 +15,7 @@ from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, 
                                      unwrap)
 from frogsim.errors import MISSING, ScenarioError, Shown
 from frogsim.scenario.files import read_text
+from frogsim.scenario.valves import ValveSettings
 from frogsim.components.atmega2560 import conversion_time
 from frogsim.physics.heat import cylinder_wall_area
 from frogsim.physics.muscle import braid_parameters, muscle_volume
@@ -119,8 +120,11 @@ class Valve:
 
 
 @dataclass(frozen=True)
-class Valves:
-    """The two valves of every muscle: charge (source -> muscle) and discharge (muscle -> exhaust)."""
+class Valves(ValveSettings):
+    """The paper's switching valves, two per muscle: charge (source -> muscle) and discharge
+    (muscle -> exhaust), each open or shut (valve type "switching", the first member of the valve
+    family :mod:`frogsim.circuit.valves`; its module there declares this class its settings)."""
+    TYPE: ClassVar[str] = "switching"
     charge: Valve
     discharge: Valve
 

@@ -76,7 +76,7 @@ _HEADER = re.compile(r"^\s*(?P<name>[^\[\]]*?)\s*\[(?P<unit>[^\[\]]*)\]\s*$")
 TIME = "time"
 #: the label columns frogsim writes, with no unit: a study's "mode", "experiment", "controller",
 #: "joint"; optimize-gait's "trial" (its number), "state", "failure"
-LABEL_COLUMNS = ("mode", "experiment", "controller", "joint", "trial", "state", "failure")
+LABEL_COLUMNS = ("mode", "experiment", "controller", "valve", "joint", "trial", "state", "failure")
 
 
 def header(name: str, unit: str) -> str:

@@ -60,6 +60,9 @@ SI_UNITS = {
     "pressure_per_angle": ("Pa/rad", "a gain such as \"10 bar/rad\""),
     "pressure_time_per_angle": ("Pa*s/rad", "a gain such as \"0.2 bar*s/rad\""),
     "pressure_per_angle_time": ("Pa/(rad*s)", "a gain such as \"20 bar/(rad*s)\""),
+    "voltage_per_pressure": ("V/Pa", "a gain such as \"2 V/bar\""),
+    "voltage_per_pressure_time": ("V/(Pa*s)", "a gain such as \"20 V/(bar*s)\""),
+    "voltage_time_per_pressure": ("V*s/Pa", "a gain such as \"0.01 V*s/bar\""),
 }
 
 

@@ -10,3 +10,4 @@ from frogsim.studies import control  # noqa: F401,E402  (registers the closed-lo
 from frogsim.studies import control_joint  # noqa: F401,E402  (registers the joint-angle control study)
 from frogsim.studies import hysteresis  # noqa: F401,E402  (registers the hysteresis study)
 from frogsim.studies import heat  # noqa: F401,E402  (registers the wall heat transfer study)
+from frogsim.studies import valve_type  # noqa: F401,E402  (registers the valve-type design study)

@@ -8,14 +8,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from frogsim._jit import jit
-from frogsim.circuit.layout import M_CB, M_CC, M_CM, M_CRL, M_DB, M_DC, M_DM, M_DRL, M_SIZE, Y_PE, Y_PS
+from frogsim.circuit.layout import M_SIZE, M_VALVE, Y_PE, Y_PS
+from frogsim.circuit.valves import valve_flows, write_block
 from frogsim.control import fixed
 from frogsim.control.kinds.common import PressureTracking
 from frogsim.control.kinds.spec import PRESSURE_TRACKING, ControllerKind, FirmwareTwin, Gain
 from frogsim.control.signals import B_MODE, B_SP, MODE_CHARGE, MODE_HOLD, MODE_VENT, fw_at, fw_sine, setpoint
 from frogsim.control.table import (L_BRANCH, L_DEAD_C, L_DEAD_D, L_GAIN, L_HORIZON, L_MUSCLE, L_PENALTY,
                                    L_RHOREF, L_TAMB, L_TREF, valve_row, with_setpoint)
-from frogsim.physics.flow import iso6358_mass_flow
 from frogsim.scenario.fields import quantity
 from frogsim.scenario.schema import BAR, GAUGE_MAX
 
@@ -65,11 +65,7 @@ def firmware_row(row, ctx):
     laws = np.ascontiguousarray(row[None, :])
     i = int(row[L_MUSCLE])
     mp = np.zeros((i + 1, M_SIZE))
-    vc, vd = sc.valves.charge, sc.valves.discharge
-    mp[i, M_CC], mp[i, M_CB], mp[i, M_CM], mp[i, M_CRL] = (vc.sonic_conductance, vc.critical_ratio,
-                                                           vc.subsonic_index, vc.laminar_ratio)
-    mp[i, M_DC], mp[i, M_DB], mp[i, M_DM], mp[i, M_DRL] = (vd.sonic_conductance, vd.critical_ratio,
-                                                           vd.subsonic_index, vd.laminar_ratio)
+    write_block(mp[i], sc.valves)       # the valve type's own parameter block, as the model's row holds it
     y = np.zeros(max(Y_PS, Y_PE) + 1)
     y[Y_PS] = ctx.patm + fixed.top_pressure(sc)
     y[Y_PE] = ctx.patm + sc.exhaust.initial_pressure_gauge
@@ -108,16 +104,17 @@ def law(laws, mp, c, cs, b, y, p, ts):
 @jit
 def mode_rates(laws, mp, c, y, p):
     """The controller's model of the muscle's pressure rate [Pa/s] under charge and under vent:
-    Eq. (8) flows at the measured pressure p (source and exhaust at their pressures, every gas at
-    ambient temperature, the supply's branch limit) times k R T_amb / V. The valves' ISO 6358
-    constants are the plant's: the muscle's row of the model's ``mp`` (columns M_CC..M_DRL)."""
+    the flows of the muscle's valve type with both paths fully open
+    (:func:`frogsim.circuit.valves.valve_flows`, Eq. (8) for the switching valves) at the measured
+    pressure p (source and exhaust at their pressures, every gas at ambient temperature, the
+    supply's branch limit) times k R T_amb / V. The valve's constants are the plant's: the
+    muscle's row of the model's ``mp`` (its valve code and parameter block)."""
     T = laws[c, L_TAMB]
     rho = laws[c, L_RHOREF]
     Tr = laws[c, L_TREF]
     i = int(laws[c, L_MUSCLE])
-    mc = iso6358_mass_flow(y[Y_PS], T, p, T, mp[i, M_CC], mp[i, M_CB], mp[i, M_CM], mp[i, M_CRL], rho, Tr)
+    mc, md = valve_flows(mp[i, M_VALVE], mp, i, 1.0, 1.0, y[Y_PS], T, p, T, y[Y_PE], T, rho, Tr)
     mc = min(mc, laws[c, L_BRANCH])
-    md = iso6358_mass_flow(p, T, y[Y_PE], T, mp[i, M_DC], mp[i, M_DB], mp[i, M_DM], mp[i, M_DRL], rho, Tr)
     gain = laws[c, L_GAIN]
     return gain * mc, -gain * md
 
