@@ -23,13 +23,13 @@ def valve(study):
 
 
 def test_design_group_is_registered_around_the_papers_design_point(tubes, endurance, valve):
-    """The three design studies, in the order `frogsim design` runs them, each sweeping through the
-    paper's own robot: one 4 mm main pipe (paper Sec. 4) in the Eq. (9) mode, the 4 L source with
+    """The design studies, in the order `frogsim design` runs them (the valve-type comparison last),
+    the first three sweeping through the paper's own robot: one 4 mm main pipe (paper Sec. 4) in the Eq. (9) mode, the 4 L source with
     the 10 L/min pump, the MHJ9 valve's C = 0.4 L/(s bar) (paper Sec. 3.3). And the valve study agrees
     with the tube study's valve-only run (no tube limit, C = 0.4, the MHJ9's b = 0.38): a larger
     critical ratio b only adds flow (ISO 6358), so that run's rise time lies between the valve
     study's at b = 0.35 and at b = 0.4, the same C."""
-    assert studies_in("design") == ["design-tubes", "design-endurance", "design-valve"]
+    assert studies_in("design") == ["design-tubes", "design-endurance", "design-valve", "design-valve-type"]
     t = tubes.table
     assert len(t[(t["mode"] == "paper") & (t["main tube count [-]"] == 1)
                  & np.isclose(t["main tube inner diameter [mm]"], 4.0)]) == 1
