@@ -224,3 +224,49 @@ def test_the_kinds_are_reached_through_their_registry(tmp_path):
     target = copy / "control" / "sampled.py"
     target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.control.kinds import pwm\n")
     assert kind_imports(copy) == ["frogsim.control.sampled imports frogsim.control.kinds.pwm"]
+
+
+#: modules outside engine/methods/ that import a method's module by name, each with what it
+#: reads there that no declaration holds; everything else reaches the integration methods through
+#: their registry (frogsim.engine.methods), so that a new method is one new module
+METHOD_IMPORTS = {
+    # the default method's two compiled steps and LU solve, compiled as parts of a first run
+    "frogsim.engine.warmup": {"dopri_rosenbrock"},
+}
+#: what a method's module may import of the engine layer: the family's own helpers and the shared
+#: step-size control (never the driver, which reads the methods through the registry)
+METHOD_ENGINE_DEPS = {"frogsim.engine", "frogsim.engine.methods", "frogsim.engine.methods.spec",
+                      "frogsim.engine.stepsize"}
+
+
+def method_imports(root: Path = PACKAGE) -> list[str]:
+    """Imports of a method's module from outside engine/methods/ that METHOD_IMPORTS does not
+    list, and imports of the engine by a method's module beyond METHOD_ENGINE_DEPS."""
+    folder = root / "engine" / "methods"
+    found = {p.stem for p in folder.glob("*.py")}
+    helpers = {"__init__", "spec"}
+    bad = []
+    for mod, deps in imports(root).items():
+        inside = mod.startswith("frogsim.engine.methods")
+        for dep in deps:
+            parts = dep.split(".")
+            if inside:
+                if parts[:2] == ["frogsim", "engine"] and dep not in METHOD_ENGINE_DEPS \
+                        and not dep.startswith("frogsim.engine.methods."):
+                    bad.append(f"{mod} imports {dep}")
+            elif parts[:3] == ["frogsim", "engine", "methods"] and len(parts) > 3 and parts[3] in found - helpers \
+                    and parts[3] not in METHOD_IMPORTS.get(mod, ()):
+                bad.append(f"{mod} imports {dep}")
+    return sorted(bad)
+
+
+def test_the_integration_methods_are_reached_through_their_registry(tmp_path):
+    assert method_imports() == []
+    copy = tmp_path / "frogsim"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    target = copy / "engine" / "integrator.py"
+    target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.engine.methods import rk4\n")
+    method = copy / "engine" / "methods" / "rk4.py"
+    method.write_text(method.read_text() + "\n\ndef _planted():\n    from frogsim.engine import integrator\n")
+    assert method_imports(copy) == ["frogsim.engine.integrator imports frogsim.engine.methods.rk4",
+                                    "frogsim.engine.methods.rk4 imports frogsim.engine.integrator"]

@@ -1,8 +1,9 @@
 """Compiling the pneumatic engine in parts, so that two processes can share the first run's work.
 
 Numba compiles a function together with everything it calls, so the engine is a chain: the
-circuit's right-hand side, then the two methods' steps that call it, then the stepping driver
-(:func:`frogsim.engine.integrator.advance`) over all of them. Each part is compiled once, for the
+circuit's right-hand side, then the integration methods' compiled steps that call it, then the
+stepping driver (:func:`frogsim.engine.integrator.advance`) over all of them (the dispatch
+between the methods, and the methods' small functions, are inlined into the driver). Each part is compiled once, for the
 argument types the driver passes (a one-muscle circuit has the same types as any other), and
 saved in the cache, where the next part, in this process or another, finds it. :data:`PARTS`
 lists the parts with the parts each needs first; :func:`warm_up_parts` runs them on a process
@@ -17,6 +18,8 @@ from numba import typeof
 from frogsim.circuit import layout as L
 from frogsim.circuit.rhs import _hermite, common_piece, manifold_pressure, muscle_volume_state, rhs
 from frogsim.engine import integrator as I
+from frogsim.engine import methods
+from frogsim.engine.methods import dopri_rosenbrock as DR
 from frogsim.engine.measures import _rises, _windows
 from frogsim.physics.air import choked_mass_flux_factor, critical_pressure_ratio
 from frogsim.physics.flow import main_pipe_branch_limit, tube_sonic_conductance
@@ -28,11 +31,12 @@ PARTS = {
     "flow": ((), "the manifold pressure and the valves' flow (part of the right-hand side)"),
     "volume": ((), "the muscles' volumes along their length paths (part of the right-hand side)"),
     # with the LU solve, which needs nothing and shortens the Rosenbrock step's part
-    "accept": ((), "an accepted step's work (samples, dense output, stiffness test, step size), the LU solve"),
+    "accept": ((), "an accepted step's work (samples, output rows, dense output), the LU solve"),
     "rhs": (("flow", "volume"), "the circuit's right-hand side"),
     "rosenbrock": (("rhs",), "the Rosenbrock step"),
     "dopri": (("rhs",), "the Dormand-Prince step"),
-    "driver": (("rhs", "accept", "rosenbrock", "dopri"), "the stepping driver"),
+    "methods": (("rhs",), "the other integration methods' compiled steps"),
+    "driver": (("rhs", "accept", "rosenbrock", "dopri", "methods"), "the stepping driver"),
     "start": ((), "a run's start"),
     "measures": ((), "the rise-time measures"),
     "model": ((), "the physics that building a model calls from Python (braid, tube, choked flow)"),
@@ -53,6 +57,8 @@ def _one_muscle():
          "ds": np.zeros(1), "cs": np.zeros(1)}
     a["stages"] = tuple(np.zeros(ny) for _ in range(8))       # (k2..k7, yt, yn), as advance cuts them
     a["dense"] = tuple(np.zeros(ny) for _ in range(4))
+    a["vec"] = np.zeros((I.ROWS, ny))                          # the driver's scratch vectors
+    a["par"] = methods.parameter_block(methods.METHODS[methods.DEFAULT].settings())
     a["out"] = (np.zeros(1), np.zeros((1, ny)), np.zeros((1, 2 * n + 1)))
     return a
 
@@ -80,22 +86,31 @@ def warm_up(part: str) -> None:
     elif part == "rhs":
         _compile(rhs, 0.0, y, u, 0.0, *model, f, aux, work)
     elif part == "dopri":
-        _compile(I._dopri_step, 0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, a["stages"], aux, work, stats)
+        _compile(DR._dopri_step, 0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, a["stages"], aux, work, stats)
     elif part == "rosenbrock":
         # Rosenbrock's work tuple (W, pivots, ft, k1, k2, k3, yt, f1, tder, J, T)
         ny = a["ny"]
         wk = (np.zeros((ny, ny)),) + tuple(np.zeros(ny) for _ in range(8)) + (np.zeros((ny, ny)), np.zeros(ny))
-        _compile(I._rosenbrock_step, 0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, 1, wk, True, *vec, aux, work,
-                 stats)
+        _compile(DR._rosenbrock_step, 0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, 1, wk, True, *vec, aux,
+                 work, stats)
+    elif part == "methods":
+        # the steps compiled on their own (jit_step), for the driver's argument types; the
+        # default's is compiled by the two parts above
+        ny = a["ny"]
+        for m in methods.METHODS.values():
+            if m.name != methods.DEFAULT and hasattr(m.step, "compile"):
+                _compile(m.step, 0.0, 1e-3, 1e-3, y, f, f, f, u, 0.0, model, atol, 1e-7, a["par"], a["ds"],
+                         a["vec"], np.zeros((ny, ny)), np.zeros(ny * ny + ny), aux, work, stats)
     elif part == "accept":
-        _compile(I._accept, a["ds"], a["commands"][2], model[1], a["cs"], 0.0, 1e-3, 1e-3, 0.5, 1e-4, False, 0.0,
-                 1.0, y, f, a["stages"], a["dense"], f, u, u, 0.0, a["out"], 0, stats)
+        _compile(I._accept, a["commands"][2], model[1], a["cs"], 0.0, 1e-3, 1e-3, y, f, f, f, 1.0, a["vec"],
+                 a["dense"], f, u, u, 0.0, a["out"], 0, stats, False)
         _compile(I._dense, y, *a["dense"], 0.5, f)
         J, piv = np.zeros((a["ny"], a["ny"])), np.zeros(a["ny"])      # pivots stored as floats
-        _compile(I._lu, J, piv)
-        _compile(I._lu_solve, J, piv, f)
+        _compile(DR._lu, J, piv)
+        _compile(DR._lu_solve, J, piv, f)
     elif part == "driver":
-        _compile(I.advance, 1.0, y, u, a["ds"], a["cs"], model, a["commands"], (1e-6, atol, 1e-3), a["out"], stats)
+        _compile(I.advance, 1.0, y, u, a["ds"], a["cs"], model, a["commands"], (1e-6, atol, 1e-3, a["par"]), a["out"],
+                 stats)
     elif part == "start":
         c = a["commands"]
         _compile(I.begin, y, 0.0, u, model[1], c[2], c[0], c[1], c[3], a["out"][0], 1e-4)
