@@ -11,7 +11,7 @@ Cases
     swim         the shipped robot scenario (MuJoCo coupled, the pneumatics advanced once per 1 ms
                  MuJoCo step), --cycles gait cycles: max |angle - angle_default| over the six
                  joints [deg], max pressure error [bar], distance swum (forward position at the
-                 end) [m] and its difference to the default's [mm]; wall time of the steps.
+                 end) [m] and its difference to the default's [um]; wall time of the steps.
     stiffness    the spectral radius |lambda| of the circuit's Jacobian df/dy (central differences
                  of frogsim.circuit.rhs.rhs over the masses and pressures) at every 10th output row
                  of the default run of paper-cycle, and the step the classical Runge-Kutta method's
@@ -19,7 +19,7 @@ Cases
                  II, Sec. IV.2).
 
 Each difference is given to the default method as shipped (rtol 1e-7) and to the default at rtol
-1e-12 (the reference: its own error is below 1e-9 bar there), so that a difference smaller than
+1e-12 (the reference), so that a difference smaller than
 the default's own error shows as such. Prints one table per case, headed with the machine (host
 name, CPU, cores). Exit status 0.
 """
@@ -120,14 +120,14 @@ def swim(steps, cycles):
     print(f"\nswim (MuJoCo coupled, {cycles} cycles = {cycles * 2} s, 1 ms MuJoCo step; differences to the "
           f"default, and [in brackets] to the default at rtol {TIGHT:g})")
     print(f"{'method':28s} {'max |dangle| [deg]':>22s} {'max |dp| [bar]':>20s} {'distance [m]':>13s} "
-          f"{'ddist [mm]':>20s} {'steps':>7s} {'wall [s]':>9s} {'x real time':>12s}")
+          f"{'ddist [um]':>20s} {'steps':>7s} {'wall [s]':>9s} {'x real time':>12s}")
 
     def row(label, r):
         da = [np.degrees(np.max(np.abs(r.joint_angles - x.joint_angles))) for x in (ref, tight)]
         dp = [np.max(np.abs(r.pressures - x.pressures)) / 1e5 for x in (ref, tight)]
-        dd = [(distance(r) - distance(x)) * 1e3 for x in (ref, tight)]
+        dd = [(distance(r) - distance(x)) * 1e6 for x in (ref, tight)]
         print(f"{label:28s} {da[0]:10.2e} [{da[1]:9.2e}] {dp[0]:9.2e} [{dp[1]:8.2e}] {distance(r):13.4f} "
-              f"{dd[0]:9.4f} [{dd[1]:8.4f}] {r.stats['pneumatic_steps']:7d} {r.wall_s:9.3f} {2.0 * cycles / r.wall_s:12.1f}")
+              f"{dd[0]:9.3f} [{dd[1]:8.3f}] {r.stats['pneumatic_steps']:7d} {r.wall_s:9.3f} {2.0 * cycles / r.wall_s:12.1f}")
 
     row("dopri-rosenbrock (default)", ref)
     for h in steps:
