@@ -229,10 +229,7 @@ def test_the_kinds_are_reached_through_their_registry(tmp_path):
 #: modules outside engine/methods/ that import a method's module by name, each with what it
 #: reads there that no declaration holds; everything else reaches the integration methods through
 #: their registry (frogsim.engine.methods), so that a new method is one new module
-METHOD_IMPORTS = {
-    # the default method's two compiled steps and LU solve, compiled as parts of a first run
-    "frogsim.engine.warmup": {"dopri_rosenbrock"},
-}
+METHOD_IMPORTS: dict = {}
 #: what a method's module may import of the engine layer: the family's own helpers and the shared
 #: step-size control (never the driver, which reads the methods through the registry)
 METHOD_ENGINE_DEPS = {"frogsim.engine", "frogsim.engine.methods", "frogsim.engine.methods.spec",

@@ -362,6 +362,23 @@ def rejected(ds, par, h, err):
     return shrink(h, err, 1.0 / 3.0 if ds[D_STIFF] > 0.5 else EXPO)
 
 
+def warm(a) -> list:
+    """The parts of a first run's compilation (:mod:`frogsim.engine.warmup`): the LU solve (it needs
+    nothing), then the two steps, each for the arguments :func:`step` passes them."""
+    ny = a["y"].size
+    wk = (a["mat"],) + tuple(a["vec"][R_OWN + k] for k in range(6, 14)) + (a["mat"], a["y"])
+    stages = tuple(a["vec"][R_OWN + k] for k in range(8))
+    common = (a["t"], a["h"], a["t"] + a["h"], a["y"], a["f"], a["u"], a["pump_on"], a["model"], a["atol"], a["rtol"])
+    return [
+        ("lu", (), "the LU solve", [(_lu, (a["mat"], a["y"])), (_lu_solve, (a["mat"], a["y"], a["f"]))]),
+        ("rosenbrock", ("rhs", "lu"), "the Rosenbrock step",
+         [(_rosenbrock_step, common + (ny, wk, True, a["y"], a["f"], a["f"], a["f"], a["f"], a["f"], a["aux"],
+                                       a["work"], a["stats"]))]),
+        ("dopri", ("rhs",), "the Dormand-Prince step",
+         [(_dopri_step, common + (stages, a["aux"], a["work"], a["stats"]))]),
+    ]
+
+
 METHOD = IntegrationMethod(settings=DopriRosenbrockSettings, code=CODE, step=step, dense=dense,
                            control=StepControl(propose=propose_adaptive, accepted=accepted, rejected=rejected),
-                           order=5, vectors=14, restart=_explicit_again)
+                           order=5, vectors=14, restart=_explicit_again, warm=warm)

@@ -35,7 +35,14 @@ checks when the package is imported. It names, in one place, everything the driv
   rc4 = 0 is the cubic Hermite interpolant of y, yn, f, fn);
 * ``control``: its step-size control (:class:`StepControl`, :mod:`frogsim.engine.stepsize`);
 * ``order``: its order of convergence (global error O(h^order)), which its tests check;
-* ``vectors``: how many of the scratch vectors from R_OWN on it uses.
+* ``vectors``: how many of the scratch vectors from R_OWN on it uses;
+* ``warm``: optional, the parts of a first run's compilation its compiled functions make
+  (:mod:`frogsim.engine.warmup`): ``warm(a) -> [(part, needs, what, [(function, arguments)])]``,
+  ``a`` a dict of arguments of the types the driver passes (the step's parameter names: "t", "h",
+  "y", "f", "u", "pump_on", "model", "atol", "rtol", "par", "ds", "vec", "mat", "keep", "aux",
+  "work", "stats"), ``needs`` the names of its own parts, or "rhs", compiled first. Without it a
+  step compiled on its own (``jit_step``) is one part, compiled for the step's arguments; an
+  inlined step (``jit_inner``) is compiled with the driver.
 """
 from __future__ import annotations
 
@@ -88,6 +95,7 @@ class IntegrationMethod:
     order: int
     vectors: int
     restart: Callable | None = None
+    warm: Callable | None = None
     module: str = ""
 
     @property
