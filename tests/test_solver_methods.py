@@ -97,6 +97,21 @@ def test_rk4_agrees_with_the_default_within_a_tolerance_of_its_order():
     assert np.max(np.abs(res.muscle_pressure("m0") - ref.muscle_pressure("m0"))[charge]) < 1e-6
 
 
+def test_the_batched_engine_runs_the_scenarios_method():
+    # variants of an rk4 scenario, one with another step, through the batched engine: each run is
+    # the one frogsim.simulate makes of the same scenario, bit for bit
+    from frogsim.engine.batch import build_models, run_models
+    d = one_muscle_scenario(steps((0.0, "charge"), (0.05, "vent")), 0.1)
+    d["solver"] = {"method": {"name": "rk4", "step": "0.25 ms"}}
+    base = frogsim.load_scenario(d)
+    points = [{"solver.method.step": 2.5e-4}, {"solver.method.step": 5e-4}]
+    batch = run_models(build_models(base, points), threads=1)
+    for pt, res in zip(points, batch):
+        alone = frogsim.simulate(base.replace(pt))
+        assert np.array_equal(res.y, alone.y) and np.array_equal(res.u, alone.u)
+    assert not np.array_equal(batch[0].y, batch[1].y)          # the step is the run's own
+
+
 def test_method_by_name_and_its_refusals():
     sc = frogsim.load_scenario(one_muscle_scenario(steps((0.0, "hold")), 0.01))
     assert sc.solver.method.name == methods.DEFAULT == "dopri-rosenbrock"
