@@ -172,7 +172,7 @@ from dataclasses import dataclass
 
 from frogsim._jit import jit_inner
 from frogsim.circuit.rhs import rhs
-from frogsim.engine.methods.spec import R_OWN, IntegrationMethod, StepControl
+from frogsim.engine.methods.spec import IntegrationMethod, StepControl
 from frogsim.engine.stepsize import accepted_fixed, propose_grid, rejected_fixed
 from frogsim.scenario.fields import quantity
 from frogsim.scenario.methods import MethodSettings
@@ -190,7 +190,7 @@ class EulerSettings(MethodSettings):
 
 
 @jit_inner
-def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, vec, mat, keep, aux, work, stats):
+def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux, work, stats):
     g, mp, mot_t, mot_L, mot_d, mot_n = model
     for j in range(y.size):
         yn[j] = y[j] + h * f[j]
@@ -200,7 +200,7 @@ def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, vec,
 
 
 @jit_inner
-def dense(h, y, yn, f, fn, vec, rc1, rc2, rc3, rc4):
+def dense(h, y, yn, f, fn, own, rc1, rc2, rc3, rc4):
     for j in range(y.size):
         rc1[j] = yn[j] - y[j]
         rc2[j] = 0.0

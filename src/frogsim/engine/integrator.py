@@ -32,7 +32,7 @@ from frogsim.circuit.rhs import rhs
 from frogsim.control.sampled import (CS_PUMP, apply_due, next_due_time, next_sample_time, sample_controllers,
                                     start_controllers)
 from frogsim.engine import methods
-from frogsim.engine.methods.spec import (D_M0, D_M_COUNT, R_F, R_FN, R_RC1, R_RC2, R_RC3, R_RC4, R_YN,
+from frogsim.engine.methods.spec import (D_M0, D_M_COUNT, R_F, R_FN, R_OWN, R_RC1, R_RC2, R_RC3, R_RC4, R_YN,
                                          R_YS, ROWS)
 from frogsim.engine.stepsize import EPS
 
@@ -73,23 +73,23 @@ def _step_chain(entries):
     not its own."""
     def last(code, fn):
         @jit_inner
-        def branch(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, vec, mat, keep, aux,
+        def branch(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
                    work, stats):
             if c != code:
                 raise ValueError("advance: the solver's parameter block names an integration method code that no "
                                  "method declares (frogsim.engine.methods)")
-            return fn(t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, vec, mat, keep, aux, work,
+            return fn(t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux, work,
                       stats)
         return branch
 
     def link(code, fn, rest):
         @jit_inner
-        def branch(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, vec, mat, keep, aux,
+        def branch(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
                    work, stats):
             if c == code:
-                return fn(t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, vec, mat, keep, aux,
+                return fn(t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
                           work, stats)
-            return rest(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, vec, mat, keep, aux,
+            return rest(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
                         work, stats)
         return branch
 
@@ -100,22 +100,22 @@ def _step_chain(entries):
 
 
 def _dense_chain(entries):
-    """``dense_of(code, h, y, yn, f, fn, vec, rc1, rc2, rc3, rc4)``: the method's continuous
+    """``dense_of(code, h, y, yn, f, fn, own, rc1, rc2, rc3, rc4)``: the method's continuous
     extension of its last step (the last branch takes any code: the step's dispatch refused
     an unknown one already)."""
     def last(fn):
         @jit_inner
-        def branch(c, h, y, yn, f, fn_, vec, rc1, rc2, rc3, rc4):
-            fn(h, y, yn, f, fn_, vec, rc1, rc2, rc3, rc4)
+        def branch(c, h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4):
+            fn(h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4)
         return branch
 
     def link(code, fn, rest):
         @jit_inner
-        def branch(c, h, y, yn, f, fn_, vec, rc1, rc2, rc3, rc4):
+        def branch(c, h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4):
             if c == code:
-                fn(h, y, yn, f, fn_, vec, rc1, rc2, rc3, rc4)
+                fn(h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4)
             else:
-                rest(c, h, y, yn, f, fn_, vec, rc1, rc2, rc3, rc4)
+                rest(c, h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4)
         return branch
 
     out = last(entries[-1].dense)
@@ -257,15 +257,14 @@ def _dense(y, rc1, rc2, rc3, rc4, th, out):
 
 
 @jit_step
-def _samples_in_step(laws, mp, cs, t, t_new, h, y, f, yn, fn, code, vec, dense, ys, u, dense_ready):
+def _samples_in_step(laws, mp, cs, t, t_new, h, y, yn, dense, ys, u):
     """The controllers' samples t_k inside an accepted step (t, t_new] of length h, in order,
-    each taken from the step's continuous extension (``dense`` = rc1..rc4; made here by the
-    method's ``dense`` when ``dense_ready`` is False and a sample needs it) into ys, or from the
-    step's solution yn at t_new. A sample whose command acts at once ends the step at t_k; a
-    queued command due before the step's end ends it at its due time (see :func:`advance`).
+    each taken from the step's continuous extension (``dense`` = rc1..rc4, made by the driver
+    before when a sample falls inside the step: :func:`_needs_dense`) into ys, or from the step's
+    solution yn at t_new. A sample whose command acts at once ends the step at t_k; a queued
+    command due before the step's end ends it at its due time (see :func:`advance`).
 
-    Returns (t_cut, refresh, dense_ready): where the step ends, whether a command changed, and
-    whether the continuous extension has been made.
+    Returns (t_cut, refresh): where the step ends and whether a command changed.
     """
     rc1, rc2, rc3, rc4 = dense
     t_cut = t_new
@@ -277,9 +276,6 @@ def _samples_in_step(laws, mp, cs, t, t_new, h, y, f, yn, fn, code, vec, dense, 
             for j in range(y.size):
                 ys[j] = yn[j]
         else:
-            if not dense_ready:
-                dense_of(code, h, y, yn, f, fn, vec, rc1, rc2, rc3, rc4)
-                dense_ready = True
             _dense(y, rc1, rc2, rc3, rc4, (t_s - t) / h, ys)
         if sample_controllers(laws, mp, t_s, ys, u, cs):
             refresh = True
@@ -290,16 +286,22 @@ def _samples_in_step(laws, mp, cs, t, t_new, h, y, f, yn, fn, code, vec, dense, 
         if t_due < t_cut - EPS:
             t_cut = max(t_due, t)
         t_s = next_sample_time(laws, cs)
-    return t_cut, refresh, dense_ready
+    return t_cut, refresh
 
 
 @jit_step
-def _accept(laws, mp, cs, t, t_new, h, y, f, yn, fn, code, vec, dense, ys, u, u_prev, pump_on, out, out_i, stats,
-            dense_ready):
+def _needs_dense(laws, cs, t_new, out_t, out_i):
+    """Whether an accepted step ending at t_new needs its continuous extension: a controller's
+    sample falls inside it (before t_new - EPS), or an output row at or before t_new (a step the
+    samples cut short has a sample inside it)."""
+    return next_sample_time(laws, cs) < t_new - EPS or (out_i < out_t.size and out_t[out_i] <= t_new)
+
+
+@jit_step
+def _accept(laws, mp, cs, t, t_new, h, y, f, yn, fn, dense, ys, u, u_prev, pump_on, out, out_i, stats):
     """An accepted step of length h from t to t_new: the controllers' samples inside the step
     (:func:`_samples_in_step`; the step may end early at t_cut), the output rows it covers (from
-    the continuous extension ``dense``, made by the method's ``dense`` when the step did not make
-    it), y and f moved on (f = dy/dt at the step's end, fn, unless a command changed) and the
+    the continuous extension ``dense``, made before when :func:`_needs_dense`), y and f moved on (f = dy/dt at the step's end, fn, unless a command changed) and the
     physical check. The step-size control is the method's (:func:`advance` calls it after this).
 
     Returns (t, pump_on, out_i, refresh, status): the time reached, the pump's switch, the next
@@ -317,16 +319,11 @@ def _accept(laws, mp, cs, t, t_new, h, y, f, yn, fn, code, vec, dense, ys, u, u_
     # -- the controllers' samples inside the step, read from the continuous extension. A
     # command that acts at once (the pump's switch, a valve without dead time) or a
     # valve command that comes due before t_new ends the step there: the state at
-    # that time is the continuous extension's, the rest of the step is dropped. The
-    # extension is made only when one of them, or an output row, falls inside the step
-    # (a step that ends on its sample, as every coupled-engine step does, needs none).
+    # that time is the continuous extension's, the rest of the step is dropped.
     for j in range(nu):
         u_prev[j] = u[j]
     pump_prev = pump_on
-    t_cut, refresh, dense_ready = _samples_in_step(laws, mp, cs, t, t_new, h_try, y, f, yn, fn, code, vec, dense, ys,
-                                                   u, dense_ready)
-    if not dense_ready and (t_cut < t_new - EPS or (out_i < n_out and out_t[out_i] <= t_cut)):
-        dense_of(code, h_try, y, yn, f, fn, vec, rc1, rc2, rc3, rc4)
+    t_cut, refresh = _samples_in_step(laws, mp, cs, t, t_new, h_try, y, yn, dense, ys, u)
     if t_cut < t_new - EPS:
         # the step ends at t_cut (a sample that changed a command, or a due time)
         _dense(y, rc1, rc2, rc3, rc4, (t_cut - t) / h_try, yn)
@@ -444,8 +441,15 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     vec = scratch[:ROWS * ny].reshape((ROWS, ny))         # the driver's rows, then the method's own
     f, fn, yn, ys = vec[R_F], vec[R_FN], vec[R_YN], vec[R_YS]
     dense = (vec[R_RC1], vec[R_RC2], vec[R_RC3], vec[R_RC4])
+    rc1, rc2, rc3, rc4 = dense
+    # the method's own rows, cut once a call (a method indexes this tuple with constants)
+    own = (vec[R_OWN], vec[R_OWN + 1], vec[R_OWN + 2], vec[R_OWN + 3], vec[R_OWN + 4], vec[R_OWN + 5],
+           vec[R_OWN + 6], vec[R_OWN + 7], vec[R_OWN + 8], vec[R_OWN + 9], vec[R_OWN + 10], vec[R_OWN + 11],
+           vec[R_OWN + 12], vec[R_OWN + 13])
     mat = scratch[ROWS * ny:ROWS * ny + ny * ny].reshape((ny, ny))
-    keep = ds[D_SIZE:D_SIZE + ny * ny + ny]               # the method's, kept from call to call
+    # the method's entries kept from call to call: a matrix and a vector (the default's Jacobian)
+    kmat = ds[D_SIZE:D_SIZE + ny * ny].reshape((ny, ny))
+    kvec = ds[D_SIZE + ny * ny:D_SIZE + ny * ny + ny]
     o = ROWS * ny + ny * ny
     u_prev = scratch[o:o + nu]
     aux = scratch[o + nu:o + nu + 2 * n + 1]
@@ -477,7 +481,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
         while t < t_seg:
             h, h_try, t_new, last = propose(code, par, t, t_seg, h, max_step)
             err, a1, a2, dense_ready = trial(code, t, h_try, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par,
-                                             ds, vec, mat, keep, aux, work, stats)
+                                             ds, own, dense, mat, kmat, kvec, aux, work, stats)
             if not math.isfinite(err):
                 # a non-finite trial: the control shrinks the step and retries (a fixed step: it
                 # returns 0); give up at step underflow
@@ -488,9 +492,13 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                     break
                 continue
             if err <= 1.0:
-                t, pump_on, out_i, refresh, status = _accept(laws, mp, cs, t, t_new, h_try, y, f, yn, fn, code, vec,
-                                                             dense, ys, u, u_prev, pump_on, out, out_i, stats,
-                                                             dense_ready)
+                # the continuous extension, for the samples and output rows inside the step (made
+                # by the step already, or only when one falls inside it: a step that ends on its
+                # sample, as every coupled-engine step does, needs none)
+                if not dense_ready and _needs_dense(laws, cs, t_new, out[0], out_i):
+                    dense_of(code, h_try, y, yn, f, fn, own, rc1, rc2, rc3, rc4)
+                t, pump_on, out_i, refresh, status = _accept(laws, mp, cs, t, t_new, h_try, y, f, yn, fn, dense, ys,
+                                                             u, u_prev, pump_on, out, out_i, stats)
                 if status != STATUS_OK:
                     break
                 h_next, err_old = accepted(code, ds, par, h_try, err, err_old, a1, a2, refresh, stats)

@@ -44,8 +44,8 @@ def _method_parts() -> list:
 
 
 #: the names of a method's step's arguments (frogsim.engine.methods.spec), in order
-_STEP_ARGS = ("t", "h", "t_new", "y", "f", "yn", "fn", "u", "pump_on", "model", "atol", "rtol", "par", "ds", "vec",
-              "mat", "keep", "aux", "work", "stats")
+_STEP_ARGS = ("t", "h", "t_new", "y", "f", "yn", "fn", "u", "pump_on", "model", "atol", "rtol", "par", "ds", "own",
+              "rc", "mat", "kmat", "kvec", "aux", "work", "stats")
 
 
 def _parts() -> tuple[dict, dict]:
@@ -84,7 +84,8 @@ def _one_muscle():
     a["par"] = methods.parameter_block(methods.METHODS[methods.DEFAULT].settings())
     # the rest of a method's step's arguments (frogsim.engine.methods.spec)
     a.update(t=0.0, h=1e-3, t_new=1e-3, yn=a["f"], fn=a["f"], pump_on=0.0, rtol=1e-7, mat=np.zeros((ny, ny)),
-             keep=np.zeros(ny * ny + ny))
+             own=tuple(a["vec"][k] for k in range(8, I.ROWS)), rc=a["dense"], kmat=np.zeros((ny, ny)),
+             kvec=np.zeros(ny))
     a["out"] = (np.zeros(1), np.zeros((1, ny)), np.zeros((1, 2 * n + 1)))
     return a
 
@@ -117,8 +118,9 @@ def warm_up(part: str) -> None:
     elif part == "rhs":
         _compile(rhs, 0.0, y, u, 0.0, *model, f, aux, work)
     elif part == "accept":
-        _compile(I._accept, a["commands"][2], model[1], a["cs"], 0.0, 1e-3, 1e-3, y, f, f, f, 1.0, a["vec"],
-                 a["dense"], f, u, u, 0.0, a["out"], 0, stats, False)
+        _compile(I._accept, a["commands"][2], model[1], a["cs"], 0.0, 1e-3, 1e-3, y, f, f, f, a["dense"], f, u, u,
+                 0.0, a["out"], 0, stats)
+        _compile(I._needs_dense, a["commands"][2], a["cs"], 1e-3, a["out"][0], 0)
         _compile(I._dense, y, *a["dense"], 0.5, f)
     elif part in _METHOD_CALLS:
         for function, arguments in _METHOD_CALLS[part]:

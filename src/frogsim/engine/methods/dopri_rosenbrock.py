@@ -26,8 +26,7 @@ from dataclasses import dataclass
 from frogsim._jit import jit_inner, jit_step
 from frogsim.circuit.layout import physical_size
 from frogsim.circuit.rhs import rhs
-from frogsim.engine.methods.spec import (D_M0, R_OWN, R_RC1, R_RC2, R_RC3, R_RC4, IntegrationMethod,
-                                         StepControl)
+from frogsim.engine.methods.spec import D_M0, IntegrationMethod, StepControl
 from frogsim.engine.stepsize import EXPO, order_next, pi_next, propose_adaptive, shrink
 from frogsim.scenario.methods import MethodSettings
 
@@ -299,34 +298,31 @@ class DopriRosenbrockSettings(MethodSettings):
 
 # --- the method's side of the driver's protocol (frogsim.engine.methods.spec) ------------------------------
 @jit_inner
-def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, vec, mat, keep, aux, work, stats):
+def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux, work, stats):
     """One trial step: Rosenbrock's when the run is on a stiff stretch (ds[D_STIFF]), with a fresh
     Jacobian after JAC_EVERY steps or a rejected one, otherwise Dormand-Prince's. Returns (err,
     num, den, dense_ready): the error norm, the stiffness test's two norms (a Dormand-Prince
     step; 0 for Rosenbrock) and whether the continuous extension is made (Rosenbrock's is)."""
-    ny = y.size
     if ds[D_STIFF] > 0.5:
         fresh = ds[D_JAC_AGE] < 0 or ds[D_JAC_AGE] >= JAC_EVERY
-        wk = (mat, vec[R_OWN + 6], vec[R_OWN + 7], vec[R_OWN + 8], vec[R_OWN + 9], vec[R_OWN + 10],
-              vec[R_OWN + 11], vec[R_OWN + 12], vec[R_OWN + 13], keep[:ny * ny].reshape((ny, ny)),
-              keep[ny * ny:ny * ny + ny])
+        wk = (mat, own[6], own[7], own[8], own[9], own[10], own[11], own[12], own[13], kmat, kvec)
         err = _rosenbrock_step(t, h, t_new, y, f, u, pump_on, model, atol, rtol, physical_size(model[1].shape[0]),
-                               wk, fresh, yn, fn, vec[R_RC1], vec[R_RC2], vec[R_RC3], vec[R_RC4], aux, work, stats)
+                               wk, fresh, yn, fn, rc[0], rc[1], rc[2], rc[3], aux, work, stats)
         ds[D_JAC_AGE] = 1.0 if fresh else ds[D_JAC_AGE] + 1.0
         if not err <= 1.0:
             ds[D_JAC_AGE] = -1.0      # a rejected step: a fresh Jacobian for the retry
         return err, 0.0, 0.0, True
     ds[D_JAC_AGE] = -1.0              # a later stiff stretch makes its own
-    stages = (vec[R_OWN], vec[R_OWN + 1], vec[R_OWN + 2], vec[R_OWN + 3], vec[R_OWN + 4], fn, vec[R_OWN + 5], yn)
+    stages = (own[0], own[1], own[2], own[3], own[4], fn, own[5], yn)
     err, num, den = _dopri_step(t, h, t_new, y, f, u, pump_on, model, atol, rtol, stages, aux, work, stats)
     return err, num, den, False
 
 
 @jit_inner
-def dense(h, y, yn, f, fn, vec, rc1, rc2, rc3, rc4):
+def dense(h, y, yn, f, fn, own, rc1, rc2, rc3, rc4):
     """The continuous extension of a Dormand-Prince step (:func:`_dopri_dense`, from the stages
     the step left in the method's rows); a Rosenbrock step makes its own with the step."""
-    _dopri_dense(h, y, yn, f, vec[R_OWN + 1], vec[R_OWN + 2], vec[R_OWN + 3], vec[R_OWN + 4], fn, rc1, rc2, rc3, rc4)
+    _dopri_dense(h, y, yn, f, own[1], own[2], own[3], own[4], fn, rc1, rc2, rc3, rc4)
 
 
 @jit_inner
@@ -366,8 +362,8 @@ def warm(a) -> list:
     """The parts of a first run's compilation (:mod:`frogsim.engine.warmup`): the LU solve (it needs
     nothing), then the two steps, each for the arguments :func:`step` passes them."""
     ny = a["y"].size
-    wk = (a["mat"],) + tuple(a["vec"][R_OWN + k] for k in range(6, 14)) + (a["mat"], a["y"])
-    stages = tuple(a["vec"][R_OWN + k] for k in range(8))
+    wk = (a["mat"],) + a["own"][6:14] + (a["kmat"], a["kvec"])
+    stages = a["own"][:8]
     common = (a["t"], a["h"], a["t"] + a["h"], a["y"], a["f"], a["u"], a["pump_on"], a["model"], a["atol"], a["rtol"])
     return [
         ("lu", (), "the LU solve", [(_lu, (a["mat"], a["y"])), (_lu_solve, (a["mat"], a["y"], a["f"]))]),

@@ -30,9 +30,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from frogsim._jit import jit_inner, jit_step
+from frogsim._jit import jit_inner
 from frogsim.circuit.rhs import rhs
-from frogsim.engine.methods.spec import R_OWN, IntegrationMethod, StepControl
+from frogsim.engine.methods.spec import IntegrationMethod, StepControl
 from frogsim.engine.stepsize import accepted_fixed, propose_grid, rejected_fixed
 from frogsim.errors import ScenarioError
 from frogsim.scenario.fields import quantity, shown
@@ -67,13 +67,13 @@ class Rk4Settings(MethodSettings):
                                 f"{', '.join(f'{period * 1e3 / n:g} ms' for n in (1, 2, 4, 10))}")
 
 
-@jit_step
-def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, vec, mat, keep, aux, work, stats):
+@jit_inner
+def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux, work, stats):
     """One classical Runge-Kutta step from (t, y), f = dy/dt there, to t_new = t + h: y1 into yn,
     f(t_new, y1) into fn (the next step's k1). Returns (err, 0, 0, False): err 0, or inf when y1
     is not finite (no error estimate; the continuous extension is made by :func:`dense`)."""
     g, mp, mot_t, mot_L, mot_d, mot_n = model
-    k2, k3, k4, yt = vec[R_OWN], vec[R_OWN + 1], vec[R_OWN + 2], vec[R_OWN + 3]
+    k2, k3, k4, yt = own[0], own[1], own[2], own[3]
     ny = y.size
     half = 0.5 * h
     for j in range(ny):
@@ -97,7 +97,7 @@ def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, vec,
 
 
 @jit_inner
-def dense(h, y, yn, f, fn, vec, rc1, rc2, rc3, rc4):
+def dense(h, y, yn, f, fn, own, rc1, rc2, rc3, rc4):
     """The cubic Hermite interpolant of the step (y, yn and their slopes f, fn) in the driver's
     form: rc1 = yn - y, rc2 = h f - rc1, rc3 = rc1 - h fn - rc2, rc4 = 0."""
     for j in range(y.size):

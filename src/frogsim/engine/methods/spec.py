@@ -13,24 +13,25 @@ checks when the package is imported. It names, in one place, everything the driv
   block, ``par[0]``), unique among the methods;
 * ``step``: its compiled step (Numba, :func:`frogsim._jit.jit_inner` or ``jit_step``)::
 
-      step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, vec, mat, keep,
-           aux, work, stats) -> (err, a1, a2, dense_ready)
+      step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, own, rc, mat,
+           kmat, kvec, aux, work, stats) -> (err, a1, a2, dense_ready)
 
   one step from (t, y), dy/dt = f, to t_new = t + h (t_new passed so that a step ending a piece
   ends on it exactly): the solution into ``yn``, dy/dt at (t_new, yn) into ``fn`` (the next
   step's f), and its error estimate ``err`` (the weighted RMS norm, 1 = the tolerance; 0 for a
   method without one, inf or NaN for a step that failed); ``a1``, ``a2`` are two numbers the
   method hands to its own ``accepted`` control (the default: its stiffness test's norms),
-  ``dense_ready`` True when the step has also written its continuous extension into the
-  driver's rows R_RC1..R_RC4 of ``vec``. ``model`` is the right-hand side's group
+  ``dense_ready`` True when the step has also written its continuous extension into ``rc``
+  (the driver's four vectors rc1..rc4, see ``dense``). ``model`` is the right-hand side's group
   (:func:`frogsim.circuit.rhs.rhs`); ``par`` the parameter block; ``ds`` the driver state (the
-  method's memory in columns D_M0.. of :mod:`frogsim.engine.integrator`); ``vec`` the scratch
-  vectors (ROWS x ny: the driver's rows below R_OWN, the method's own from R_OWN on, ``vectors``
-  of them), ``mat`` a scratch ny x ny matrix, ``keep`` ny x ny + ny entries kept from call to
-  call (a Jacobian); ``aux``, ``work`` the right-hand side's scratch; ``stats`` the step counters
-  (stats[2]: right-hand-side evaluations, which the method counts);
+  method's memory in columns D_M0.. of :mod:`frogsim.engine.integrator`); ``own`` the method's
+  scratch vectors, a tuple of ROWS - R_OWN vectors of ny entries cut once a call (index it with
+  constants; ``vectors`` of them are the method's), ``mat`` a scratch ny x ny matrix, ``kmat``
+  (ny x ny) and ``kvec`` (ny) entries kept from call to call (the default's Jacobian and df/dt);
+  ``aux``, ``work`` the right-hand side's scratch; ``stats`` the step counters (stats[2]:
+  right-hand-side evaluations, which the method counts);
 * ``dense``: its continuous extension, made after the step when a sample or an output row falls
-  inside it: ``dense(h, y, yn, f, fn, vec, rc1, rc2, rc3, rc4)`` writes coefficients such that
+  inside it: ``dense(h, y, yn, f, fn, own, rc1, rc2, rc3, rc4)`` writes coefficients such that
   ``y(t + th h) = y + th (rc1 + (1-th) (rc2 + th (rc3 + (1-th) rc4)))`` (Hairer's DOPRI5 form;
   rc4 = 0 is the cubic Hermite interpolant of y, yn, f, fn);
 * ``control``: its step-size control (:class:`StepControl`, :mod:`frogsim.engine.stepsize`);
