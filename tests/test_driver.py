@@ -13,7 +13,7 @@ from frogsim.circuit import layout as L
 from frogsim.control.sampled import (CS_PUMP, CS_SAMPLE, KIND_PUMP_BAND, L_HIGH, L_INPUT, L_KIND,
                                      L_LOW, next_control_time, pump_band, sample_controllers,
                                      sampled_laws, start_controllers)
-from frogsim.engine.integrator import D_OUT, D_T, STATS_SIZE, STATUS_OK, advance, start
+from frogsim.engine.integrator import D_OUT, D_T, STATS_SIZE, STATUS_OK, advance, solver_group, start
 
 BAR = 1e5
 
@@ -64,7 +64,7 @@ def test_a_run_advanced_in_many_calls_matches_one_call(paper_cycle_raw):
     y, u = model.y0.copy(), model.u0.copy()
     ds, cs = start(0.0, 1e-4, y, u, model.mp, commands)
     circuit = (model.g, model.mp, model.mot_t, model.mot_L, model.mot_d, model.mot_n)
-    solver = (sc.solver.rtol, model.atol, sc.solver.max_step)
+    solver = solver_group(sc.solver, model.atol)
     no_output = (np.zeros(0), np.zeros((0, y.size)), np.zeros((0, u.size + 1)))
     stats = np.zeros(STATS_SIZE, np.int64)
     switched = 0
@@ -115,8 +115,7 @@ def test_open_loop_row_and_table_forms_give_the_same_run():
     m = frogsim.build_model(sc)
     assert m.laws.ndim == 1
     runs = [run_schedule(m.y0, m.u0, 0.0, sc.duration, m.rhs_model,
-                         (m.sched_t, m.sched_u, laws, 1.0 / sc.controller.rate), (sc.solver.rtol, m.atol,
-                                                                                   sc.solver.max_step),
+                         (m.sched_t, m.sched_u, laws, 1.0 / sc.controller.rate), solver_group(sc.solver, m.atol),
                          m.out_t, 1e-4, 0) for laws in (m.laws, m.laws.reshape(1, -1))]
     assert np.array_equal(runs[0][0], runs[1][0]) and np.array_equal(runs[0][1], runs[1][1])
     assert set(np.unique(runs[0][1][:, -1])) == {0.0, 1.0}                   # the pump switched

@@ -249,6 +249,37 @@ def valve_imports(root: Path = PACKAGE) -> list[str]:
     return sorted(bad)
 
 
+#: modules outside engine/methods/ that import a method's module by name, each with what it
+#: reads there that no declaration holds; everything else reaches the integration methods through
+#: their registry (frogsim.engine.methods), so that a new method is one new module
+METHOD_IMPORTS: dict = {}
+#: what a method's module may import of the engine layer: the family's own helpers and the shared
+#: step-size control (never the driver, which reads the methods through the registry)
+METHOD_ENGINE_DEPS = {"frogsim.engine", "frogsim.engine.methods", "frogsim.engine.methods.spec",
+                      "frogsim.engine.stepsize"}
+
+
+def method_imports(root: Path = PACKAGE) -> list[str]:
+    """Imports of a method's module from outside engine/methods/ that METHOD_IMPORTS does not
+    list, and imports of the engine by a method's module beyond METHOD_ENGINE_DEPS."""
+    folder = root / "engine" / "methods"
+    found = {p.stem for p in folder.glob("*.py")}
+    helpers = {"__init__", "spec"}
+    bad = []
+    for mod, deps in imports(root).items():
+        inside = mod.startswith("frogsim.engine.methods")
+        for dep in deps:
+            parts = dep.split(".")
+            if inside:
+                if parts[:2] == ["frogsim", "engine"] and dep not in METHOD_ENGINE_DEPS \
+                        and not dep.startswith("frogsim.engine.methods."):
+                    bad.append(f"{mod} imports {dep}")
+            elif parts[:3] == ["frogsim", "engine", "methods"] and len(parts) > 3 and parts[3] in found - helpers \
+                    and parts[3] not in METHOD_IMPORTS.get(mod, ()):
+                bad.append(f"{mod} imports {dep}")
+    return sorted(bad)
+
+
 def test_the_valve_types_are_reached_through_their_registry(tmp_path):
     """The valve family (circuit/valves/, layer 4) is read through its registry only; a planted
     import of one valve type's module from the right-hand side is caught."""
@@ -260,3 +291,15 @@ def test_the_valve_types_are_reached_through_their_registry(tmp_path):
     target = copy / "circuit" / "rhs.py"
     target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.circuit.valves import proportional\n")
     assert valve_imports(copy) == ["frogsim.circuit.rhs imports frogsim.circuit.valves.proportional"]
+
+
+def test_the_integration_methods_are_reached_through_their_registry(tmp_path):
+    assert method_imports() == []
+    copy = tmp_path / "frogsim"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    target = copy / "engine" / "integrator.py"
+    target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.engine.methods import rk4\n")
+    method = copy / "engine" / "methods" / "rk4.py"
+    method.write_text(method.read_text() + "\n\ndef _planted():\n    from frogsim.engine import integrator\n")
+    assert method_imports(copy) == ["frogsim.engine.integrator imports frogsim.engine.methods.rk4",
+                                    "frogsim.engine.methods.rk4 imports frogsim.engine.integrator"]

@@ -28,6 +28,7 @@ from frogsim._jit import jit_alloc
 from frogsim._parallel import default_threads, map_pieces
 from frogsim.circuit import layout as L
 from frogsim.circuit.model import PARTS, PneumaticModel, assemble, build_model
+from frogsim.engine import methods
 from frogsim.engine.integrator import STATUS_OK, run_schedule
 from frogsim.engine.result import Result
 from frogsim.engine.run_result import valve_switchings
@@ -40,8 +41,10 @@ RUN_SETTINGS = ("duration", "controller", "solver")
 
 
 def run_settings(sc) -> tuple:
-    """(end time [s], controller sample time [s], rtol, max step [s]) of a run."""
-    return sc.duration, 1.0 / sc.controller.rate, sc.solver.rtol, sc.solver.max_step
+    """(end time [s], controller sample time [s], rtol, max step [s], the integration method's
+    parameter block) of a run."""
+    return (sc.duration, 1.0 / sc.controller.rate, sc.solver.rtol, sc.solver.max_step,
+            methods.parameter_block(sc.solver.method))
 
 
 class ModelBatch(Sequence):
@@ -112,7 +115,8 @@ class ModelBatch(Sequence):
             _run_rows(ix["motion"], ix["sched_u"], ix["laws"], ix["state"], ix["g"], ix["run"],
                       a["state"]["y0"], r["t_end"], a["g"]["g"], m["mp"], m["mot_t"], m["mot_L"], m["mot_d"],
                       m["mot_n"], m["sched_t"], a["sched_u"]["sched_u"], m["u0"], r["ctrl_dt"], t, r["rtol"],
-                      a["state"]["atol"], r["max_step"], a["laws"]["laws"], ycols, ucols, Y, U, status, t_reached)
+                      a["state"]["atol"], r["max_step"], r["par"], a["laws"]["laws"], ycols, ucols, Y, U, status,
+                      t_reached)
             ok = status == STATUS_OK
             for j in np.flatnonzero(~ok):
                 failures[int(rows[j])] = _failure(int(rows[j]), self.variants.base.name, t_reached[j], status[j])
@@ -148,7 +152,7 @@ def _arrays(kind: str, x) -> dict:
         return {"y0": x[0], "atol": x[1]}
     if kind == "run":
         return {"t_end": np.float64(x[0]), "ctrl_dt": np.float64(x[1]), "rtol": np.float64(x[2]),
-                "max_step": np.float64(x[3])}
+                "max_step": np.float64(x[3]), "par": x[4]}
     return {kind: x}
 
 
@@ -175,7 +179,7 @@ def _stack_parts(parts: dict) -> dict:
 
 @jit_alloc
 def _run_rows(im, iu, il, ist, ig, ir, y0, t_end, g, mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, u0,
-              ctrl_dt, out_t, rtol, atol, max_step, laws, ycols, ucols, Y, U, status, t_reached):
+              ctrl_dt, out_t, rtol, atol, max_step, par, laws, ycols, ucols, Y, U, status, t_reached):
     """Run points one after the other, each from its parts (row im[b] of the motion stacks, iu[b]
     of the schedule states, il[b] of the laws, ist[b] of the initial state, ig[b] of g, ir[b] of
     the run settings), through :func:`run_schedule` exactly as :func:`_run_one` calls it; copy
@@ -185,7 +189,8 @@ def _run_rows(im, iu, il, ist, ig, ir, y0, t_end, g, mp, mot_t, mot_L, mot_d, mo
         m, v, c, s, q, r = im[b], iu[b], il[b], ist[b], ig[b], ir[b]
         oy, ou, _, _, st, t_r, _, _, _ = run_schedule(
             y0[s], u0[m], 0.0, t_end[r], (g[q], mp[m], mot_t[m], mot_L[m], mot_d[m], mot_n[m]),
-            (sched_t[m], sched_u[v], laws[c], ctrl_dt[r]), (rtol[r], atol[s], max_step[r]), out_t, 1e-4, 0)
+            (sched_t[m], sched_u[v], laws[c], ctrl_dt[r]), (rtol[r], atol[s], max_step[r], par[r]), out_t, 1e-4,
+            0)
         status[b] = st
         t_reached[b] = t_r
         for i in range(ycols.size):
@@ -207,9 +212,9 @@ def _run_parts(p: dict):
     mot_t, mot_L, mot_d, mot_n, sched_t, _, u0, _, _, _ = motion
     laws, sched_u = p["laws"], p["sched_u"]
     y0, atol = p["state"]
-    t_end, ctrl_dt, rtol, max_step = p["run"]
+    t_end, ctrl_dt, rtol, max_step, par = p["run"]
     return run_schedule(y0, u0, 0.0, t_end, (p["g"], mp, mot_t, mot_L, mot_d, mot_n),
-                        (sched_t, sched_u, laws, ctrl_dt), (rtol, atol, max_step), p["out_t"], 1e-4, 0)
+                        (sched_t, sched_u, laws, ctrl_dt), (rtol, atol, max_step, par), p["out_t"], 1e-4, 0)
 
 
 def build_models(base: Scenario, points: list[dict]):
@@ -243,11 +248,11 @@ def _one(base: Scenario, pt: dict, k: int) -> PneumaticModel:
 
 
 def _run_one(m: PneumaticModel):
-    t_end, ctrl_dt, rtol, max_step = run_settings(m.scenario)
+    t_end, ctrl_dt, rtol, max_step, par = run_settings(m.scenario)
     y0, atol = m.start
     sched_t, sched_u, u0, _ = m.schedule
-    return run_schedule(y0, u0, 0.0, t_end, m.rhs_model, (sched_t, sched_u, m.laws, ctrl_dt), (rtol, atol, max_step),
-                        m.out_t, 1e-4, 0)
+    return run_schedule(y0, u0, 0.0, t_end, m.rhs_model, (sched_t, sched_u, m.laws, ctrl_dt),
+                        (rtol, atol, max_step, par), m.out_t, 1e-4, 0)
 
 
 def _failure(b: int, name: str, t_r: float, status: int) -> str:

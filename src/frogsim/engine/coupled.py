@@ -37,15 +37,18 @@ from frogsim.engine.coupled_loop import mujoco_c, run_steps
 from frogsim.engine.coupled_layout import (  # noqa: F401
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
     R_EXERGY, R_HULL, R_PE, R_POSITION, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
-    R_V, R_VELOCITY, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_SIZE,
+    R_V, R_VELOCITY, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_METHOD, S_RHO, S_RTOL, S_SIZE,
     STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_SIZE, STOP_UPPER, S_TRUNK, S_VMAX, S_WMAX,
     T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK, T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE,
     U_TENDON, V_SIZE, record_columns)
+from frogsim.engine import methods
 from frogsim.engine.integrator import D_F_VALID, D_SI, STATS_SIZE, STATUS_TEXT, start
+from frogsim.engine.methods.spec import PAR_SIZE
 from frogsim.errors import SimulationError
 from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL
 from frogsim.robot import import_mujoco
 from frogsim.robot.water import E_BODY, P_SIZE, hydro_tables
+from frogsim.scenario.methods import default_settings as default_method_settings
 
 BODY_SPEED_LIMIT = 20.0       # [m/s]: ten times anything the robot can swim
 JOINT_SPEED_LIMIT = 200.0     # [rad/s]: a leg joint swinging its whole range in 4 ms
@@ -147,8 +150,12 @@ def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joint
                         rec_every=rec_every, columns=cols)
 
 
-def _constants(dt, rho, gravity, trunk, ctrl_rate=1000.0, rtol=1e-7, max_step=1e-3, law=None):
+def _constants(dt, rho, gravity, trunk, ctrl_rate=1000.0, rtol=1e-7, max_step=1e-3, law=None, method=None):
+    """The kernel's constants sc[:] (columns S_* of :mod:`frogsim.engine.coupled_layout`);
+    ``method`` the integration method's settings (None: the default method's)."""
     sc = np.zeros(S_SIZE)
+    sc[S_METHOD:S_METHOD + PAR_SIZE] = methods.parameter_block(method if method is not None
+                                                               else default_method_settings())
     sc[S_DT], sc[S_RHO], sc[S_G] = dt, rho, gravity
     sc[S_CTRL_DT], sc[S_RTOL], sc[S_MAXSTEP] = 1.0 / ctrl_rate, rtol, max_step
     if law is not None:
@@ -204,7 +211,8 @@ def build_coupled(rs) -> CoupledModel:
     tables = hydro_tables(rs, lambda b: oid(mujoco.mjtObj.mjOBJ_BODY, b))
     sc = _constants(rs.options.timestep, rs.medium_density, rs.robot.water.gravity,
                     oid(mujoco.mjtObj.mjOBJ_BODY, "body"), rs.pneumatic.controller.rate,
-                    rs.pneumatic.solver.rtol, rs.pneumatic.solver.max_step, rs.robot.muscle_force)
+                    rs.pneumatic.solver.rtol, rs.pneumatic.solver.max_step, rs.robot.muscle_force,
+                    rs.pneumatic.solver.method)
     # the muscles' air at ambient temperature in their actual initial volumes
     y = pm.y0.copy()
     contraction = np.zeros(len(names))

@@ -16,8 +16,9 @@ and the kernel does, with the state at the start of the step:
 3. the water's forces on every part (:mod:`frogsim.physics.hydro`, :mod:`frogsim.robot.water`):
    strip drag, buoyancy and added mass, written to ``xfrc_applied``;
 4. the pneumatics advanced from t to t + dt by the one stepping driver
-   (:func:`frogsim.engine.integrator.advance`: adaptive Dormand-Prince, split at valve switching
-   times and controller samples), each muscle's length following a cubic Hermite path that starts
+   (:func:`frogsim.engine.integrator.advance`, with the scenario's integration method: by default
+   adaptive Dormand-Prince, split at valve switching times and controller samples), each muscle's
+   length following a cubic Hermite path that starts
    where the previous step's path ended (value and slope) and ends at MuJoCo's length plus
    velocity x dt: the muscle's volume (Eq. (5)) and its force come from the same length.
 
@@ -76,11 +77,12 @@ from frogsim.engine.coupled_layout import (
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
     R_EXERGY, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME, R_V,
     R_X, R_YAW, STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_UPPER, S_BLADDER, S_CTRL_DT, S_DT,
-    S_G, S_LAW, S_MAXSTEP, S_RHO, S_RTOL, S_TRUNK, S_VMAX, S_WMAX, T_EXERGY, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_LAST_HEADING, T_LAST_HULL,
+    S_G, S_LAW, S_MAXSTEP, S_METHOD, S_RHO, S_RTOL, S_TRUNK, S_VMAX, S_WMAX, T_EXERGY, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_LAST_HEADING, T_LAST_HULL,
     T_LAST_THRUST, T_LAST_THRUST_AM, T_PALM_CMD, T_PALM_TARGET, T_PEAK, T_PEAK_TIME, U_ACT,
     U_FITTINGS, U_TENDON, V_MA, V_VEL, rec_angle, rec_charged, rec_length, rec_omega, rec_palm,
     rec_pressure, rec_qpos, rec_tension, rec_valve)
 from frogsim.engine.integrator import D_REUSE_F, advance
+from frogsim.engine.methods.spec import PAR_SIZE
 from frogsim.physics.hydro import (added_mass_rate_force, buoyancy, cross, fan_added_mass,
                                    isotropic_added_mass, kirchhoff_velocity_force, munk_moment,
                                    strip_drag_wrench)
@@ -471,7 +473,7 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
     # last step ended with (up to the rounding of the slope), so the driver starts from it
     ds[D_REUSE_F] = 1.0
     status = advance(t_end, y, u, ds, cs, circuit, (sched_t, sched_u, laws, sc[S_CTRL_DT]),
-                     (sc[S_RTOL], atol, sc[S_MAXSTEP]), no_output, stats)
+                     (sc[S_RTOL], atol, sc[S_MAXSTEP], sc[S_METHOD:S_METHOD + PAR_SIZE]), no_output, stats)
     if status != 0:
         st[T_FAIL], st[T_FAIL_ARG], st[T_FAIL_VAL] = FAIL_PNEUMATIC, status, t
         return FAIL_PNEUMATIC

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 from numba.extending import register_jitable
 
+from frogsim.engine.methods.spec import PAR_SIZE
+
 # --- muscle table mu[i, :] -------------------------------------------------------------------------
 U_TENDON = 0     # MuJoCo tendon id
 U_ACT = 1        # MuJoCo actuator id
@@ -46,7 +48,8 @@ S_BLADDER = 7    # bladder constants A, eps_c, k, a, b (5)
 S_TRUNK = 12     # MuJoCo body id of the hull
 S_VMAX = 13      # hull speed limit [m/s]
 S_WMAX = 14      # joint speed limit [rad/s]
-S_SIZE = 15
+S_METHOD = 15    # the integration method's parameter block (PAR_SIZE entries, frogsim.engine.methods)
+S_SIZE = S_METHOD + PAR_SIZE
 
 # --- mutable state st[:] -----------------------------------------------------------------------------
 T_PALM_CMD = 0     # index of the next palm command

@@ -1,30 +1,40 @@
-"""Adaptive Dormand-Prince 5(4) integration of the circuit, segment by segment.
+"""The one stepping driver of the circuit: pieces between valve switching times, steps of the
+scenario's integration method inside them.
 
 Valve states are piecewise constant: they change only at known times (open-loop commands sampled
 on the controller grid plus the valve dead time) or at controller samples when a state-dependent
-rule (the pump's pressure band, :mod:`frogsim.control.sampled`) is active. The integrator stops
-exactly at those times, so no step straddles a discontinuity; between them the step size adapts
-to the error estimate and carries over from one segment to the next. :func:`advance` is the one
-loop that does this, for the pneumatics-only engine (:func:`run_schedule`, one call per run) and
-the coupled engine (:mod:`frogsim.engine.coupled_kernel`, one call per MuJoCo step).
+rule (the pump's pressure band, :mod:`frogsim.control.sampled`) is active. The driver stops
+exactly at those times, so no step straddles a discontinuity; between them the steps are the
+method's, as long as its step-size control lets them be. :func:`advance` is the one loop that
+does this, for the pneumatics-only engine (:func:`run_schedule`, one call per run) and the coupled
+engine (:mod:`frogsim.engine.coupled_kernel`, one call per MuJoCo step).
 
-Method: Dormand and Prince (1980), coefficients as in Hairer, Norsett and Wanner, Solving ODEs I,
-Table 5.2; error norm and step control as in Hairer's DOPRI5 (safety 0.9, factor limits 0.2..5).
-Step control: Hairer's PI controller (exponent 0.2 - 0.75 beta, beta = 0.04).
-Dense output: Dormand and Prince's continuous extension of order 4 (Hairer's DOPRI5 coefficients
-d1..d7), which needs no extra right-hand-side evaluations.
+The integration method is a family (:mod:`frogsim.engine.methods`, one module each): a method is
+its step with its error estimate, its continuous extension and its step-size control
+(:mod:`frogsim.engine.stepsize`). The driver calls them through the dispatch below, assembled at
+import from the registry as a chain of compiled closures inlined into the driver (as the
+controller kinds' :func:`frogsim.control.sampled.law_mode`), the default method's branch first; a
+run names its method by the code at the head of its parameter block (``solver``'s last entry,
+:func:`frogsim.engine.methods.parameter_block`), and a code no method declares stops the run with
+an error. The default, "dopri-rosenbrock", is adaptive Dormand-Prince 5(4) with a Rosenbrock
+method on stiff stretches (:mod:`frogsim.engine.methods.dopri_rosenbrock`); "rk4" steps at a fixed
+step (:mod:`frogsim.engine.methods.rk4`).
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
-from frogsim._jit import jit, jit_alloc, jit_step
+from frogsim._jit import jit, jit_alloc, jit_inner, jit_step
 
 from frogsim.circuit.layout import muscle_count, physical_size
 from frogsim.circuit.rhs import rhs
 from frogsim.control.sampled import (CS_PUMP, apply_due, next_due_time, next_sample_time, sample_controllers,
                                     start_controllers)
+from frogsim.engine import methods
+from frogsim.engine.methods.spec import (D_M0, D_M_COUNT, R_F, R_FN, R_OWN, R_RC1, R_RC2, R_RC3, R_RC4, R_YN,
+                                         R_YS, ROWS)
+from frogsim.engine.stepsize import EPS
 
 STATUS_OK = 0
 STATUS_STEP_UNDERFLOW = 1
@@ -43,205 +53,199 @@ STATUS_TEXT = {STATUS_STEP_UNDERFLOW: "step size fell below 1e-14 s",
 # --- driver state ds[:] (see advance) ----------------------------------------------------------------
 D_T = 0          # time reached [s]
 D_H = 1          # next trial step [s]
-D_ERR = 2        # PI step control: error norm of the last accepted step
+D_ERR = 2        # the step-size control's memory: error norm of the last accepted step
 D_SI = 3         # index of the next valve-schedule entry
 D_OUT = 4        # next output row
 D_PAUSE = 5      # > 0: pause once this many steps are accepted in all (stats[0]); 0: never
-D_STIFF = 6      # 1: steps by the Rosenbrock method (the circuit found stiff), 0: Dormand-Prince
-D_NSTIFF = 7     # stiffness test: accepted Dormand-Prince steps at the stability limit so far
-D_NONSTIFF = 8   # ... and steps below it since the last one at it
-D_HSWITCH = 9    # the Dormand-Prince step [s] when the method switched to Rosenbrock
-D_NBACK = 10     # Rosenbrock steps in a row proposing less than D_HSWITCH
-D_JAC_AGE = 11   # Rosenbrock steps since its Jacobian was made (-1: none); J, df/dt follow D_SIZE
-D_F_VALID = 12   # 1: dy/dt at (ds[D_T], y) is kept after J and df/dt (written by every call that ends well)
+#                  6..11: the method's memory (D_M0.., frogsim.engine.methods.spec)
+D_F_VALID = 12   # 1: dy/dt at (ds[D_T], y) is kept after the method's entries (written by every call that ends well)
 D_REUSE_F = 13   # 1: the caller changed nothing that dy/dt reads since the last call: start from the kept one
 D_SIZE = 14
 STATS_SIZE = 4   # stats[:]: accepted steps, rejected steps, rhs evaluations, accepted Rosenbrock steps
-EPS = 1e-12      # [s] stop times closer than this are one stop (they come from different sums)
-
-# Dormand-Prince 5(4) tableau
-A21 = 1.0 / 5.0
-A31, A32 = 3.0 / 40.0, 9.0 / 40.0
-A41, A42, A43 = 44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0
-A51, A52, A53, A54 = 19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0
-A61, A62, A63, A64, A65 = 9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0
-B1, B3, B4, B5, B6 = 35.0 / 384.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0
-E1, E3, E4, E5, E6, E7 = (71.0 / 57600.0, -71.0 / 16695.0, 71.0 / 1920.0, -17253.0 / 339200.0,
-                          22.0 / 525.0, -1.0 / 40.0)
-C2, C3, C4, C5 = 0.2, 0.3, 0.8, 8.0 / 9.0
-D1, D3, D4, D5, D6, D7 = (-12715105075.0 / 11282082432.0, 87487479700.0 / 32700410799.0,
-                          -10690763975.0 / 1880347072.0, 701980252875.0 / 199316789632.0,
-                          -1453857185.0 / 822651844.0, 69997945.0 / 29380423.0)
-SAFETY = 0.9
-BETA = 0.04                  # PI step control (Hairer's DOPRI5 default)
-EXPO = 0.2 - 0.75 * BETA
-# stiffness switch (Hairer's DOPRI5 test): h |lambda| estimated from the last two stages
-STIFF_HLAMBDA = 3.25         # the Dormand-Prince stability boundary on the negative real axis
-STIFF_AFTER = 6              # steps at the boundary before the switch to Rosenbrock
-NONSTIFF_RESET = 6           # steps below it that clear the count
-BACK_AFTER = 3               # Rosenbrock steps below the switch step before switching back
-JAC_EVERY = 8                # Rosenbrock steps on one finite-difference Jacobian at most
-# Shampine and Reichelt's modified Rosenbrock triple (ode23s; SIAM J. Sci. Comput. 18, 1997)
-RB_D = 1.0 / (2.0 + math.sqrt(2.0))
-RB_E32 = 6.0 + math.sqrt(2.0)
-SQRT_EPS = 1.4901161193847656e-08
+assert D_M0 == D_PAUSE + 1 and D_M0 + D_M_COUNT == D_F_VALID     # the method's columns between the driver's
 
 
-@jit_step
-def _lu(a, piv):
-    """In-place LU factorisation with partial pivoting of the small dense matrix a (n x n), the
-    row swaps in piv (row indices, stored as floats); returns False if a pivot is zero (a is
-    singular)."""
-    n = a.shape[0]
-    for k in range(n):
-        p = k
-        big = abs(a[k, k])
-        for i in range(k + 1, n):
-            if abs(a[i, k]) > big:
-                big = abs(a[i, k])
-                p = i
-        piv[k] = float(p)
-        if big == 0.0:
-            return False
-        if p != k:
-            for j in range(n):
-                tmp = a[k, j]
-                a[k, j] = a[p, j]
-                a[p, j] = tmp
-        inv = 1.0 / a[k, k]
-        for i in range(k + 1, n):
-            a[i, k] *= inv
-            m = a[i, k]
-            if m != 0.0:
-                for j in range(k + 1, n):
-                    a[i, j] -= m * a[k, j]
-    return True
+# --- the methods' dispatch, assembled from the registry (frogsim.engine.methods) --------------------------
+def _step_chain(entries):
+    """``trial(code, ...) -> (err, a1, a2, dense_ready)``: the step of the method whose code is
+    ``code`` (:mod:`frogsim.engine.methods.spec`), one compiled branch per method, each a closure
+    that tries its code and hands on to the next; the last raises ValueError for a code that is
+    not its own."""
+    def last(code, fn):
+        @jit_inner
+        def branch(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
+                   work, stats):
+            if c != code:
+                raise ValueError("advance: the solver's parameter block names an integration method code that no "
+                                 "method declares (frogsim.engine.methods)")
+            return fn(t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux, work,
+                      stats)
+        return branch
+
+    def link(code, fn, rest):
+        @jit_inner
+        def branch(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
+                   work, stats):
+            if c == code:
+                return fn(t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
+                          work, stats)
+            return rest(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
+                        work, stats)
+        return branch
+
+    out = last(entries[-1].code, entries[-1].step)
+    for m in reversed(entries[:-1]):
+        out = link(m.code, m.step, out)
+    return out
 
 
-@jit_step
-def _lu_solve(a, piv, b):
-    """Solve a x = b in place (b becomes x) with the factors of :func:`_lu`."""
-    n = a.shape[0]
-    for k in range(n):
-        p = int(piv[k])
-        if p != k:
-            tmp = b[k]
-            b[k] = b[p]
-            b[p] = tmp
-    for i in range(n):
-        acc = b[i]
-        for j in range(i):
-            acc -= a[i, j] * b[j]
-        b[i] = acc
-    for i in range(n - 1, -1, -1):
-        acc = b[i]
-        for j in range(i + 1, n):
-            acc -= a[i, j] * b[j]
-        b[i] = acc / a[i, i]
+def _dense_chain(entries):
+    """``dense_of(code, h, y, yn, f, fn, own, rc1, rc2, rc3, rc4)``: the method's continuous
+    extension of its last step (the last branch takes any code: the step's dispatch refused
+    an unknown one already)."""
+    def last(fn):
+        @jit_inner
+        def branch(c, h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4):
+            fn(h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4)
+        return branch
 
-
-@jit_step
-def _rosenbrock_step(t, h, t_new, y, f0, u, pump_on, model, atol, rtol, nphys, wk, fresh, yn, fn,
-                     rc1, rc2, rc3, rc4, aux, work, stats):
-    """One step of the modified Rosenbrock triple of Shampine and Reichelt (1997, Sec. 3; MATLAB's
-    ode23s) from (t, y), dy/dt = f0: L-stable, order 2 with a 3rd-order error estimate, for the
-    stiff stretches of a run (a muscle resting against the source or the exhaust through an open
-    valve, time constant ~2 ms, where an explicit method is held to its stability limit):
-
-        W = I - h d J,  d = 1/(2 + sqrt 2),  e32 = 6 + sqrt 2,  T = df/dt
-        k1 = W^-1 (f0 + h d T)
-        f1 = f(t + h/2, y + h/2 k1);   k2 = W^-1 (f1 - k1) + k1
-        y1 = y + h k2;   f2 = f(t + h, y1)
-        k3 = W^-1 (f2 - e32 (k2 - f1) - 2 (k1 - f0) + h d T);   error = h/6 (k1 - 2 k2 + k3)
-
-    J = df/dy by forward differences over the first ``nphys`` states (the masses and pressures:
-    the right-hand side does not read the cumulative masses after them), T by a forward difference
-    in t, both made when ``fresh`` and otherwise kept from an earlier step: the formula for y1 is a
-    W-method (Wolfbrandt's; its order 2 holds for any matrix in W, which the expansion of k1, k2
-    to O(h^2) shows), so a Jacobian a few steps old costs accuracy of the error estimate only, and
-    the driver renews it every JAC_EVERY steps and after every rejected step. Dense output (Sec. 3 of the paper): y(t + s h) = y + h [s(1-s) k1 + s(s-2d) k2] / (1-2d),
-    written in the Dormand-Prince interpolant's form (rc1 = h k2, rc2 = h (k1 - k2)/(1-2d),
-    rc3 = rc4 = 0). Writes y1 into yn and f(t_new, y1) into fn; returns the error norm (inf if W
-    is singular). ``wk`` = (W, piv, ft, k1, k2, k3, yt, f1, tder, J, T)."""
-    J, piv, ft, k1, k2, k3, yt, f1, tder, Jd, Td = wk
-    g, mp, mot_t, mot_L, mot_d, mot_n = model
-    ny = y.size
-    if fresh:
-        # df/dy (columns of the masses and pressures) and df/dt by forward differences, kept in
-        # Jd, Td for the steps that follow (a W-method: order 2 with any matrix in W)
-        for j in range(ny):
-            yt[j] = y[j]
-        for c in range(ny):
-            if c < nphys:
-                dc = SQRT_EPS * max(abs(y[c]), atol[c] / rtol)
-                yt[c] = y[c] + dc
-                rhs(t, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, ft, aux, work)
-                yt[c] = y[c]
-                inv = 1.0 / dc
-                for r in range(ny):
-                    Jd[r, c] = (ft[r] - f0[r]) * inv
+    def link(code, fn, rest):
+        @jit_inner
+        def branch(c, h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4):
+            if c == code:
+                fn(h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4)
             else:
-                for r in range(ny):
-                    Jd[r, c] = 0.0
-        dt = SQRT_EPS * max(abs(t), h)
-        rhs(t + dt, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, ft, aux, work)
-        for j in range(ny):
-            Td[j] = (ft[j] - f0[j]) / dt
-        stats[2] += nphys + 1
-    for r in range(ny):
-        for c in range(ny):
-            J[r, c] = -h * RB_D * Jd[r, c]
-        J[r, r] += 1.0
-        tder[r] = h * RB_D * Td[r]
-    stats[2] += 2
-    if not _lu(J, piv):                   # J now holds W = I - h d J, factorised
-        return math.inf
-    for j in range(ny):
-        k1[j] = f0[j] + tder[j]
-    _lu_solve(J, piv, k1)
-    for j in range(ny):
-        yt[j] = y[j] + 0.5 * h * k1[j]
-    rhs(t + 0.5 * h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f1, aux, work)
-    for j in range(ny):
-        k2[j] = f1[j] - k1[j]
-    _lu_solve(J, piv, k2)
-    for j in range(ny):
-        k2[j] += k1[j]
-        yn[j] = y[j] + h * k2[j]
-    rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, fn, aux, work)
-    for j in range(ny):
-        k3[j] = fn[j] - RB_E32 * (k2[j] - f1[j]) - 2.0 * (k1[j] - f0[j]) + tder[j]
-    _lu_solve(J, piv, k3)
-    err = 0.0
-    a = 1.0 / (1.0 - 2.0 * RB_D)
-    for j in range(ny):
-        e = h / 6.0 * (k1[j] - 2.0 * k2[j] + k3[j])
-        sc = atol[j] + rtol * max(abs(y[j]), abs(yn[j]))
-        err += (e / sc) ** 2
-        rc1[j] = yn[j] - y[j]
-        rc2[j] = h * a * (k1[j] - k2[j])
-        rc3[j] = 0.0
-        rc4[j] = 0.0
-    return math.sqrt(err / ny)
+                rest(c, h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4)
+        return branch
+
+    out = last(entries[-1].dense)
+    for m in reversed(entries[:-1]):
+        out = link(m.code, m.dense, out)
+    return out
+
+
+def _propose_chain(entries):
+    """``propose(code, par, t, t_seg, h, max_step) -> (h, h_try, t_new, last)``: the method's
+    step-size control's next trial step (as :func:`_dense_chain`, the last branch any code's)."""
+    def last(fn):
+        @jit_inner
+        def branch(c, par, t, t_seg, h, max_step):
+            return fn(par, t, t_seg, h, max_step)
+        return branch
+
+    def link(code, fn, rest):
+        @jit_inner
+        def branch(c, par, t, t_seg, h, max_step):
+            if c == code:
+                return fn(par, t, t_seg, h, max_step)
+            return rest(c, par, t, t_seg, h, max_step)
+        return branch
+
+    out = last(entries[-1].control.propose)
+    for m in reversed(entries[:-1]):
+        out = link(m.code, m.control.propose, out)
+    return out
+
+
+def _accepted_chain(entries):
+    """``accepted(code, ds, par, h, err, err_old, a1, a2, refresh, stats) -> (h_next, err_old)``:
+    the method's step-size control after an accepted step."""
+    def last(fn):
+        @jit_inner
+        def branch(c, ds, par, h, err, err_old, a1, a2, refresh, stats):
+            return fn(ds, par, h, err, err_old, a1, a2, refresh, stats)
+        return branch
+
+    def link(code, fn, rest):
+        @jit_inner
+        def branch(c, ds, par, h, err, err_old, a1, a2, refresh, stats):
+            if c == code:
+                return fn(ds, par, h, err, err_old, a1, a2, refresh, stats)
+            return rest(c, ds, par, h, err, err_old, a1, a2, refresh, stats)
+        return branch
+
+    out = last(entries[-1].control.accepted)
+    for m in reversed(entries[:-1]):
+        out = link(m.code, m.control.accepted, out)
+    return out
+
+
+def _rejected_chain(entries):
+    """``rejected(code, ds, par, h, err) -> h``: the method's step-size control after a rejected
+    or non-finite step."""
+    def last(fn):
+        @jit_inner
+        def branch(c, ds, par, h, err):
+            return fn(ds, par, h, err)
+        return branch
+
+    def link(code, fn, rest):
+        @jit_inner
+        def branch(c, ds, par, h, err):
+            if c == code:
+                return fn(ds, par, h, err)
+            return rest(c, ds, par, h, err)
+        return branch
+
+    out = last(entries[-1].control.rejected)
+    for m in reversed(entries[:-1]):
+        out = link(m.code, m.control.rejected, out)
+    return out
+
+
+def _restart_chain(entries):
+    """``restart(code, ds)``: the method's ``restart`` after the commands changed at a piece's end
+    (nothing for a method without one)."""
+    @jit_inner
+    def none(c, ds):
+        return
+
+    def link(code, fn, rest):
+        @jit_inner
+        def branch(c, ds):
+            if c == code:
+                fn(ds)
+            else:
+                rest(c, ds)
+        return branch
+
+    out = none
+    for m in reversed(entries):
+        if m.restart is not None:
+            out = link(m.code, m.restart, out)
+    return out
+
+
+_METHODS = methods.ordered()
+#: one trial step of the run's method (its error estimate, its continuous extension made or not)
+trial = _step_chain(_METHODS)
+#: the continuous extension of the run's method's last step
+dense_of = _dense_chain(_METHODS)
+#: the run's method's step-size control: the next trial step, after an accepted, after a rejected step
+propose = _propose_chain(_METHODS)
+accepted = _accepted_chain(_METHODS)
+rejected = _rejected_chain(_METHODS)
+#: the run's method's restart after a command change at a piece's end
+restart = _restart_chain(_METHODS)
 
 
 @jit_step
 def ds_size(ny):
-    """Length of the driver state ds for a state of ny entries: the D_* columns, then the
-    Rosenbrock Jacobian df/dy (ny x ny) and df/dt (ny), then the kept dy/dt (ny), then the
-    scratch space of :func:`advance` (:func:`_scratch_size`; its contents are not carried from one
-    call to the next)."""
+    """Length of the driver state ds for a state of ny entries: the D_* columns, then the method's
+    kept entries (ny x ny + ny: the default's Jacobian df/dy and df/dt), then the kept dy/dt (ny),
+    then the scratch space of :func:`advance` (:func:`_scratch_size`; its contents are not
+    carried from one call to the next)."""
     return D_SIZE + ny * ny + 2 * ny + _scratch_size(ny)
 
 
 @jit_step
 def _scratch_size(ny):
-    """Entries of advance's scratch space for a state of ny entries: 22 stage vectors, the
-    Rosenbrock matrix (ny x ny), the previous valve states (2n) and the right-hand side's aux
-    (2n + 1) and work (4n) vectors, n the muscles of a state of ny entries
-    (:func:`frogsim.circuit.layout.muscle_count`)."""
+    """Entries of advance's scratch space for a state of ny entries: ROWS vectors (the driver's
+    and the method's, :mod:`frogsim.engine.methods.spec`), a scratch ny x ny matrix, the previous
+    valve states (2n) and the right-hand side's aux (2n + 1) and work (4n) vectors, n the muscles
+    of a state of ny entries (:func:`frogsim.circuit.layout.muscle_count`)."""
     n = muscle_count(ny)
-    return 22 * ny + ny * ny + 2 * n + 6 * n + 1
+    return ROWS * ny + ny * ny + 2 * n + 6 * n + 1
 
 
 @jit_step
@@ -253,103 +257,15 @@ def _dense(y, rc1, rc2, rc3, rc4, th, out):
 
 
 @jit_step
-def _stiffness_test(ds, h, num, den):
-    """Hairer's stiffness test for DOPRI5 (Hairer and Wanner, Solving ODEs II, Sec. IV.2), on an
-    accepted step: h |lambda| ~ h ||k7 - k6|| / ||yn - y6|| (the last two stages are at the same
-    time, so their difference quotient estimates the dominant eigenvalue), in the error norm's
-    weights (num and den: the two squared norms, summed with the error norm). STIFF_AFTER steps
-    at the stability boundary (STIFF_HLAMBDA) without NONSTIFF_RESET steps below it in between
-    switch the run to the Rosenbrock method."""
-    if den > 0.0 and h * math.sqrt(num / den) > STIFF_HLAMBDA:
-        ds[D_NSTIFF] += 1.0
-        ds[D_NONSTIFF] = 0.0
-        if ds[D_NSTIFF] >= STIFF_AFTER:
-            ds[D_STIFF] = 1.0
-            ds[D_HSWITCH] = h
-            ds[D_NBACK] = 0.0
-    else:
-        ds[D_NONSTIFF] += 1.0
-        if ds[D_NONSTIFF] >= NONSTIFF_RESET:
-            ds[D_NSTIFF] = 0.0
-
-
-@jit_step
-def _dopri_dense(h, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4):
-    """Coefficients of the Dormand-Prince step's 4th-order continuous extension (Hairer's DOPRI5
-    d1..d7; no extra right-hand-side evaluations), for :func:`_dense`."""
-    for j in range(y.size):
-        ydiff = yn[j] - y[j]
-        bspl = h * f[j] - ydiff
-        rc1[j] = ydiff
-        rc2[j] = bspl
-        rc3[j] = ydiff - h * k7[j] - bspl
-        rc4[j] = h * (D1 * f[j] + D3 * k3[j] + D4 * k4[j] + D5 * k5[j] + D6 * k6[j] + D7 * k7[j])
-
-
-@jit_step
-def _explicit_again(ds):
-    """Back to Dormand-Prince with a fresh stiffness count (after a command change: a transient
-    follows; or when the Rosenbrock steps have become accuracy-limited)."""
-    ds[D_STIFF] = 0.0
-    ds[D_NSTIFF] = 0.0
-    ds[D_NONSTIFF] = 0.0
-    ds[D_NBACK] = 0.0
-
-
-@jit_step
-def _dopri_step(t, h, t_new, y, f, u, pump_on, model, atol, rtol, stages, aux, work, stats):
-    """One Dormand-Prince 5(4) trial step from (t, y), whose dy/dt is f, to t_new = t + h (passed
-    so that a step that ends a piece ends on it exactly). ``stages`` = (k2, k3, k4, k5, k6, k7, yt,
-    yn) receive the stages, the sixth stage's argument (yt) and the 5th-order solution yn; k7 is
-    dy/dt at (t_new, yn) (first same as last). Returns (err, num, den): the error norm (Hairer's
-    DOPRI5 norm, RMS of the weighted error) and the two squared norms of :func:`_stiffness_test`."""
-    g, mp, mot_t, mot_L, mot_d, mot_n = model
-    k2, k3, k4, k5, k6, k7, yt, yn = stages
-    ny = y.size
-    for j in range(ny):
-        yt[j] = y[j] + h * A21 * f[j]
-    rhs(t + C2 * h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k2, aux, work)
-    for j in range(ny):
-        yt[j] = y[j] + h * (A31 * f[j] + A32 * k2[j])
-    rhs(t + C3 * h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k3, aux, work)
-    for j in range(ny):
-        yt[j] = y[j] + h * (A41 * f[j] + A42 * k2[j] + A43 * k3[j])
-    rhs(t + C4 * h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k4, aux, work)
-    for j in range(ny):
-        yt[j] = y[j] + h * (A51 * f[j] + A52 * k2[j] + A53 * k3[j] + A54 * k4[j])
-    rhs(t + C5 * h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k5, aux, work)
-    for j in range(ny):
-        yt[j] = y[j] + h * (A61 * f[j] + A62 * k2[j] + A63 * k3[j] + A64 * k4[j] + A65 * k5[j])
-    rhs(t + h, yt, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k6, aux, work)
-    for j in range(ny):
-        yn[j] = y[j] + h * (B1 * f[j] + B3 * k3[j] + B4 * k4[j] + B5 * k5[j] + B6 * k6[j])
-    rhs(t_new, yn, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, k7, aux, work)
-    stats[2] += 6
-    err = 0.0
-    num = 0.0
-    den = 0.0
-    for j in range(ny):
-        e = h * (E1 * f[j] + E3 * k3[j] + E4 * k4[j] + E5 * k5[j] + E6 * k6[j] + E7 * k7[j])
-        w = 1.0 / (atol[j] + rtol * max(abs(y[j]), abs(yn[j])))
-        err += (e * w) ** 2
-        num += ((k7[j] - k6[j]) * w) ** 2        # the stiffness test's norms
-        den += ((yn[j] - yt[j]) * w) ** 2
-    return math.sqrt(err / ny), num, den
-
-
-@jit_step
-def _samples_in_step(laws, mp, cs, t, t_new, h, y, f, stages, dense, ys, u, dense_ready):
+def _samples_in_step(laws, mp, cs, t, t_new, h, y, yn, dense, ys, u):
     """The controllers' samples t_k inside an accepted step (t, t_new] of length h, in order,
-    each taken from the step's continuous extension (``dense`` = rc1..rc4; made here from the
-    Dormand-Prince stages f, ``stages`` when ``dense_ready`` is False and a sample needs it) into
-    ys, or from the step's solution yn (``stages[7]``) at t_new. A sample whose command acts at
-    once ends the step at t_k; a queued command due before the step's end ends it at its due time
-    (see :func:`advance`).
+    each taken from the step's continuous extension (``dense`` = rc1..rc4, made by the driver
+    before when a sample falls inside the step: :func:`_needs_dense`) into ys, or from the step's
+    solution yn at t_new. A sample whose command acts at once ends the step at t_k; a queued
+    command due before the step's end ends it at its due time (see :func:`advance`).
 
-    Returns (t_cut, refresh, dense_ready): where the step ends, whether a command changed, and
-    whether the continuous extension has been made.
+    Returns (t_cut, refresh): where the step ends and whether a command changed.
     """
-    _, k3, k4, k5, k6, k7, _, yn = stages
     rc1, rc2, rc3, rc4 = dense
     t_cut = t_new
     refresh = False
@@ -360,9 +276,6 @@ def _samples_in_step(laws, mp, cs, t, t_new, h, y, f, stages, dense, ys, u, dens
             for j in range(y.size):
                 ys[j] = yn[j]
         else:
-            if not dense_ready:
-                _dopri_dense(h, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
-                dense_ready = True
             _dense(y, rc1, rc2, rc3, rc4, (t_s - t) / h, ys)
         if sample_controllers(laws, mp, t_s, ys, u, cs):
             refresh = True
@@ -373,26 +286,28 @@ def _samples_in_step(laws, mp, cs, t, t_new, h, y, f, stages, dense, ys, u, dens
         if t_due < t_cut - EPS:
             t_cut = max(t_due, t)
         t_s = next_sample_time(laws, cs)
-    return t_cut, refresh, dense_ready
+    return t_cut, refresh
 
 
 @jit_step
-def _accept(ds, laws, mp, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, y, f, stages, dense, ys, u, u_prev,
-            pump_on, out, out_i, stats):
-    """An accepted step of length h from t to t_new (error norm err; the previous one err_old):
-    the stiffness test (a Dormand-Prince step), the controllers' samples inside the step
-    (:func:`_samples_in_step`; the step may end early at t_cut), the output rows it covers (from
-    the continuous extension ``dense``), y and f moved on (f = dy/dt at the step's end, k7, unless
-    a command changed), the physical check, and the next step size (Rosenbrock's order-2
-    controller, or the PI controller of Dormand-Prince).
+def _needs_dense(laws, cs, t_new, out_t, out_i):
+    """Whether an accepted step ending at t_new needs its continuous extension: a controller's
+    sample falls inside it (before t_new - EPS), or an output row at or before t_new (a step the
+    samples cut short has a sample inside it)."""
+    return next_sample_time(laws, cs) < t_new - EPS or (out_i < out_t.size and out_t[out_i] <= t_new)
 
-    Returns (t, h_next, err_old, pump_on, out_i, refresh, status): the time reached, the proposed
-    next step, the PI memory, the pump's switch, the next output row, whether a command changed
-    (the caller evaluates dy/dt again; the explicit method is set again here) and a STATUS_* code
-    (STATUS_NONPHYSICAL when an air mass or pressure is no longer positive; the rest is then
-    not done).
+
+@jit_step
+def _accept(laws, mp, cs, t, t_new, h, y, f, yn, fn, dense, ys, u, u_prev, pump_on, out, out_i, stats):
+    """An accepted step of length h from t to t_new: the controllers' samples inside the step
+    (:func:`_samples_in_step`; the step may end early at t_cut), the output rows it covers (from
+    the continuous extension ``dense``, made before when :func:`_needs_dense`), y and f moved on (f = dy/dt at the step's end, fn, unless a command changed) and the
+    physical check. The step-size control is the method's (:func:`advance` calls it after this).
+
+    Returns (t, pump_on, out_i, refresh, status): the time reached, the pump's switch, the next
+    output row, whether a command changed (the caller evaluates dy/dt again) and a STATUS_* code
+    (STATUS_NONPHYSICAL when an air mass or pressure is no longer positive).
     """
-    _, k3, k4, k5, k6, k7, _, yn = stages        # yn: the step's solution at t_new
     rc1, rc2, rc3, rc4 = dense
     out_t, out_y, out_u = out
     ny = y.size
@@ -401,25 +316,14 @@ def _accept(ds, laws, mp, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, 
     n = nu // 2
     status = STATUS_OK
     h_try = h
-    refresh = False
-    # the continuous extension on (t, t_new] (rc1..rc4), for the controllers'
-    # samples and the output rows inside the step: Rosenbrock's is made with the
-    # step, Dormand-Prince's only when one of them falls inside it (a step that ends
-    # on its sample, as every coupled-engine step does, needs none)
-    dense_ready = stiff
-    if not stiff:
-        _stiffness_test(ds, h_try, st_num, st_den)
-    # -- the controllers' samples inside the step, read from the dense output. A
+    # -- the controllers' samples inside the step, read from the continuous extension. A
     # command that acts at once (the pump's switch, a valve without dead time) or a
     # valve command that comes due before t_new ends the step there: the state at
     # that time is the continuous extension's, the rest of the step is dropped.
     for j in range(nu):
         u_prev[j] = u[j]
     pump_prev = pump_on
-    t_cut, refresh, dense_ready = _samples_in_step(laws, mp, cs, t, t_new, h_try, y, f, stages, dense, ys, u,
-                                                   dense_ready)
-    if not dense_ready and (t_cut < t_new - EPS or (out_i < n_out and out_t[out_i] <= t_cut)):
-        _dopri_dense(h_try, y, yn, f, k3, k4, k5, k6, k7, rc1, rc2, rc3, rc4)
+    t_cut, refresh = _samples_in_step(laws, mp, cs, t, t_new, h_try, y, yn, dense, ys, u)
     if t_cut < t_new - EPS:
         # the step ends at t_cut (a sample that changed a command, or a due time)
         _dense(y, rc1, rc2, rc3, rc4, (t_cut - t) / h_try, yn)
@@ -436,32 +340,13 @@ def _accept(ds, laws, mp, cs, t, t_new, h, err, err_old, stiff, st_num, st_den, 
         out_i += 1
     for j in range(ny):
         y[j] = yn[j]
-        f[j] = k7[j]
+        f[j] = fn[j]
     t = t_new
     stats[0] += 1
-    if stiff:
-        stats[3] += 1
     for j in range(physical_size(n)):
         if not y[j] > 0.0:          # every air mass and pressure; NaN fails too
             status = STATUS_NONPHYSICAL
-    if status != STATUS_OK:
-        return t, h_try, err_old, pump_on, out_i, refresh, status
-    if refresh:
-        # commands changed (or the step was cut): a transient ahead, the explicit method again
-        _explicit_again(ds)
-    if stiff:
-        h_next = h_try * min(5.0, max(0.2, SAFETY * max(err, 1e-10) ** (-1.0 / 3.0)))
-        # back to Dormand-Prince where it would be held to smaller steps by accuracy
-        # than by stability
-        ds[D_NBACK] = ds[D_NBACK] + 1.0 if h_next < ds[D_HSWITCH] else 0.0
-        if ds[D_NBACK] >= BACK_AFTER:
-            _explicit_again(ds)
-    else:
-        e = max(err, 1e-4)
-        fac = min(10.0, max(0.2, SAFETY * e ** -EXPO * err_old ** BETA))
-        err_old = e
-        h_next = h_try * fac
-    return t, h_next, err_old, pump_on, out_i, refresh, status
+    return t, pump_on, out_i, refresh, status
 
 
 @jit_alloc
@@ -475,7 +360,6 @@ def start(t0, h0, y, u, mp, commands):
     """
     sched_t, sched_u, laws, ctrl_dt = commands
     ds = np.zeros(ds_size(y.size))
-    ds[D_JAC_AGE] = -1.0
     ds[D_T] = t0
     ds[D_H] = h0
     ds[D_ERR] = 1e-4
@@ -495,11 +379,14 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
 
     The span is cut at every valve-schedule time and at every due time of a queued valve command
     (:func:`frogsim.control.sampled.next_due_time`), times closer than EPS to each other or to
-    t_end counting as one. Each piece is integrated by adaptive Dormand-Prince steps with the
-    valve states u and the pump's switch held, the last step shortened to end on the piece's end
+    t_end counting as one. Each piece is integrated by the run's method's steps (``solver``'s
+    parameter block names it; :data:`trial`) with the valve states u and the pump's switch held,
+    where its step-size control puts them (:data:`propose`, :data:`accepted`, :data:`rejected`):
+    adaptive steps, or steps on a fixed grid, the last shortened to end on the piece's end
     exactly; the step size carries over from piece to piece. At a piece's end the schedule
     entries and the queued commands due are written into u, and if a command changed the
-    right-hand side is evaluated again (the FSAL derivative no longer holds).
+    right-hand side is evaluated again (the FSAL derivative no longer holds) and the method
+    restarts (:data:`restart`: the default goes back to its explicit steps).
 
     Controller samples are not stops. After each accepted step the samples t_k inside it
     (:func:`frogsim.control.sampled.next_sample_time`) are taken in order from the step's
@@ -515,13 +402,16 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     dy/dt is evaluated at entry: the caller may have changed the model since the last call. A
     caller that changed nothing dy/dt reads at (t, y) sets ds[D_REUSE_F] = 1, and the call starts
     from the dy/dt the last call ended with (kept in ds; the coupled engine, whose new length path
-    starts with the old one's value and slope). Time reached, step size, PI
-    memory, schedule index and output row are carried in ``ds`` (columns D_*), the controllers'
+    starts with the old one's value and slope). Time reached, step size, the step-size
+    control's memory, the method's memory (columns D_M0.., its kept Jacobian), schedule index
+    and output row are carried in ``ds`` (columns D_*), the controllers'
     memory and the pump's switch in ``cs``, so a run can be advanced in as many calls as wanted:
     the coupled engine calls this once per MuJoCo step, :func:`run_schedule` once for the run.
 
     ``model`` = (g, mp, mot_t, mot_L, mot_d, mot_n), the right-hand side's circuit and length
-    paths; ``commands`` = (sched_t, sched_u, laws, ctrl_dt); ``solver`` = (rtol, atol, max_step);
+    paths; ``commands`` = (sched_t, sched_u, laws, ctrl_dt); ``solver`` = (rtol, atol, max_step,
+    par), ``par`` the method's parameter block (:func:`frogsim.engine.methods.parameter_block`:
+    its code, then its settings, e.g. the fixed step [s]);
     ``out`` = (out_t, out_y, out_u): the rows from ds[D_OUT] on whose times fall inside the span
     are filled by dense output (state, valve states and the pump's switch); ``stats``
     accumulates [accepted steps, rejected steps, rhs evaluations, accepted Rosenbrock steps].
@@ -539,30 +429,31 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                          "begin or start)")
     g, mp, mot_t, mot_L, mot_d, mot_n = model
     sched_t, sched_u, laws, ctrl_dt = commands
-    rtol, atol, max_step = solver
+    rtol, atol, max_step, par = solver
+    code = par[0]
     ny = y.size
     nu = u.size
     ns = sched_t.size
     n = mp.shape[0]
-    # the scratch space at ds's end, cut into the stages' vectors (views, no copies): nothing is
+    # the scratch space at ds's end, cut into the driver's vectors (views, no copies): nothing is
     # allocated per call (the coupled engine calls this once per MuJoCo step)
     scratch = ds[D_SIZE + ny * ny + 2 * ny:]
-    vectors = scratch[:22 * ny].reshape((22, ny))         # 22 stage vectors of ny entries
-    f, k2, k3, k4, k5, k6, k7, yt, yn = (vectors[0], vectors[1], vectors[2], vectors[3], vectors[4], vectors[5],
-                                         vectors[6], vectors[7], vectors[8])
-    rc1, rc2, rc3, rc4, ys = vectors[9], vectors[10], vectors[11], vectors[12], vectors[13]
-    # Rosenbrock: (W, pivots, ft, k1, k2, k3, yt, f1, tder, J, T); J and T (df/dy, df/dt) live in
-    # ds after D_SIZE, with their age ds[D_JAC_AGE], so that a pause keeps them
-    wk = (scratch[22 * ny:22 * ny + ny * ny].reshape((ny, ny)), vectors[14], vectors[15], vectors[16], vectors[17],
-          vectors[18], vectors[19], vectors[20], vectors[21], ds[D_SIZE:D_SIZE + ny * ny].reshape((ny, ny)),
-          ds[D_SIZE + ny * ny:D_SIZE + ny * ny + ny])
-    stages = (k2, k3, k4, k5, k6, k7, yt, yn)
-    dense = (rc1, rc2, rc3, rc4)
-    o = 22 * ny + ny * ny
+    vec = scratch[:ROWS * ny].reshape((ROWS, ny))         # the driver's rows, then the method's own
+    f, fn, yn, ys = vec[R_F], vec[R_FN], vec[R_YN], vec[R_YS]
+    dense = (vec[R_RC1], vec[R_RC2], vec[R_RC3], vec[R_RC4])
+    rc1, rc2, rc3, rc4 = dense
+    # the method's own rows, cut once a call (a method indexes this tuple with constants)
+    own = (vec[R_OWN], vec[R_OWN + 1], vec[R_OWN + 2], vec[R_OWN + 3], vec[R_OWN + 4], vec[R_OWN + 5],
+           vec[R_OWN + 6], vec[R_OWN + 7], vec[R_OWN + 8], vec[R_OWN + 9], vec[R_OWN + 10], vec[R_OWN + 11],
+           vec[R_OWN + 12], vec[R_OWN + 13])
+    mat = scratch[ROWS * ny:ROWS * ny + ny * ny].reshape((ny, ny))
+    # the method's entries kept from call to call: a matrix and a vector (the default's Jacobian)
+    kmat = ds[D_SIZE:D_SIZE + ny * ny].reshape((ny, ny))
+    kvec = ds[D_SIZE + ny * ny:D_SIZE + ny * ny + ny]
+    o = ROWS * ny + ny * ny
     u_prev = scratch[o:o + nu]
     aux = scratch[o + nu:o + nu + 2 * n + 1]
     work = scratch[o + nu + 2 * n + 1:o + nu + 6 * n + 1]
-    nphys = physical_size(n)
     t = ds[D_T]
     h = ds[D_H]
     err_old = ds[D_ERR]
@@ -586,44 +477,31 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
         t_due = next_due_time(laws, cs)
         if t_due < t_seg - EPS:
             t_seg = max(t_due, t)
-        # -- Dormand-Prince steps from t to exactly t_seg ---------------------------------------
+        # -- the method's steps from t to exactly t_seg ------------------------------------------
         while t < t_seg:
-            if h > max_step:
-                h = max_step
-            last = False
-            h_try = h
-            if t + h_try >= t_seg:
-                h_try = t_seg - t
-                last = True
-            t_new = t_seg if last else t + h_try
-            stiff = ds[D_STIFF] > 0.5
-            st_num = 0.0
-            st_den = 0.0
-            if stiff:
-                fresh = ds[D_JAC_AGE] < 0 or ds[D_JAC_AGE] >= JAC_EVERY
-                err = _rosenbrock_step(t, h_try, t_new, y, f, u, pump_on, model, atol, rtol, nphys, wk, fresh,
-                                       yn, k7, rc1, rc2, rc3, rc4, aux, work, stats)
-                ds[D_JAC_AGE] = 1.0 if fresh else ds[D_JAC_AGE] + 1.0
-                if not err <= 1.0:
-                    ds[D_JAC_AGE] = -1.0      # a rejected step: a fresh Jacobian for the retry
-            else:
-                ds[D_JAC_AGE] = -1.0          # a later stiff stretch makes its own
-                err, st_num, st_den = _dopri_step(t, h_try, t_new, y, f, u, pump_on, model, atol, rtol, stages,
-                                                  aux, work, stats)
+            h, h_try, t_new, last = propose(code, par, t, t_seg, h, max_step)
+            err, a1, a2, dense_ready = trial(code, t, h_try, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par,
+                                             ds, own, dense, mat, kmat, kvec, aux, work, stats)
             if not math.isfinite(err):
-                # a non-finite trial: shrink hard and retry; give up only at step underflow
+                # a non-finite trial: the control shrinks the step and retries (a fixed step: it
+                # returns 0); give up at step underflow
                 stats[1] += 1
-                h = 0.1 * h_try
+                h = rejected(code, ds, par, h_try, err)
                 if h < 1e-14 * max(1.0, abs(t)):
                     status = STATUS_NOT_FINITE
                     break
                 continue
             if err <= 1.0:
-                t, h_next, err_old, pump_on, out_i, refresh, status = _accept(
-                    ds, laws, mp, cs, t, t_new, h_try, err, err_old, stiff, st_num, st_den, y, f, stages, dense, ys, u,
-                    u_prev, pump_on, out, out_i, stats)
+                # the continuous extension, for the samples and output rows inside the step (made
+                # by the step already, or only when one falls inside it: a step that ends on its
+                # sample, as every coupled-engine step does, needs none)
+                if not dense_ready and _needs_dense(laws, cs, t_new, out[0], out_i):
+                    dense_of(code, h_try, y, yn, f, fn, own, rc1, rc2, rc3, rc4)
+                t, pump_on, out_i, refresh, status = _accept(laws, mp, cs, t, t_new, h_try, y, f, yn, fn, dense, ys,
+                                                             u, u_prev, pump_on, out, out_i, stats)
                 if status != STATUS_OK:
                     break
+                h_next, err_old = accepted(code, ds, par, h_try, err, err_old, a1, a2, refresh, stats)
                 if refresh:
                     # commands changed (or the step was cut): dy/dt at the new point under them
                     rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, f, aux, work)
@@ -641,7 +519,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
                     break
             else:
                 stats[1] += 1
-                h = h_try * max(0.2, SAFETY * err ** (-1.0 / 3.0 if stiff else -EXPO))
+                h = rejected(code, ds, par, h_try, err)
                 if h < 1e-14 * max(1.0, abs(t)):
                     status = STATUS_STEP_UNDERFLOW
                     break
@@ -665,7 +543,7 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
         if apply_due(laws, t, u, cs):
             changed = True
         if changed:
-            _explicit_again(ds)               # (before a pause: ds carries it to the next call)
+            restart(code, ds)                 # (before a pause: ds carries it to the next call)
         if ds[D_PAUSE] > 0 and stats[0] >= ds[D_PAUSE] and t < t_end - EPS:
             status = STATUS_PAUSED            # between pieces: the next call starts the next one
             break
@@ -727,7 +605,7 @@ def run_schedule(y0, u0, t0, t_end, model, commands, solver, out_t, h0, pause_ev
     """Integrate from t0 to t_end under an open-loop valve schedule and the run's sampled laws
     (the pump's band and the closed-loop controllers, ``PneumaticModel.laws``): :func:`begin`, then
     one :func:`advance`, whose groups it takes: ``model`` = (g, mp, mot_t, mot_L, mot_d, mot_n),
-    ``commands`` = (sched_t, sched_u, laws, ctrl_dt), ``solver`` = (rtol, atol, max_step).
+    ``commands`` = (sched_t, sched_u, laws, ctrl_dt), ``solver`` = (rtol, atol, max_step, par).
 
     ``sched_t`` (sorted) are the times at which valve states become ``sched_u[k]``; before the
     first, ``u0`` holds. Entries may repeat the current state: they only make the integrator stop
@@ -744,3 +622,10 @@ def run_schedule(y0, u0, t0, t_end, model, commands, solver, out_t, h0, pause_ev
     status = advance(t_end, y, u, ds, cs, model, commands, solver, (out_t, out_y, out_u), stats)
     status = finished_status(status, ds, out_t.size)
     return out_y, out_u, y, stats, status, ds[D_T], cs, u, ds
+
+
+def solver_group(solver, atol) -> tuple:
+    """The driver's ``solver`` group of a scenario's ``[solver]`` settings (``solver``, a
+    :class:`frogsim.scenario.schema.Solver`) and the model's absolute tolerances ``atol``:
+    (rtol, atol, max_step, par), ``par`` its method's parameter block."""
+    return (solver.rtol, atol, solver.max_step, methods.parameter_block(solver.method))

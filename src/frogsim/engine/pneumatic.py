@@ -26,7 +26,8 @@ from frogsim.control.table import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM, 
 from frogsim.control.sampled import (B_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE, KIND_EXTERNAL, KIND_PUMP_BAND,
                                      command_from_python, next_control_time)
 from frogsim.engine.integrator import (D_OUT, D_PAUSE, D_T, EPS, STATUS_NONPHYSICAL, STATUS_OK, STATUS_PAUSED,
-                                       STATUS_ROWS_UNWRITTEN, STATUS_TEXT, advance, begin)
+                                       STATUS_ROWS_UNWRITTEN, STATUS_TEXT, advance, begin,
+                                       solver_group)
 from frogsim.engine.result import Result
 from frogsim.engine.run_result import valve_switchings
 from frogsim.errors import SimulationError
@@ -171,7 +172,7 @@ def simulate(scenario, h0: float = 1e-4, *, max_wall_s: float | None = None,
                                                         ctrl_dt, model.out_t, h0)
     ds[D_PAUSE] = STEPS_PER_CALL
     circuit = model.rhs_model
-    solver = (sc.solver.rtol, atol, sc.solver.max_step)
+    solver = solver_group(sc.solver, atol)
     out = (model.out_t, out_y, out_u)
     status = advance(T, y, u, ds, cs, circuit, commands, solver, out, stats)
     bar = None
@@ -267,7 +268,7 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
     out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, 0.0, u0, model.mp, laws, sched_t, sched_u, dt,
                                                         model.out_t, h0)
     circuit = model.rhs_model
-    solver = (sc.solver.rtol, atol, sc.solver.max_step)
+    solver = solver_group(sc.solver, atol)
     out = (model.out_t, out_y, out_u)
     block = cs[CS_BLOCK]
 

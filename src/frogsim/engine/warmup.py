@@ -1,8 +1,9 @@
 """Compiling the pneumatic engine in parts, so that two processes can share the first run's work.
 
 Numba compiles a function together with everything it calls, so the engine is a chain: the
-circuit's right-hand side, then the two methods' steps that call it, then the stepping driver
-(:func:`frogsim.engine.integrator.advance`) over all of them. Each part is compiled once, for the
+circuit's right-hand side, then the integration methods' compiled steps that call it, then the
+stepping driver (:func:`frogsim.engine.integrator.advance`) over all of them (the dispatch
+between the methods, and the methods' small functions, are inlined into the driver). Each part is compiled once, for the
 argument types the driver passes (a one-muscle circuit has the same types as any other), and
 saved in the cache, where the next part, in this process or another, finds it. :data:`PARTS`
 lists the parts with the parts each needs first; :func:`warm_up_parts` runs them on a process
@@ -17,26 +18,53 @@ from numba import typeof
 from frogsim.circuit import layout as L
 from frogsim.circuit.rhs import _hermite, common_piece, manifold_pressure, muscle_volume_state, rhs
 from frogsim.engine import integrator as I
+from frogsim.engine import methods
 from frogsim.engine.measures import _rises, _windows
 from frogsim.physics.air import choked_mass_flux_factor, critical_pressure_ratio
 from frogsim.physics.flow import main_pipe_branch_limit, tube_sonic_conductance
 from frogsim.physics.muscle import braid_parameters
 
-# name: (the parts it needs compiled first, what it compiles); handed to the processes in this
-# order (the driver's chain first: it is the longest), each once the parts it needs are done
-PARTS = {
-    "flow": ((), "the manifold pressure and the valves' flow (part of the right-hand side)"),
-    "volume": ((), "the muscles' volumes along their length paths (part of the right-hand side)"),
-    # with the LU solve, which needs nothing and shortens the Rosenbrock step's part
-    "accept": ((), "an accepted step's work (samples, dense output, stiffness test, step size), the LU solve"),
-    "rhs": (("flow", "volume"), "the circuit's right-hand side"),
-    "rosenbrock": (("rhs",), "the Rosenbrock step"),
-    "dopri": (("rhs",), "the Dormand-Prince step"),
-    "driver": (("rhs", "accept", "rosenbrock", "dopri"), "the stepping driver"),
-    "start": ((), "a run's start"),
-    "measures": ((), "the rise-time measures"),
-    "model": ((), "the physics that building a model calls from Python (braid, tube, choked flow)"),
-}
+def _method_parts() -> list:
+    """The integration methods' parts (:mod:`frogsim.engine.methods`, each method's ``warm``, or
+    its step when it is compiled on its own), as (name, needs, what, calls); a method's part names
+    are prefixed with the method's ("dopri-rosenbrock:dopri")."""
+    a = _one_muscle()
+    out = []
+    for m in methods.METHODS.values():
+        if m.warm is not None:
+            parts = m.warm(a)
+        elif hasattr(m.step, "compile") and not m.step.targetoptions.get("inline") == "always":
+            parts = [("step", ("rhs",), f"the {m.name} step", [(m.step, tuple(a[k] for k in _STEP_ARGS))])]
+        else:
+            parts = []
+        for name, needs, what, calls in parts:
+            out.append((f"{m.name}:{name}", tuple(n if n == "rhs" else f"{m.name}:{n}" for n in needs),
+                        f"{what} ({m.name})", calls))
+    return out
+
+
+#: the names of a method's step's arguments (frogsim.engine.methods.spec), in order
+_STEP_ARGS = ("t", "h", "t_new", "y", "f", "yn", "fn", "u", "pump_on", "model", "atol", "rtol", "par", "ds", "own",
+              "rc", "mat", "kmat", "kvec", "aux", "work", "stats")
+
+
+def _parts() -> tuple[dict, dict]:
+    """(PARTS, the methods' calls by part name)."""
+    head = {
+        "flow": ((), "the manifold pressure and the valves' flow (part of the right-hand side)"),
+        "volume": ((), "the muscles' volumes along their length paths (part of the right-hand side)"),
+        "accept": ((), "an accepted step's work (samples, output rows, the continuous extension's evaluation)"),
+    }
+    found = _method_parts()
+    parts = dict(head)
+    parts.update({name: (needs, what) for name, needs, what, _ in found if not needs})
+    parts["rhs"] = (("flow", "volume"), "the circuit's right-hand side")
+    parts.update({name: (needs, what) for name, needs, what, _ in found if needs})
+    parts["driver"] = (("rhs", "accept") + tuple(name for name, *_ in found), "the stepping driver")
+    parts["start"] = ((), "a run's start")
+    parts["measures"] = ((), "the rise-time measures")
+    parts["model"] = ((), "the physics that building a model calls from Python (braid, tube, choked flow)")
+    return parts, {name: calls for name, _, _, calls in found}
 
 
 def _one_muscle():
@@ -51,10 +79,21 @@ def _one_muscle():
          # (frogsim.control.sampled.sampled_laws)
          "commands": (np.zeros(0), np.zeros((0, 2 * n)), np.zeros(1), 1e-3),
          "ds": np.zeros(1), "cs": np.zeros(1)}
-    a["stages"] = tuple(np.zeros(ny) for _ in range(8))       # (k2..k7, yt, yn), as advance cuts them
     a["dense"] = tuple(np.zeros(ny) for _ in range(4))
+    a["vec"] = np.zeros((I.ROWS, ny))                          # the driver's scratch vectors
+    a["par"] = methods.parameter_block(methods.METHODS[methods.DEFAULT].settings())
+    # the rest of a method's step's arguments (frogsim.engine.methods.spec)
+    a.update(t=0.0, h=1e-3, t_new=1e-3, yn=a["f"], fn=a["f"], pump_on=0.0, rtol=1e-7, mat=np.zeros((ny, ny)),
+             own=tuple(a["vec"][k] for k in range(8, I.ROWS)), rc=a["dense"], kmat=np.zeros((ny, ny)),
+             kvec=np.zeros(ny))
     a["out"] = (np.zeros(1), np.zeros((1, ny)), np.zeros((1, 2 * n + 1)))
     return a
+
+
+# name: (the parts it needs compiled first, what it compiles); handed to the processes in this
+# order (the driver's chain first: it is the longest), each once the parts it needs are done; the
+# integration methods' parts come from their declarations (frogsim.engine.methods)
+PARTS, _METHOD_CALLS = _parts()
 
 
 def _compile(dispatcher, *args) -> None:
@@ -70,7 +109,6 @@ def warm_up(part: str) -> None:
     a = _one_muscle()
     y, f, u, aux, work, atol, stats, model = (a[k] for k in ("y", "f", "u", "aux", "work", "atol", "stats",
                                                               "model"))
-    vec = a["stages"][:6]
     if part == "flow":
         _compile(manifold_pressure, 1e5, 293.0, y, u, model[0], model[1], 1, work)
     elif part == "volume":
@@ -79,23 +117,17 @@ def warm_up(part: str) -> None:
         _compile(_hermite, 0.0, 0, 0, 1, model[2], model[3], model[4])
     elif part == "rhs":
         _compile(rhs, 0.0, y, u, 0.0, *model, f, aux, work)
-    elif part == "dopri":
-        _compile(I._dopri_step, 0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, a["stages"], aux, work, stats)
-    elif part == "rosenbrock":
-        # Rosenbrock's work tuple (W, pivots, ft, k1, k2, k3, yt, f1, tder, J, T)
-        ny = a["ny"]
-        wk = (np.zeros((ny, ny)),) + tuple(np.zeros(ny) for _ in range(8)) + (np.zeros((ny, ny)), np.zeros(ny))
-        _compile(I._rosenbrock_step, 0.0, 1e-3, 1e-3, y, f, u, 0.0, model, atol, 1e-7, 1, wk, True, *vec, aux, work,
-                 stats)
     elif part == "accept":
-        _compile(I._accept, a["ds"], a["commands"][2], model[1], a["cs"], 0.0, 1e-3, 1e-3, 0.5, 1e-4, False, 0.0,
-                 1.0, y, f, a["stages"], a["dense"], f, u, u, 0.0, a["out"], 0, stats)
+        _compile(I._accept, a["commands"][2], model[1], a["cs"], 0.0, 1e-3, 1e-3, y, f, f, f, a["dense"], f, u, u,
+                 0.0, a["out"], 0, stats)
+        _compile(I._needs_dense, a["commands"][2], a["cs"], 1e-3, a["out"][0], 0)
         _compile(I._dense, y, *a["dense"], 0.5, f)
-        J, piv = np.zeros((a["ny"], a["ny"])), np.zeros(a["ny"])      # pivots stored as floats
-        _compile(I._lu, J, piv)
-        _compile(I._lu_solve, J, piv, f)
+    elif part in _METHOD_CALLS:
+        for function, arguments in _METHOD_CALLS[part]:
+            _compile(function, *arguments)
     elif part == "driver":
-        _compile(I.advance, 1.0, y, u, a["ds"], a["cs"], model, a["commands"], (1e-6, atol, 1e-3), a["out"], stats)
+        _compile(I.advance, 1.0, y, u, a["ds"], a["cs"], model, a["commands"], (1e-6, atol, 1e-3, a["par"]), a["out"],
+                 stats)
     elif part == "start":
         c = a["commands"]
         _compile(I.begin, y, 0.0, u, model[1], c[2], c[0], c[1], c[3], a["out"][0], 1e-4)

@@ -25,7 +25,7 @@ import numpy as np
 from frogsim.circuit import layout as L
 from frogsim.circuit.model import PneumaticModel, build_model
 from frogsim.control.sampled import sampled_laws
-from frogsim.engine.integrator import D_SI, D_T, STATUS_OK, advance, begin
+from frogsim.engine.integrator import D_SI, D_T, STATUS_OK, advance, begin, solver_group
 from frogsim.errors import SimulationError
 
 #: action value -> (charge valve, discharge valve), 1 open
@@ -60,7 +60,7 @@ class PneumaticPlant:
         m = self.model
         self.dead = np.array([sc.valves.charge.dead_time, sc.valves.discharge.dead_time] * self.n)
         self.circuit = (m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n)
-        self.solver = (sc.solver.rtol, m.atol, sc.solver.max_step)
+        self.solver = solver_group(sc.solver, m.atol)
         ny = m.y0.size
         self.no_output = (np.empty(0), np.empty((0, ny)), np.empty((0, 2 * self.n + 1)))
         # the prescribed motions' knots: kinks in dV/dt, where the integrator should stop

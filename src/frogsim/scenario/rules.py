@@ -226,6 +226,12 @@ def check_below_source(obj, name: str, path: str, p_top: float) -> None:
                                     "the charge valve cannot reach it")
 
 
+def _check_solver(sc) -> None:
+    """The integration method's own checks (a fixed step against the controller period: its
+    settings class's ``check``, :mod:`frogsim.scenario.methods`)."""
+    sc.solver.method.check(sc, "solver.method")
+
+
 def err(path: str, obj, name: str, allowed: str) -> ScenarioError:
     """ScenarioError for setting ``name`` of obj, its value shown in its display unit."""
     return _err(path, obj, name, allowed)
@@ -244,4 +250,5 @@ RULES = (
      check_controllers),
     (("controller", "muscles", "muscle_types", "base_dir"), _check_motions),
     (("firmware", "name", "controllers", "muscles", "controller", "duration"), check_firmware),
+    (("solver", "controller"), _check_solver),
 )

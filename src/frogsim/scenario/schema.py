@@ -16,6 +16,7 @@ from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, 
 from frogsim.errors import MISSING, ScenarioError, Shown
 from frogsim.scenario.files import read_text
 from frogsim.scenario.valves import ValveSettings
+from frogsim.scenario.methods import MethodSettings, default_settings
 from frogsim.components.atmega2560 import conversion_time
 from frogsim.physics.heat import cylinder_wall_area
 from frogsim.physics.muscle import braid_parameters, muscle_volume
@@ -423,13 +424,23 @@ class Controller:
 
 @dataclass(frozen=True)
 class Solver:
-    """Integration tolerances and the wall-time limit of one run (a stiff circuit, e.g. a tiny
-    chamber behind a large valve, forces steps of microseconds: the run stops with a hint
-    instead of going on for hours)."""
+    """The integration method, its tolerances and the wall-time limit of one run (a stiff circuit,
+    e.g. a tiny chamber behind a large valve, forces steps of microseconds: the run stops with a
+    hint instead of going on for hours).
+
+    ``method`` is the integration method by name, with its own settings
+    (:mod:`frogsim.scenario.methods`; the methods are the modules of :mod:`frogsim.engine.methods`):
+    the default, "dopri-rosenbrock", is adaptive, and reads ``rtol`` (which also scales the state's
+    absolute tolerances) and ``max_step``; a fixed-step method reads its own ``step``."""
     rtol: float = quantity("dimensionless", gt=1e-13, le=1e-2, default=1e-7)
     max_step: float = quantity("time", gt=0.0, display="ms", default=0.05)
     max_wall_time: float = quantity("time", gt=0.0, le=1e7, display="s", default=300.0,
                                     doc="wall-clock seconds one run may take (frogsim.simulate)")
+    method: MethodSettings = None
+
+    def __post_init__(self):
+        if self.method is None:             # no method written: the registry's default, its defaults
+            object.__setattr__(self, "method", default_settings())
 
 
 # --- closed-loop controllers ([controllers.NAME]): the shared setpoint and sensor types ---------------------
