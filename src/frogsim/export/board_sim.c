@@ -52,11 +52,11 @@ struct board_t {
     /* board_run_until_pin: stop when watch `stop_index` changes to `stop_value` */
     int stop_index, stop_value, stop_hit;
     /* cycles the core spent asleep (SLEEP instruction until the next interrupt woke it), and of
-     * them those while the watch `snap_index` (board_run_frame's busy pin) was high: a firmware
+     * them those while the watch `snap_index` (board_frame's busy pin) was high: a firmware
      * that idles inside its interrupt (waiting for the ADC) sleeps there too */
     uint64_t sleep_cycles, sleep_busy_cycles;
     watch_t *busy;
-    /* board_run_frame: at each fall of watch `snap_index`, `snap_len` bytes of data memory at
+    /* board_frame (snap_setup): at each fall of watch `snap_index`, `snap_len` bytes of data memory at
      * `snap_addr` are copied into the caller's buffer (the counts an interrupt read, at its end) */
     int snap_index;
     uint32_t snap_addr;
@@ -332,11 +332,9 @@ int board_run_until_pin(board_t *b, int index, int value, uint64_t max_cycle) {
     return (st == cpu_Done || st == cpu_Crashed) ? -1 : b->stop_hit;
 }
 
-/* One controller period in one call: run to cycle `end`, driving input pins on the way (event i:
- * at cycle in_cycle[i], pin `in_bit[i]` of port `in_port[i]` to `in_level[i]`, in order), and at
- * each fall of watch `snap_index` copy `snap_len` bytes of data memory at `snap_addr` into `snaps`
- * (at most `max_snaps`). Returns the number of falls (snapshots wanted; more than max_snaps: some
- * were not kept), or -1 if the firmware stopped or crashed. */
+/* At each fall of watch `snap_index` (the busy pin) while a period runs, `snap_len` bytes of data
+ * memory at `snap_addr` are copied into `snaps` (at most `max_snaps`; pin_changed). Returns 0, or
+ * -1 for a range outside the data memory. */
 static int snap_setup(board_t *b, int snap_index, uint32_t snap_addr, int snap_len, uint8_t *snaps,
                       long max_snaps) {
     if (snap_len < 0 || (uint64_t)snap_addr + (uint64_t)snap_len > (uint64_t)b->avr->ramend + 1)
@@ -354,34 +352,15 @@ static int snap_setup(board_t *b, int snap_index, uint32_t snap_addr, int snap_l
     return 0;
 }
 
-long board_run_frame(board_t *b, uint64_t end, long n_in, const uint64_t *in_cycle, const char *in_port,
-                     const int32_t *in_bit, const int32_t *in_level, int snap_index, uint32_t snap_addr,
-                     int snap_len, uint8_t *snaps, long max_snaps) {
-    if (snap_setup(b, snap_index, snap_addr, snap_len, snaps, max_snaps) != 0)
-        return -1;
-    for (long i = 0; i <= n_in; i++) {
-        uint64_t until = i < n_in ? in_cycle[i] : end;
-        if (run_to(b, until) != 0) {
-            b->snap_buf = NULL;
-            return -1;
-        }
-        if (i < n_in) {
-            avr_irq_t *irq = avr_io_getirq(b->avr, AVR_IOCTL_IOPORT_GETIRQ(in_port[i]), in_bit[i]);
-            if (irq)
-                avr_raise_irq(irq, in_level[i] ? 1 : 0);
-        }
-    }
-    b->snap_buf = NULL;
-    return b->snap_n;
-}
-
-/* board_run_frame from `start` to `end` with `n_enc` quadrature encoders moving: encoder e goes
+/* Run from `start` to `end` (one controller period) with `n_enc` quadrature encoders moving,
+ * taking snapshots at the busy pin's falls (snap_setup): encoder e goes
  * from count[e] to target[e] (count[] is updated; more than `most` counts away: -2 - e is
  * returned before anything runs), one edge per count, spread evenly over the
  * period: the m-th (m = 1..|n|) at start + round(m (end - start) / (|n| + 1)) (ties to even, as
  * Python's round). At each edge, B is set first (to A's new level counting up, to its opposite
  * counting down), then A to the count's parity; edges of several encoders at one cycle go in
- * encoder order. Returns as board_run_frame does. */
+ * encoder order. Returns the number of falls (snapshots wanted; more than max_snaps: some were not
+ * kept), or -1 if the firmware stopped or crashed. */
 long board_run_frame_enc(board_t *b, uint64_t start, uint64_t end, int n_enc, const char *a_port,
                          const int32_t *a_bit, const char *b_port, const int32_t *b_bit, int32_t *count,
                          const int32_t *target, long most, int snap_index, uint32_t snap_addr, int snap_len,
@@ -627,7 +606,7 @@ int board_frame_setup(board_t *b, int n_adc, const int32_t *inputs, const int64_
 }
 
 /* One controller period from cycle `start` to `end` as board_frame_setup says, then
- * board_drain. Returns the number of falls of the snap watch (as board_run_frame); -1 if the
+ * board_drain. Returns the number of falls of the snap watch (as board_run_frame_enc); -1 if the
  * firmware stopped or crashed; -2 - e if encoder e would move more than `most` counts; -1000 - i
  * if analog count i is outside the converter's range (nothing is run in these two cases); -3
  * without board_frame_setup or board_track. */

@@ -45,6 +45,12 @@ def millivolts_for_count(count, vref_mv: int = 5000):
     return -(-count * vref_mv // 1023)
 
 
+def _count_outside(channels, counts, i: int, shift: int) -> ValueError:
+    """The refusal of analog count ``counts[i]`` on input A<channels[i]>: outside the converter's range."""
+    return ValueError(f"analog input A{int(channels[i])}: count {int(counts[i])} is outside the "
+                      f"converter's 0..{1023 >> int(shift)}")
+
+
 class ToolMissing(FrogsimError):
     """A tool of the firmware path is not installed."""
 
@@ -93,13 +99,6 @@ def _lib():
         lib.board_close.argtypes = [vp]
         lib.board_watch.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
         lib.board_watch_vector.argtypes = [vp, ctypes.c_int, ctypes.c_int]
-        lib.board_run_frame.restype = ctypes.c_long
-        lib.board_run_frame.argtypes = [vp, u64, ctypes.c_long, vp, vp, vp, vp, ctypes.c_int, ctypes.c_uint32,
-                                        ctypes.c_int, vp, ctypes.c_long]
-        raw = lib["board_events"]             # a second prototype of it, taking raw pointers (no from_param)
-        raw.restype = ctypes.c_long
-        raw.argtypes = [vp, vp, vp, vp, ctypes.c_long]
-        lib.board_events_raw = raw
         lib.board_sleep_cycles.restype = u64
         lib.board_sleep_cycles.argtypes = [vp]
         lib.board_sleep_busy_cycles.restype = u64
@@ -108,9 +107,6 @@ def _lib():
         lib.board_set_adc_many.argtypes = [vp, ctypes.c_int, vp, vp]
         lib.board_set_adc_counts.restype = ctypes.c_long
         lib.board_set_adc_counts.argtypes = [vp, ctypes.c_int, vp, vp, ctypes.c_int, ctypes.c_uint32]
-        lib.board_run_frame_enc.restype = ctypes.c_long
-        lib.board_run_frame_enc.argtypes = [vp, u64, u64, ctypes.c_int, vp, vp, vp, vp, vp, vp, ctypes.c_long,
-                                            ctypes.c_int, ctypes.c_uint32, ctypes.c_int, vp, ctypes.c_long]
         lib.board_set_pin.argtypes = [vp, ctypes.c_char, ctypes.c_int, ctypes.c_int]
         lib.board_run_until.argtypes = [vp, u64]
         lib.board_read_ram.restype = ctypes.c_long
@@ -364,8 +360,7 @@ class EmulatedBoard:
         bad = self._lib.board_set_adc_counts(self._h, int(channels.size), channels.ctypes.data, counts.ctypes.data,
                                              int(shift), int(round(self.vref * 1000)))
         if bad >= 0:
-            raise ValueError(f"analog input A{int(channels[bad])}: count {int(counts[bad])} is outside the "
-                             f"converter's 0..{1023 >> shift}")
+            raise _count_outside(channels, counts, bad, shift)
 
     def set_pin(self, pin: Pin, value: int) -> None:
         """Drive input ``pin`` high (1) or low (0) from outside."""
@@ -400,52 +395,6 @@ class EmulatedBoard:
         v = np.empty(limit, np.int32)
         n = self._lib.board_events(self._h, c, i, v, limit)
         return c[:n], i[:n], v[:n]
-
-    def run_frame(self, end: int, inputs, snap_index: int, snap_address: int, snap_len: int, snaps: np.ndarray) -> int:
-        """Run to cycle ``end`` in one call: ``inputs`` (cycles uint64, ports uint8 ('A'..'L'),
-        bits int32, levels int32: arrays, in time order, or None) drive input pins on the way, and
-        at each fall of watched pin ``snap_index`` ``snap_len`` bytes of data memory at
-        ``snap_address`` are copied into the rows of ``snaps`` (uint8 (rows, snap_len)). Returns
-        the number of falls; FrogsimError if the firmware stopped."""
-        if inputs is None or not len(inputs[0]):
-            n, cyc, port, bit, lvl = 0, None, None, None, None
-        else:
-            cyc, port, bit, lvl = inputs
-            n = len(cyc)
-            cyc, port, bit, lvl = (cyc.ctypes.data, port.ctypes.data, bit.ctypes.data, lvl.ctypes.data)
-        got = self._lib.board_run_frame(self._h, int(end), n, cyc, port, bit, lvl, int(snap_index),
-                                        int(snap_address), int(snap_len), snaps.ctypes.data, snaps.shape[0])
-        if got < 0:
-            raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
-        return int(got)
-
-    def run_frame_encoders(self, start: int, end: int, encoders, counts: np.ndarray, targets: np.ndarray,
-                           most: int, snap_index: int, snap_address: int, snap_len: int, snaps: np.ndarray) -> int:
-        """:meth:`run_frame` from cycle ``start`` to ``end`` with quadrature encoders moving:
-        ``encoders`` the (A pin, B pin) of each; encoder e goes from ``counts[e]`` to
-        ``targets[e]`` (int32 arrays; ``counts`` is updated), one edge a count, spread evenly
-        over the period (the m-th of n at start + round(m (end - start) / (n + 1))), B set before
-        A (to A's new level counting up, to its opposite counting down), A to the count's
-        parity; edges at one cycle in encoder order. Returns the number of falls of
-        ``snap_index``; FrogsimError if the firmware stopped; -1 - e, before anything runs, if
-        encoder e would move more than ``most`` counts."""
-        ports = getattr(self, "_enc_ports", None)
-        if ports is None or ports[0] is not encoders:
-            a_port = np.array([ord(a.port) for a, _ in encoders], np.uint8)
-            a_bit = np.array([a.bit for a, _ in encoders], np.int32)
-            b_port = np.array([ord(b.port) for _, b in encoders], np.uint8)
-            b_bit = np.array([b.bit for _, b in encoders], np.int32)
-            ports = self._enc_ports = (encoders, a_port, a_bit, b_port, b_bit)
-        _, a_port, a_bit, b_port, b_bit = ports
-        got = self._lib.board_run_frame_enc(self._h, int(start), int(end), len(encoders), a_port.ctypes.data,
-                                            a_bit.ctypes.data, b_port.ctypes.data, b_bit.ctypes.data,
-                                            counts.ctypes.data, targets.ctypes.data, int(most), int(snap_index),
-                                            int(snap_address), int(snap_len), snaps.ctypes.data, snaps.shape[0])
-        if got <= -2:
-            return int(got) + 1
-        if got < 0:
-            raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}")
-        return int(got)
 
     # -- a controller period in one call (frogsim.export.sil.BoardRun) ---------------------------
     #: board_track's counters: valve mode changes, executions and compare matches read by the last
@@ -487,8 +436,8 @@ class EmulatedBoard:
         """What :meth:`frame` does each period, with the caller's arrays read at each call (so
         the caller writes into them between calls): analog inputs A<inputs[i]> (int32) at
         ``counts[i] << shift`` (int64, :meth:`set_analog_counts`); ``encoders`` (A pin, B pin)
-        moving from ``enc_counts`` to ``targets`` (int32; :meth:`run_frame_encoders`, at most
-        ``most`` counts); snapshots of ``snaps.shape[1]`` bytes at ``snap_address`` at each fall
+        moving from ``enc_counts`` to ``targets`` (int32; one edge a count, spread evenly over the
+        period, B set before A; at most ``most`` counts); snapshots of ``snaps.shape[1]`` bytes at ``snap_address`` at each fall
         of watch ``snap_index`` into the rows of ``snaps`` (uint8)."""
         self._fr_shift = int(shift)
         self._fr = (inputs, counts, enc_counts, targets, snaps,
@@ -514,23 +463,11 @@ class EmulatedBoard:
         if got >= 0:
             return got
         if got <= -1000:
-            i = -1000 - got
-            inputs, counts = self._fr[0], self._fr[1]
-            raise ValueError(f"analog input A{int(inputs[i])}: count {int(counts[i])} is outside the "
-                             f"converter's 0..{1023 >> int(self._fr_shift)}")
+            raise _count_outside(self._fr[0], self._fr[1], -1000 - got, self._fr_shift)
         if got <= -2:
             return got + 1
         raise FrogsimError(f"the firmware stopped or crashed at cycle {self.cycle}"
                            if got == -1 else "frame: call track and frame_setup first")
-
-    def events_into(self, c: np.ndarray, i: np.ndarray, v: np.ndarray) -> int:
-        """Move up to len(c) queued pin changes into the given arrays (uint64, int32, int32: no
-        allocation, for a loop that drains them every sample; contiguous, as np.empty makes them);
-        returns how many."""
-        key = getattr(self, "_ev_arrays", None)
-        if key is None or key[0] is not c or key[1] is not i or key[2] is not v:
-            key = self._ev_arrays = (c, i, v, c.ctypes.data, i.ctypes.data, v.ctypes.data)
-        return int(self._lib.board_events_raw(self._h, key[3], key[4], key[5], c.size))
 
     def serial(self, limit: int = 1 << 20) -> tuple[bytes, np.ndarray]:
         """The bytes the firmware sent on USART0 since the last call, and the cycle of each."""
