@@ -415,7 +415,7 @@ def _firmware_fit(args, plan, sc, export):
     if not args.build:
         n_enc = sum(1 for ch in plan.channels if getattr(ch, "pins", ()))
         line = log_line_bytes(len(plan.channels), len(plan.muscles), command_sample(sc.duration, plan.rate),
-                              plan.adc.bits, n_encoders=n_enc)
+                              plan.adc.bits, n_encoders=n_enc, log_every=plan.log_every)
         return fitting.check_fit(fitting.estimate(plan, line), plan, args.allow_overrun), None
     from frogsim.export.emulator import check_tools
     from frogsim.export.sil import interrupt_timing
@@ -512,7 +512,7 @@ def cmd_firmware(args) -> int:
 def cmd_sil(args) -> int:
     from frogsim.errors import ScenarioError
     from frogsim.export import sil
-    from frogsim.export.serial_log import parse_log, write_log_csv
+    from frogsim.export.serial_log import COMMANDS_CSV, parse_log, write_commands_csv, write_log_csv
     from frogsim.export.sketch import find_elf, read_plan_record
     from frogsim.io.outputs import scenario_inputs, scenario_record
     out = out_folder(args.out)
@@ -539,6 +539,9 @@ def cmd_sil(args) -> int:
     else:
         files = ["timeseries.csv", "swim.png", "frog.xml", "summary.json", "serial.csv"] + \
             ([] if args.no_animation else ["animation.gif"])
+    with_commands = _carries_commands(rec)
+    if with_commands:
+        files.append(COMMANDS_CSV)
     folder = _folder(args, "sil", files=files, scenario=scenario_record(sc.name, inputs))
 
     def work():
@@ -556,7 +559,10 @@ def cmd_sil(args) -> int:
                  f"emulated AVR {s['avr_wall_s']:.1f} s, plant {s['plant_wall_s']:.1f} s")
         _progress(f"      {_count(s['samples'], 'sample')} in {s['wall_s']:.1f} s "
                   f"({s['real_time_factor']:.2f} x real time; {where})")
-        write_log_csv(out / "serial.csv", parse_log(run.serial, rec), rec, last_sample=s["samples"] - 1)
+        log = parse_log(run.serial, rec)
+        write_log_csv(out / "serial.csv", log, rec, last_sample=s["samples"] - 1)
+        if with_commands:
+            _write_commands(out, log, rec, last_sample=s["samples"] - 1)
         if kind == "robot":
             from frogsim.studies.robot import write_outputs
             write_outputs(run.result, out, animation=not args.no_animation, progress=_progress,
@@ -606,6 +612,24 @@ def _seconds(flag: str, value) -> None:
         raise ScenarioError(flag, value, "must be a finite time in seconds > 0")
 
 
+def _carries_commands(rec: dict | None) -> bool:
+    """Whether a firmware's log can carry every valve command (format 3, a history as long as
+    log_every): commands.csv is then written beside serial.csv."""
+    from frogsim.export.serial_log import HISTORY_MAX
+    return bool(rec) and rec.get("format", 0) >= 3 and int(rec["log_every"]) <= HISTORY_MAX
+
+
+def _write_commands(out, log, rec, last_sample=None) -> None:
+    """commands.csv (every valve command of the log, :func:`frogsim.export.serial_log.commands_table`),
+    or a warning saying why the log does not carry them all."""
+    from frogsim.export.serial_log import COMMANDS_CSV, commands_missing, write_commands_csv
+    why = commands_missing(log, rec)
+    if why:
+        _warn(f"{COMMANDS_CSV} not written: {why}")
+        return
+    write_commands_csv(out / COMMANDS_CSV, log, rec, last_sample)
+
+
 def cmd_log(args) -> int:
     from frogsim._files import write_json
     from frogsim.errors import SimulationError
@@ -618,7 +642,8 @@ def cmd_log(args) -> int:
     rec = read_plan_record(args.firmware) if args.firmware else None
     if rec is not None:
         spec_of(rec)                           # firmware.json that cannot check a record: refused now
-    folder = _folder(args, "log", files=["serial.csv", "summary.json"])
+    folder = _folder(args, "log", files=["serial.csv", "summary.json"] + (["commands.csv"] if _carries_commands(rec)
+                                                                            else []))
     link = open_port(args.port, rec)           # a port that cannot be opened: refused before any write
 
     def work():
@@ -634,6 +659,8 @@ def cmd_log(args) -> int:
                     "--firmware DIR, or reset the board while logging")
             raise SimulationError(f"--port {args.port}: no valid record in the capture ({describe_empty(log)}){hint}")
         write_log_csv(out / "serial.csv", log, plan)
+        if _carries_commands(plan) and rec is not None:
+            _write_commands(out, log, plan)
         summary = {"port": args.port, "firmware": args.firmware, **log_summary(log, plan)}
         write_json(out / "summary.json", {"log": summary})
         folder.finish()

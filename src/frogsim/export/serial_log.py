@@ -2,24 +2,29 @@
 header (the convention of :mod:`frogsim.scenario.tables`), the same for a real board
 (:func:`record_port`, pyserial) and for the emulated one (software in the loop).
 
-The log (format 2)::
+The log (format 3)::
 
-    # frogsim NAME rate=R channels=SIG@A0;SIG@D2 muscles=M;M log_every=L format=2 plan=HEX12
-    k,count_0,...,count_n-1,valvebits,faultbits,overruns,dropped
+    # frogsim NAME rate=R channels=SIG@A0;SIG@D2 muscles=M;M log_every=L format=3 plan=HEX12
+    k,count_0,...,count_n-1,valvebits,faultbits,overruns,dropped,history_0,...,history_m-1
 
 The header comes once, when the firmware starts (HEX12: the first 12 hex digits of firmware.json's
 ``plan_sha256``; a channel's pin is an analog input ``A<n>`` or a digital pin ``D<n>``). Each
 record: the sample index k (a multiple of log_every, since the first record is k = 0), each
 channel's count, the valve bits (bit 2j: muscle j's charge valve, 2j+1 its discharge valve), the
 fault bits (bit i: channel i was read in fault), and the firmware's overrun and dropped-record
-counters (uint16, saturating at 65535). Format 1 (the older firmware: ``k,counts,valvebits,
+counters (uint16, saturating at 65535), and each muscle's valve history: its commands at the
+samples k - i, i = 0 .. H - 1 (H = min(log_every, 16), firmware.json's ``history_samples``) in
+bits 2i, 2i + 1 (1 charge, 2 vent, 0 hold), so that the log carries every command the board issued
+although it is written every log_every samples (:func:`commands`). Format 2 (the same without the
+histories) is still read. Format 1 (the older firmware: ``k,counts,valvebits,
 overruns``, a header without log_every, format and plan, drops told in ``# dropped N`` lines) is
 still read.
 
 Nothing is read on trust: the bytes before a capture's first newline are a partial line (unless
 they are a whole header: only a header starts with '#'), and every record is checked (field count,
 digits only, each count within its channel's ``count_range``, valve and fault bits in range, no
-muscle with both valves open, k strictly increasing on the log_every grid, counters never going
+muscle with both valves open, a history below 4^H without a pair 3 whose newest pair is the
+record's valve bits, k strictly increasing on the log_every grid, counters never going
 down). A line that fails is counted by reason (:data:`REASONS`), the first few kept as examples,
 and never reaches the table. A header that disagrees with firmware.json (name, format, rate,
 channels, muscles, log_every, plan digest) is a ScenarioError: a log from another firmware is not
@@ -47,6 +52,8 @@ import numpy as np
 
 from frogsim.errors import ScenarioError, clip
 
+UNKNOWN_TEXT = "(not all carried)"
+
 BAR = 1e5
 DEFAULT_BAUD = 115200       # the [firmware] section's default baud rate
 DEFAULT_IDLE_TIMEOUT = 5.0  # [s] without a byte from the port, the capture stops
@@ -55,7 +62,8 @@ K_MAX = 2**32 - 1           # the firmware's sample index is uint32
 ANALOG_MAX = 1023           # the ATmega2560's ADC has 10 bits: no analog count is larger
 MAX_LINE = 1024             # [bytes] a line longer than this is garbage (a record is far shorter)
 EXAMPLES = 5                # discarded lines kept as examples
-FORMATS = (1, 2)
+FORMATS = (1, 2, 3)
+HISTORY_MAX = 16            # the samples a uint32 history holds (two bits each)
 
 # why a line was discarded (the summary's "discarded" keys)
 REASONS = {
@@ -74,6 +82,8 @@ REASONS = {
     "valvebits_out_of_range": "valve bits >= 4**muscles",
     "both_valves_open": "a muscle with its charge and discharge valves both open",
     "faultbits_out_of_range": "fault bits >= 2**channels",
+    "history_out_of_range": "a valve history >= 4**history_samples, or with both valves of a sample open",
+    "history_disagrees": "a valve history whose newest sample is not the record's valve bits",
     "counter_out_of_range": f"an overrun or dropped counter above {COUNTER_MAX}",
     "k_off_grid": "k not a multiple of log_every",
     "k_not_increasing": "k not above the last record's",
@@ -91,7 +101,8 @@ _PIN = re.compile(r"([AD])([0-9]+)\Z")
 @dataclass
 class Log:
     """A checked log: ``records`` the lines that passed, each as its integers in the line's order
-    (format 2: k, counts, valvebits, faultbits, overruns, dropped; format 1: k, counts, valvebits,
+    (format 3: k, counts, valvebits, faultbits, overruns, dropped, histories; format 2 the same
+    without the histories; format 1: k, counts, valvebits,
     overruns); ``header`` the header line; ``dropped`` the records the firmware dropped (its
     dropped counter's last value); ``bad`` the lines discarded, ``discarded`` them by reason
     (:data:`REASONS`) and ``examples`` the first few; ``plan`` the plan made from the header when
@@ -136,10 +147,11 @@ class _Spec:
     ranges: tuple          # (lo, hi or None) per channel
     muscles: int
     log_every: int | None  # None: a format-1 header alone does not say it
+    history: int = 0       # samples each record's valve history holds (format 3)
 
     @property
     def width(self) -> int:
-        return 1 + len(self.ranges) + (4 if self.format == 2 else 2)
+        return 1 + len(self.ranges) + (4 if self.format >= 2 else 2) + (self.muscles if self.format >= 3 else 0)
 
 
 def _positive_int(value) -> bool:
@@ -180,7 +192,7 @@ def spec_of(plan: dict) -> _Spec:
     if not (_positive_int(every) or (every is None and fmt == 1)):
         raise ScenarioError("firmware.json log_every", every, "a whole number of samples >= 1")
     digest = plan.get("plan_sha256", plan.get("plan_sha256_prefix"))     # the latter: a plan from a header
-    if fmt == 2 and not (isinstance(digest, str) and _HEX12.match(digest[:12])):
+    if fmt >= 2 and not (isinstance(digest, str) and _HEX12.match(digest[:12])):
         raise ScenarioError("firmware.json plan_sha256", plan.get("plan_sha256"), "the plan's SHA-256 in hex")
     adc = plan.get("adc")
     bits = adc.get("bits") if isinstance(adc, dict) else None
@@ -194,7 +206,13 @@ def spec_of(plan: dict) -> _Spec:
         elif not (isinstance(r, (list, tuple)) and len(r) == 2 and all(_whole(x) for x in r) and 0 <= r[0] <= r[1]):
             raise ScenarioError(f"firmware.json channels[{i}].count_range", r, "[lo, hi]: whole numbers, 0 <= lo <= hi")
         ranges.append(tuple(r))
-    return _Spec(int(fmt), tuple(ranges), len(muscles), every)
+    history = 0
+    if fmt >= 3:
+        history = plan.get("history_samples", min(every, HISTORY_MAX))
+        if not (_positive_int(history) and history == min(every, HISTORY_MAX)):
+            raise ScenarioError("firmware.json history_samples", history,
+                                f"min(log_every, {HISTORY_MAX}) = {min(every, HISTORY_MAX)}")
+    return _Spec(int(fmt), tuple(ranges), len(muscles), every, history)
 
 
 # -- the header ----------------------------------------------------------------------------------------
@@ -266,7 +284,7 @@ def check_header(line: str, rec: dict) -> None:
             "muscles": ";".join(rec["muscles"])}
     got = {"name": h["name"], "format": h["format"], "rate": f"{h['rate_hz']:g}",
            "channels": ";".join(f"{s}@{p}" for s, p in h["channels"]), "muscles": ";".join(h["muscles"])}
-    if h["format"] == 2 and rec.get("format") == 2:
+    if h["format"] >= 2 and (rec.get("format") or 0) >= 2:
         want |= {"log_every": rec.get("log_every"), "plan": str(rec.get("plan_sha256", ""))[:12].lower()}
         got |= {"log_every": h["log_every"], "plan": h["plan"].lower()}
     differ = [k for k in want if want[k] != got[k]]
@@ -327,10 +345,16 @@ def _record(log: Log, spec: _Spec, line: str) -> str | None:
         return "valvebits_out_of_range"
     if any((valves >> (2 * j)) & 3 == 3 for j in range(spec.muscles)):
         return "both_valves_open"
-    if spec.format == 2:
-        faults, overruns, dropped = v[2 + n_ch:]
+    if spec.format >= 2:
+        faults, overruns, dropped = v[2 + n_ch:5 + n_ch]
         if faults >= 1 << n_ch:
             return "faultbits_out_of_range"
+        if spec.format >= 3:
+            for j, h in enumerate(v[5 + n_ch:]):
+                if h >= 4**spec.history or any((h >> (2 * i)) & 3 == 3 for i in range(spec.history)):
+                    return "history_out_of_range"
+                if h & 3 != (valves >> (2 * j)) & 3:
+                    return "history_disagrees"
     else:
         faults, overruns, dropped = 0, v[2 + n_ch], log._dropped1
     if overruns > COUNTER_MAX or dropped > COUNTER_MAX:
@@ -487,6 +511,77 @@ def log_table(log: Log, rec: dict, last_sample: int | None = None):
         data[names[1 + n_ch + 2 * j]] = (bits >> (2 * j)) & 1
         data[names[2 + n_ch + 2 * j]] = (bits >> (2 * j + 1)) & 1
     return pd.DataFrame(data)
+
+
+#: a commands table's column of muscle m: its command at each sample from the row's time on
+COMMAND_UNIT = "1 = charge, 0 = hold, -1 = vent"
+COMMANDS_CSV = "commands.csv"
+
+
+def commands_missing(log: Log, rec: dict) -> str | None:
+    """Why ``log`` does not carry every valve command between its first and last record (None if it
+    does): a format without valve histories, histories shorter than log_every, records missing."""
+    every = rec.get("log_every")
+    if (log.format or rec.get("format")) != 3 or (rec.get("format") or 3) < 3:
+        return (f"the log is format {log.format or rec.get('format')}: its records carry the valve bits of "
+                "every log_every-th sample only (format 3 carries each muscle's history; export and flash the "
+                "firmware again)")
+    if every is None or every > HISTORY_MAX:
+        return (f"a record every {every} samples: its valve history holds the last {HISTORY_MAX} samples only "
+                f"(a log rate of at least controller rate / {HISTORY_MAX} carries every command)")
+    if not log.records:
+        return "no records"
+    gaps = log.missing_from_k_gaps
+    if gaps:
+        return f"{gaps} record(s) missing (gaps in k): the commands in those gaps are unknown"
+    return None
+
+
+def commands(log: Log, rec: dict, last_sample: int | None = None):
+    """Every valve command the board issued from the log's first covered sample to its last record's
+    (``last_sample`` at most): (samples k [int array], modes [k, muscle]: 1 charge, 0 hold, -1
+    vent), from the records' valve histories (:data:`REASONS` checked them). ScenarioError naming
+    the log if it does not carry them all (:func:`commands_missing`)."""
+    why = commands_missing(log, rec)
+    if why:
+        raise ScenarioError("the serial log's valve commands", UNKNOWN_TEXT, why)
+    every = int(rec["log_every"])
+    n_ch, n_m = len(rec["channels"]), len(rec["muscles"])
+    rows = [r for r in log.records if last_sample is None or r[0] <= last_sample]
+    k0 = max(0, rows[0][0] - every + 1)
+    k1 = rows[-1][0]
+    modes = np.zeros((k1 - k0 + 1, n_m), dtype=np.int8)
+    of_bits = np.array([0, 1, -1, 0], dtype=np.int8)
+    for r in rows:
+        k = r[0]
+        for j, h in enumerate(r[5 + n_ch:5 + n_ch + n_m]):
+            for i in range(min(every, k - k0 + 1)):
+                modes[k - i - k0, j] = of_bits[(h >> (2 * i)) & 3]
+    return np.arange(k0, k1 + 1), modes
+
+
+def commands_table(log: Log, rec: dict, last_sample: int | None = None):
+    """The commands (:func:`commands`) as a DataFrame: ``time [s]`` (k / rate) and a column
+    ``<muscle> command [1 = charge, 0 = hold, -1 = vent]`` per muscle, one row at the first sample,
+    at each sample where a command changes and at the last sample (a command holds until the next
+    row)."""
+    import pandas as pd
+    from frogsim.scenario.tables import header
+    k, modes = commands(log, rec, last_sample)
+    change = np.ones(len(k), dtype=bool)
+    change[1:] = np.any(modes[1:] != modes[:-1], axis=1)
+    change[-1] = True
+    data = {header("time", "s"): k[change] / float(rec["rate_hz"])}
+    for j, m in enumerate(rec["muscles"]):
+        data[header(f"{m} command", COMMAND_UNIT)] = modes[change, j].astype(int)
+    return pd.DataFrame(data)
+
+
+def write_commands_csv(path, log: Log, rec: dict, last_sample: int | None = None) -> Path:
+    """Write :func:`commands_table` as CSV (atomic); returns the path."""
+    from frogsim._files import write_csv
+    write_csv(Path(path), commands_table(log, rec, last_sample), progress=False)
+    return Path(path)
 
 
 def write_log_csv(path, log: Log, rec: dict, last_sample: int | None = None) -> Path:

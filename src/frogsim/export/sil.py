@@ -544,7 +544,7 @@ class _BoardSide:
         every = int(rec["log_every"])
         made = -(-done // every)
         received = sum(1 for r in log.records if r[0] < done)
-        dropped = max((r[-1] for r in log.records if r[0] < done), default=0)
+        dropped = max((r[4 + len(rec["channels"])] for r in log.records if r[0] < done), default=0)
         unsent = max(0, made - received - dropped)
         n_ch = len(rec["channels"])
         faults = {}

@@ -31,18 +31,22 @@ The runtime. Timer1 in CTC mode (WGM12) with the smallest prescaler whose compar
    then waits for the last conversion;
 5. writes the valve pins: first every valve that closes, then every valve that opens
    (mode +1: charge pin high, discharge low; -1 the other way round; 0 both low);
-6. every ``log_every`` samples copies (k, counts, valve bits, fault bits, the overrun and dropped
-   counters) into a ring of records; a record that finds the ring full is counted in the dropped
-   counter, which the next record carries;
+6. shifts each muscle's command into its valve history (a uint32 per muscle, two bits a sample:
+   1 charge, 2 vent, 0 hold; the newest sample in the lowest bits), and every ``log_every``
+   samples copies (k, counts, valve bits, fault bits, the overrun and dropped counters, each
+   muscle's history of the last min(log_every, 16) samples) into a ring of records; a record that
+   finds the ring full is counted in the dropped counter, which the next record carries;
 7. unmasks its interrupt (interrupts off), counts an overrun when Timer1's compare flag OCF1A is
    already set again (the next period began before this one's work ended; the flag is cleared
    on entry to the interrupt; the counters saturate at 65535), and lowers the busy pin.
 
 ``loop()`` formats the queued records as text lines ``k,count_0,...,count_n-1,valvebits,
-faultbits,overruns,dropped`` (valve bit 2j: muscle j's charge valve, 2j+1 its discharge valve;
+faultbits,overruns,dropped,history_0,...,history_m-1`` (valve bit 2j: muscle j's charge valve, 2j+1
+its discharge valve; history_j muscle j's commands since the last record, so that the log carries
+every valve command the board issued although it is written at a tenth of the control rate;
 decimal digits by subtraction, no division) and writes them to Serial, then sleeps (idle mode:
 timers and the serial port keep running) until the next interrupt. The first line sent is
-``# frogsim NAME rate=... channels=... muscles=... log_every=... format=2 plan=...``. Timer0's
+``# frogsim NAME rate=... channels=... muscles=... log_every=... format=3 plan=...``. Timer0's
 overflow interrupt (Arduino's millis) is switched off so that it never delays the control
 interrupt; the sketch uses neither millis nor delay.
 
@@ -63,11 +67,25 @@ from frogsim.components import atmega2560 as chip
 from frogsim.errors import FrogsimError, ScenarioError, shown_value
 from frogsim.export import board
 
-LOG_FORMAT = "k,count_0,...,count_n-1,valvebits,faultbits,overruns,dropped"
-LOG_FORMAT_VERSION = 2       # firmware.json "format" and the header's format=
+LOG_FORMAT = "k,count_0,...,count_n-1,valvebits,faultbits,overruns,dropped,history_0,...,history_m-1"
+LOG_FORMAT_VERSION = 3       # firmware.json "format" and the header's format=
+#: the most samples a record's valve history holds: two bits a sample in a uint32
+HISTORY_MAX = 16
 RING_RECORDS = 16           # log records queued between the interrupt and loop()
 TIMER1_PRESCALERS = ((1, 0b001), (8, 0b010), (64, 0b011), (256, 0b100), (1024, 0b101))
 AVAILABLE_FLASH = board.FLASH_BYTES - board.BOOTLOADER_BYTES
+
+
+def history_samples(log_every: int) -> int:
+    """The samples a record's valve history holds: the ``log_every`` since the last record, at most
+    :data:`HISTORY_MAX` (a log written more rarely than every 16 samples does not carry every
+    command: :func:`frogsim.export.serial_log.commands` says so)."""
+    return min(int(log_every), HISTORY_MAX)
+
+
+def history_mask(log_every: int) -> int:
+    """The bits of a record's valve history: two a sample (:func:`history_samples`)."""
+    return 4 ** history_samples(log_every) - 1
 
 
 def timer1_setting(period_cycles: int) -> tuple[int, int, int]:
@@ -134,6 +152,9 @@ def plan_record(plan) -> dict:
         "log_every": int(plan.log_every),
         "log_line": LOG_FORMAT,
         "valve_bits": "bit 2j: charge valve of muscles[j], bit 2j+1: its discharge valve",
+        "history_samples": history_samples(plan.log_every),
+        "valve_history": "history_j: muscles[j]'s command at sample k - i in bits 2i, 2i+1 (1 charge, 2 vent, "
+                         "0 hold), i = 0 .. history_samples - 1",
     }
     digest = hashlib.sha256(json.dumps(rec, sort_keys=True).encode() + plan.c_source.encode()).hexdigest()
     rec["plan_sha256"] = digest
@@ -188,6 +209,8 @@ def board_header(plan) -> str:
         f"#define FS_ADC_BITS {int(plan.adc.bits)}",
         f"#define FS_BAUD {int(plan.baud)}UL",
         f"#define FS_LOG_EVERY {int(plan.log_every)}UL",
+        f"#define FS_HISTORY_MASK 0x{history_mask(int(plan.log_every)):X}UL  /* two bits a sample, the last "
+        f"{min(int(plan.log_every), HISTORY_MAX)} samples */",
         f"#define FS_RING {RING_RECORDS}",
         "",
         f"/* busy pin D{busy.number} = P{busy.port}{busy.bit} */",
@@ -312,7 +335,7 @@ INO = r"""/* {name}: frogsim's valve controllers on an Arduino Mega 2560 (ATmega
  * Controller rate {rate:g} Hz (Timer1 CTC interrupt), {n_ch} ADC channel(s), {n_m} muscle(s).
  * The laws are in frogsim_laws.h (integer arithmetic only), the pins in frogsim_board.h.
  * Serial log at {baud} baud, one record every {log_every} samples:
- *     k,count_0,...,count_n-1,valvebits,faultbits,overruns,dropped
+ *     k,count_0,...,count_n-1,valvebits,faultbits,overruns,dropped,history_0,...,history_m-1
  * See README.md beside this file for the wiring, docs/firmware.md in frogsim for the rest.
  */
 #include <avr/io.h>
@@ -330,6 +353,7 @@ struct fs_record {{
     uint32_t faults;
     uint16_t overruns;
     uint16_t dropped;
+    uint32_t history[FS_MUSCLES > 0 ? FS_MUSCLES : 1];
 }};
 
 /* not static, C names: software in the loop reads them from the emulated RAM by symbol */
@@ -341,6 +365,7 @@ uint16_t fs_adc[FS_CHANNELS > 0 ? FS_CHANNELS : 1];   /* the counts of the last 
 volatile uint8_t fs_head = 0, fs_tail = 0;  /* the record ring: the ISR writes at head, loop() reads at tail */
 }}
 static int8_t fs_modes[FS_MUSCLES];
+static uint32_t fs_history[FS_MUSCLES > 0 ? FS_MUSCLES : 1];  /* each muscle's commands, 2 bits a sample */
 static uint32_t fs_log_count = 0;
 static struct fs_record fs_ring[FS_RING];
 
@@ -392,6 +417,8 @@ ISR(TIMER1_COMPA_vect) {{
     __asm__ __volatile__("" ::: "memory");
 #endif
     fs_write_valves(fs_modes);
+    for (uint8_t j = 0; j < FS_MUSCLES; j++)  /* 1 charge, 2 vent, 0 hold: the newest in the low bits */
+        fs_history[j] = (fs_history[j] << 2) | (fs_modes[j] > 0 ? 1u : (fs_modes[j] < 0 ? 2u : 0u));
     if (fs_log_count == 0) {{
         uint8_t next = (uint8_t)((fs_head + 1) % FS_RING);
         if (next == fs_tail) {{
@@ -409,6 +436,7 @@ ISR(TIMER1_COMPA_vect) {{
             r->faults = frogsim_faults();
             r->overruns = fs_overruns;
             r->dropped = fs_dropped;
+            for (uint8_t j = 0; j < FS_MUSCLES; j++) r->history[j] = fs_history[j] & FS_HISTORY_MASK;
             fs_head = next;
         }}
     }}
@@ -437,7 +465,7 @@ static uint8_t fs_format(char *out, uint32_t x) {{
     return n;
 }}
 
-static char fs_line[16 + 11 * (FS_CHANNELS + 5)];
+static char fs_line[16 + 11 * (FS_CHANNELS + 5 + FS_MUSCLES)];
 
 void setup() {{
     TIMSK0 = 0;                               /* no millis() interrupt: nothing delays the control ISR */
@@ -488,6 +516,10 @@ void loop() {{
         n += fs_format(fs_line + n, r.overruns);
         fs_line[n++] = ',';
         n += fs_format(fs_line + n, r.dropped);
+        for (uint8_t j = 0; j < FS_MUSCLES; j++) {{
+            fs_line[n++] = ',';
+            n += fs_format(fs_line + n, r.history[j]);
+        }}
         fs_line[n++] = '\n';
         Serial.write((const uint8_t *)fs_line, n);
     }}
@@ -679,8 +711,9 @@ def write_sketch(plan, out: Path, scenario_name: str = "", export: dict | None =
     return files
 
 
-#: the formats of firmware.json this frogsim reads
-PLAN_FORMATS = (LOG_FORMAT_VERSION,)
+#: the formats of firmware.json this frogsim reads: 2 (a board flashed before the valve history,
+#: whose log is still read) and this runtime's
+PLAN_FORMATS = (2, LOG_FORMAT_VERSION)
 
 
 def _whole(v) -> bool:
@@ -762,6 +795,11 @@ def validate_plan_record(rec, folder) -> None:
         bad("valve_pins", f"has {len(rec['valve_pins'])} pairs for {len(rec['muscles'])} muscles: one pair "
                           "per muscle")
     check(rec["adc"], ADC_KEYS, "adc.")
+    if rec["format"] >= 3:
+        hs = rec.get("history_samples")
+        if not (_whole(hs) and hs == history_samples(rec["log_every"])):
+            bad("history_samples", f"= {shown_value(hs)} must be min(log_every, {HISTORY_MAX}) = "
+                                   f"{history_samples(rec['log_every'])}")
     for k, ch in enumerate(rec["channels"]):
         check(ch, CHANNEL_KEYS, f"channels[{k}].")
         if ch.get("analog_input") is not None:

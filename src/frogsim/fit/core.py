@@ -46,6 +46,15 @@ from frogsim.fit.force import PREFIX, worst_errors
 from frogsim.fit.spec import FitSpec
 from frogsim.fit.traces import information_factor, model_grid, simulated
 
+#: a lag-1 autocorrelation above this many of its standard errors (1/sqrt(n) for independent errors)
+#: makes the residuals correlated (residual_correlation)
+CORRELATED_SE = 3.0
+#: the settings a replayed experiment's command delay adds to (frogsim.fit.replay)
+DEAD_TIMES = ("valves.charge.dead_time", "valves.discharge.dead_time")
+#: the global stage's Latin-hypercube points per fitted parameter (FIT.toml global_points), and
+#: how many of them one batch runs
+GLOBAL_PER_PARAMETER = 10
+GLOBAL_BATCH = 32
 #: |correlation| above which two parameters are reported as indistinguishable
 CORRELATION_LIMIT = 0.95
 #: condition number of the column-normalised J^T J above which it is reported as near-singular
@@ -93,6 +102,10 @@ class FitResult:
     curves: list = field(default_factory=list, repr=False)  # per experiment: t, measured, before, after
     force_curves: list = field(default_factory=list, repr=False)  # per force table: rows, before, after
     profile: dict = field(default_factory=dict)  # path -> (low, high) profile interval [SI], NaN if open
+    interval_method: list = field(default_factory=list)  # per parameter: how its interval was made
+    unidentifiable: dict = field(default_factory=dict)   # path -> why the data cannot fix it
+    residual_correlation: dict = field(default_factory=dict)  # residual_correlation()'s figures
+    global_stage: dict = field(default_factory=dict)     # the screened points (start_points)
 
     @property
     def paths(self) -> list[str]:
@@ -147,7 +160,11 @@ class Evaluator:
             scen_points = [{p: pt[p] for p in self.scenario_paths} for pt in points]
             models = []
             for e in self.spec.experiments:
-                models.extend(build_models(e.scenario, scen_points))
+                pts = scen_points
+                if e.command_delay:        # a fitted dead time is the valve's: the board's write delay added
+                    pts = [{p: v + (e.command_delay if p in DEAD_TIMES else 0.0) for p, v in pt.items()}
+                           for pt in scen_points]
+                models.extend(build_models(e.scenario, pts))
             runs = run_models(models, threads=self.threads)
             with self._lock:
                 self.model_runs += len(models)
@@ -222,21 +239,38 @@ def _least_squares(ev: Evaluator, theta0, spec: FitSpec, bar) -> Start:
     return Start(np.asarray(theta0, dtype=float), sol.x, float(sol.cost), counts["f"], counts["j"], sol.message)
 
 
-def start_points(spec: FitSpec, ev: Evaluator) -> np.ndarray:
-    """The given start, then ``starts - 1`` Latin-hypercube points of the unit box (seeded)."""
+def start_points(spec: FitSpec, ev: Evaluator) -> tuple:
+    """(the starts, the global stage's figures): the given start, then the ``starts - 1`` best of
+    ``global_points`` Latin-hypercube points of the unit box (seeded; default 10 per parameter,
+    at least ``starts - 1``), their costs computed in batches before any local search: a global
+    stage that puts the local starts in the cost's lowest valleys. ``global_points = 0``: the
+    ``starts - 1`` hypercube points themselves (no screening)."""
     first = ev.theta([p.start for p in spec.parameters])
     if spec.starts == 1:
-        return first[None, :]
+        return first[None, :], {"points": 0}
     from scipy.stats import qmc
-    lhs = qmc.LatinHypercube(d=len(first), seed=spec.seed).random(spec.starts - 1)
-    return np.vstack([first, lhs])
+    n = spec.global_points if spec.global_points is not None else GLOBAL_PER_PARAMETER * len(first)
+    lhs = qmc.LatinHypercube(d=len(first), seed=spec.seed).random(max(n, spec.starts - 1))
+    if n == 0:
+        return np.vstack([first, lhs]), {"points": 0}
+    costs = []
+    for k in range(0, len(lhs), GLOBAL_BATCH):
+        fs = ev.residuals(list(lhs[k:k + GLOBAL_BATCH]))
+        costs.extend(0.5 * np.einsum("ij,ij->i", fs, fs))
+    costs = np.array(costs)
+    costs[~np.isfinite(costs)] = np.inf
+    order = np.argsort(costs, kind="stable")[:spec.starts - 1]
+    return np.vstack([first, lhs[order]]), {
+        "points": int(len(lhs)), "method": "Latin hypercube of the bounds' box, the lowest costs start the local "
+                                           "searches", "best_cost": float(costs[order[0]]),
+        "median_cost": float(np.median(costs[np.isfinite(costs)])) if np.isfinite(costs).any() else None}
 
 
 def fit_spec(spec: FitSpec, progress: bool = False) -> FitResult:
     """Fit a loaded spec (see :func:`frogsim.fit.spec.load_fit_spec`); writes nothing."""
     t0 = time.perf_counter()
     ev = Evaluator(spec)
-    thetas0 = start_points(spec, ev)
+    thetas0, global_stage = start_points(spec, ev)
     workers = min(default_threads(spec.threads), len(thetas0))
     bar = None
     if progress:
@@ -288,37 +322,71 @@ def fit_spec(spec: FitSpec, progress: bool = False) -> FitResult:
         res["profile"][path] = profile_interval(ev, spec, theta, j, float(f @ f), res)
     return FitResult(spec=spec, values=ev.x(theta), start_values=ev.x(thetas0[0]), starts=starts,
                      model_runs=ev.model_runs, wall_s=time.perf_counter() - t0, curves=curves,
-                     force_curves=force_curves,
+                     force_curves=force_curves, global_stage=global_stage,
                      rms_residual=rms_after, rms_residual_before=rms_before, **res)
 
 
 def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
+    """Standard errors, intervals and correlations (module docstring), with each parameter's
+    verdict: the parameters the data cannot fix (no effect; or in a combination the data do not
+    see, the one of it that weighs most in the direction J^T J does not see, until the rest is
+    regular) are "unidentifiable", with the reason, and left out of the others' covariance (which
+    then holds them at their fitted values); the covariance widened by the residuals'
+    autocorrelation (:func:`residual_correlation`); an interval that would leave the parameter's
+    bounds computed on the logit of its place between them."""
     from scipy import stats
     p = len(theta)
     n = ev.n_points
     dof = n - p
     warnings = []
+    paths = [q_.path for q_ in spec.parameters]
     s2 = float(f @ f) / dof if dof > 0 else float("nan")
     norms = np.linalg.norm(J, axis=0)
-    dead = [spec.parameters[j].path for j in range(p) if not norms[j] > 0]
-    for path in dead:
-        warnings.append(f"{path} has no effect on the measured signals or forces: it cannot be fitted from them")
     safe = np.where(norms > 0, norms, 1.0)
-    sv = np.linalg.svd(J / safe, compute_uv=False)
+    Jn = J / safe
+    sv = np.linalg.svd(Jn, compute_uv=False)
     cond = float((sv[0] / sv[-1]) ** 2) if sv[-1] > 0 else float("inf")
-    q = float(stats.t.ppf(0.5 + spec.confidence / 2, dof) if spec.interval == "t" and dof > 0
+    verdict = {}
+    for j in range(p):
+        if not norms[j] > 0:
+            verdict[j] = "it has no effect on the measured signals or forces"
+            warnings.append(f"{paths[j]} has no effect on the measured signals or forces: it cannot be fitted from "
+                            "them (unidentifiable; the other parameters' intervals do not depend on it)")
+    keep = [j for j in range(p) if j not in verdict]
+    if cond > CONDITION_LIMIT:
+        v = np.linalg.svd(Jn)[2][-1]            # the direction the data do not see
+        involved = [paths[j] for j in range(p) if abs(v[j]) > 0.2 * np.abs(v).max() and j in keep]
+        extra = ("no interval can be given for the parameters said unidentifiable" if cond > SINGULAR_LIMIT
+                 else "the intervals are unreliable")
+        warnings.append(f"J^T J is near-singular (condition number {cond:.3g} after scaling its columns, "
+                        f"limit {CONDITION_LIMIT:g}): the data determine only a combination of "
+                        f"{' and '.join(involved)}, not each of them; {extra}")
+    while len(keep) > 1:
+        sk = np.linalg.svd(Jn[:, keep])
+        if sk[1][-1] > 0 and (sk[1][0] / sk[1][-1]) ** 2 <= SINGULAR_LIMIT:
+            break
+        v = sk[2][-1]
+        involved = [keep[i] for i in range(len(keep)) if abs(v[i]) > 0.2 * np.abs(v).max()]
+        drop = keep[int(np.argmax(np.abs(v)))]
+        others = [paths[i] for i in involved if i != drop]
+        verdict[drop] = ("the data fix only a combination of it with " + " and ".join(others) if others else
+                         "the data barely move the fit with it")
+        warnings.append(f"{paths[drop]} is unidentifiable from these data: {verdict[drop]}; no interval is given for "
+                        "it, and the other parameters' intervals hold it at its fitted value")
+        keep.remove(drop)
+    corr_info = residual_correlation(ev, f)
+    tau = corr_info["inflation"]
+    dof_eff = n / tau - p
+    q = float(stats.t.ppf(0.5 + spec.confidence / 2, dof_eff) if spec.interval == "t" and dof_eff > 0
               else stats.norm.ppf(0.5 + spec.confidence / 2))
-    if cond > SINGULAR_LIMIT or dead or dof <= 0:
-        cov = np.full((p, p), np.nan)
-    else:
-        Jn = J / safe
-        cov_theta = s2 * np.linalg.inv(Jn.T @ Jn) / np.outer(safe, safe)
-        cov = cov_theta * np.outer(ev.span, ev.span)
+    cov = np.full((p, p), np.nan)
+    if keep and dof > 0:
+        Jk = Jn[:, keep]
+        cov_k = tau * s2 * np.linalg.inv(Jk.T @ Jk) / np.outer(safe[keep], safe[keep])
+        cov[np.ix_(keep, keep)] = cov_k * np.outer(ev.span[keep], ev.span[keep])
     std = np.sqrt(np.diag(cov))
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = cov / np.outer(std, std)
-    x = ev.x(theta)
-    paths = [q_.path for q_ in spec.parameters]
     for i in range(p):
         for j in range(i + 1, p):
             c = corr[i, j]
@@ -327,15 +395,87 @@ def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
                                 f"(correlation {c:+.3f}): the data fix mainly a combination of the two, and a "
                                 "change of one is largely made up by the other; fix one of them, or add an "
                                 "experiment that moves them differently")
-    if cond > CONDITION_LIMIT:
-        extra = "no interval can be given" if not np.all(np.isfinite(std)) else "the intervals are unreliable"
-        v = np.linalg.svd(J / safe)[2][-1]            # the direction the data do not see
-        involved = [paths[j] for j in range(p) if abs(v[j]) > 0.2 * np.abs(v).max()]
-        warnings.append(f"J^T J is near-singular (condition number {cond:.3g} after scaling its columns, "
-                        f"limit {CONDITION_LIMIT:g}): the data determine only a combination of "
-                        f"{' and '.join(involved)}, not each of them; {extra}")
-    return dict(std=std, ci_low=x - q * std, ci_high=x + q * std, correlation=corr, condition_number=cond,
-                residual_variance=s2, dof=dof, n_points=n, quantile=q, warnings=warnings)
+    if corr_info["correlated"]:
+        warnings.append(f"the residuals are correlated in time (lag-1 autocorrelation up to "
+                        f"{corr_info['lag1_autocorrelation']:.2f}, runs test z = {corr_info['runs_test_z']:.2f}): "
+                        f"the intervals are widened by sqrt({tau:.3g}), the ratio of the points to the effective "
+                        f"independent ones ({corr_info['effective_points']:.4g} of {n:.4g}); look at the residual "
+                        "plots for what the model misses")
+    x = ev.x(theta)
+    lo, hi, how = x - q * std, x + q * std, ["linearised"] * p
+    for j in range(p):
+        if not np.isfinite(std[j]):
+            how[j] = "none: unidentifiable" if j in verdict else "none"
+            continue
+        if lo[j] >= spec.parameters[j].lower and hi[j] <= spec.parameters[j].upper:
+            continue
+        t = float(theta[j])
+        if BOUND_TOLERANCE < t < 1 - BOUND_TOLERANCE:
+            su = std[j] / ev.span[j] / (t * (1 - t))         # the logit's standard error
+            u = np.log(t / (1 - t))
+            lo[j] = ev.lower[j] + ev.span[j] / (1 + np.exp(-(u - q * su)))
+            hi[j] = ev.lower[j] + ev.span[j] / (1 + np.exp(-(u + q * su)))
+            how[j] = "logit of the place between min and max (the linearised interval left them)"
+        else:
+            lo[j], hi[j] = max(lo[j], spec.parameters[j].lower), min(hi[j], spec.parameters[j].upper)
+            how[j] = "linearised, cut at the bound the value sits on"
+    return dict(std=std, ci_low=lo, ci_high=hi, correlation=corr, condition_number=cond,
+                residual_variance=s2, dof=dof_eff, n_points=n, quantile=q, warnings=warnings,
+                interval_method=how, unidentifiable={paths[j]: r for j, r in verdict.items()},
+                residual_correlation=corr_info)
+
+
+def residual_correlation(ev: Evaluator, f) -> dict:
+    """The residuals' correlation in time, on each trace's own samples (not the interpolated
+    grid points): lag-1 autocorrelation, the Wald-Wolfowitz runs test of their signs (z < -2:
+    fewer sign changes than independent errors make), and the integrated autocorrelation time
+    tau_b = 1 + 2 sum rho_k of each signal (the initial positive sequence: summed up to the first
+    lag whose rho is not positive; the residuals not centred, their mean being 0 under the model). The
+    residuals count as correlated when a signal's lag-1 autocorrelation exceeds 3/sqrt(its samples)
+    (three times its standard error for independent errors: 0.1 % false alarms); then ``inflation`` = n / sum(n_b / tau_b), the points over the
+    effective independent ones, by which the covariance is multiplied (an AR(1) error of lag-1
+    autocorrelation rho gives (1 + rho)/(1 - rho)), else 1. A force table's rows are not a time
+    series: they count as independent. The runs test is reported beside, not acted on (a run of tiny
+    residuals of one sign is no error worth widening for)."""
+    pos, worst, worst_z, n_all, n_eff, correlated = 0, None, None, 0.0, 0.0, False
+    for (t, rows, fe) in ev.blocks:
+        step = max(1, int(round(1.0 / fe)))
+        for _ in rows:
+            r = f[pos:pos + t.size][::step]
+            pos += t.size
+            m = r.size
+            d = r                      # not centred: under the model the residuals have mean 0, and a
+            den = float(d @ d)         # lasting offset (a converter's step held) is a correlation too
+            tau, rho1, z = 1.0, 0.0, 0.0
+            if m > 3 and den > 0:
+                acf = np.correlate(d, d, mode="full")[m - 1:] / den
+                rho1 = float(acf[1])
+                s = 0.0
+                for k in range(1, m // 2):
+                    if acf[k] <= 0:
+                        break
+                    s += acf[k]
+                tau = max(1.0, 1.0 + 2.0 * s)
+                signs = np.sign(r[r != 0])
+                n1, n2 = int(np.sum(signs > 0)), int(np.sum(signs < 0))
+                if n1 and n2:
+                    runs = 1 + int(np.sum(signs[1:] != signs[:-1]))
+                    mu = 2.0 * n1 * n2 / (n1 + n2) + 1.0
+                    var = (mu - 1.0) * (mu - 2.0) / (n1 + n2 - 1.0)
+                    z = (runs - mu) / np.sqrt(var) if var > 0 else 0.0
+                if rho1 > CORRELATED_SE / np.sqrt(m):
+                    correlated = True
+            worst = rho1 if worst is None else max(worst, rho1)
+            worst_z = z if worst_z is None else min(worst_z, z)
+            n_all += m
+            n_eff += m / tau
+    n_force = ev.n_points - n_all
+    inflation = (ev.n_points / (n_eff + n_force)) if correlated and n_eff > 0 else 1.0
+    return {"lag1_autocorrelation": worst, "runs_test_z": None if worst_z is None else float(worst_z), "correlated": correlated,
+            "effective_points": float(ev.n_points / inflation), "inflation": float(inflation),
+            "method": ("effective sample size: the covariance multiplied by the points over the effective "
+                       "independent ones (integrated autocorrelation time of each signal's residuals)"
+                       if correlated else "none: the residuals show no correlation in time")}
 
 
 def _bound_and_start_warnings(spec, ev, theta, starts, best, warnings) -> dict:
@@ -363,19 +503,6 @@ def _residual_warnings(spec, ev, runs, s2) -> list:
                    + ("the model does not fit the data to within the noise, or the noise is understated"
                       if s2 > 2 else "the noise is overstated")
                    + "; the intervals use the residual variance, not the stated noise")
-    worst = 0.0
-    for (t, rows, f), r in zip(ev.blocks, runs):
-        step = max(1, int(round(1.0 / f)))        # the trace's own samples, not interpolated ones
-        for s, meas, _ in rows:
-            d = (simulated(r, s) - meas)[::step]
-            d = d - d.mean()
-            den = float(d @ d)
-            if den > 0:
-                worst = max(worst, float(d[1:] @ d[:-1]) / den)
-    if worst > 0.5:
-        out.append(f"the residuals are correlated in time (lag-1 autocorrelation up to {worst:.2f}): the "
-                   "intervals assume independent errors and are then too narrow; look at the residual plots "
-                   "for what the model misses")
     return out
 
 
@@ -386,7 +513,7 @@ def profile_interval(ev: Evaluator, spec: FitSpec, theta, j: int, s_min: float, 
     s2, q = res["residual_variance"], res["quantile"]
     if not (np.isfinite(s2) and s2 > 0):
         return (float("nan"), float("nan"))
-    limit = q * q * s2
+    limit = q * q * s2 * res.get("residual_correlation", {}).get("inflation", 1.0)
     free = [k for k in range(len(theta)) if k != j]
     warm = {"theta": np.asarray(theta, dtype=float).copy()}
 

@@ -212,25 +212,30 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
             "std_si": res.std[j], "ci_low_si": res.ci_low[j], "ci_high_si": res.ci_high[j],
             "start_si": res.start_values[j], "min_si": prm.lower, "max_si": prm.upper,
             "on_bound": res.on_bound.get(prm.path), "in_parameter_file": prm.path not in left_out,
+            "identifiable": prm.path not in res.unidentifiable,
+            "unidentifiable_because": res.unidentifiable.get(prm.path),
+            "interval_method": res.interval_method[j] if res.interval_method else None,
         }
         if prm.path in res.profile:
             lo, hi = res.profile[prm.path]
             params[prm.path].update(profile_ci_low_si=lo, profile_ci_high_si=hi)
     exps = []
     for e, c in zip(spec.experiments, res.curves):
-        exps.append({"name": e.name, "trace": e.trace.path, "overrides_si": e.overrides,
+        exps.append({"name": e.name, "trace": _rel(e.trace.path, spec), "overrides_si": e.overrides,
+                     "commands": _rel(e.commands, spec) if e.commands else None,
+                     "command_delay_s": e.command_delay,
                      "trace_samples": int(e.trace.time.size), "trace_median_step_s": e.trace.median_step,
                      "model_points": int(c["t"].size),
                      "signals": {s: _signal_summary(res, e, s) for s in c["signals"]}})
     forces = []
     for ft, c in zip(spec.force_tables, res.force_curves):
-        forces.append({"name": ft.name, "table": ft.table.path, "muscle_type": ft.model.muscle_type,
+        forces.append({"name": ft.name, "table": _rel(ft.table.path, spec), "muscle_type": ft.model.muscle_type,
                        "rows": int(ft.table.force.size), "rows_left_out_negative_force": ft.table.dropped,
                        "columns": ft.table.columns, "noise_N": ft.noise, "relative_noise": ft.relative_noise,
                        "per_pressure": c["worst"],
                        "per_pressure_start": c["worst_before"]})
     return {
-        "fit_spec": spec.path, "date": date, "base_scenario": spec.base.name, "parameter_set": spec.base.parameters,
+        "fit_spec": Path(spec.path).name, "date": date, "base_scenario": spec.base.name, "parameter_set": spec.base.parameters,
         "parameters": params,
         "confidence": spec.confidence, "interval": spec.interval, "quantile": res.quantile,
         "independent_points": res.n_points, "degrees_of_freedom": res.dof,
@@ -242,6 +247,8 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
                                       "mean squared residual in units of each signal's stated noise, 1 kPa "
                                       "for a pressure without one (no noise was stated for it)"),
         "condition_number": res.condition_number,
+        "residual_correlation": res.residual_correlation,
+        "global_stage": res.global_stage,
         "correlation": {"paths": res.paths, "matrix": res.correlation.tolist()},
         "warnings": list(res.warnings),
         "experiments": exps,
@@ -252,6 +259,17 @@ def summary(res: FitResult, date: str, left_out: list) -> dict:
         "model_runs": res.model_runs, "wall_s": res.wall_s,
         "not_in_parameter_file": left_out,
     }
+
+
+def _rel(path, spec) -> str:
+    """An input file's path as the spec names it: relative to the spec's folder (POSIX slashes),
+    or absolute where it lies on another drive."""
+    import os
+    base = Path(spec.path).resolve().parent
+    try:
+        return Path(os.path.relpath(Path(path).resolve(), base)).as_posix()
+    except ValueError:
+        return str(path)
 
 
 def _signal_summary(res: FitResult, e, s: str) -> dict:

@@ -3,7 +3,8 @@
 ::
 
     scenario = "rig.toml"              # base scenario: a path (relative to this file) or shipped name
-    starts = 4                         # least-squares starts: the given start + Latin-hypercube points
+    starts = 4                         # least-squares starts: the given start + the best screened points
+    global_points = 20                 # the global stage: Latin-hypercube points screened (default 10 a parameter)
     seed = 1                           # seed of the Latin hypercube
     noise = "0.02 bar"                 # standard deviation of every pressure signal's noise
 
@@ -11,6 +12,8 @@
     name = "6 bar"                     # optional; default: the trace's file name
     trace = "trace-6bar.csv"           # relative to this file
     ignore_columns = ["hip_left angle [deg]"]
+    commands = "commands.csv"          # optional: replay a board's valve commands (frogsim.fit.replay)
+    command_delay = "0.14 ms"          # with commands: a sample to its valve write on the board
     overrides = { "source.initial_pressure_gauge" = "6 bar" }   # written with units
 
     [parameters]
@@ -56,8 +59,8 @@ from frogsim.scenario.load import load_scenario, read_toml
 from frogsim.scenario.units import to_si
 
 TOP_KEYS = ("scenario", "experiments", "force_tables", "parameters", "signals", "noise", "starts", "seed", "confidence",
-            "interval", "profile", "max_evaluations", "diff_step", "threads")
-EXPERIMENT_KEYS = ("name", "trace", "overrides", "ignore_columns")
+            "interval", "profile", "max_evaluations", "diff_step", "threads", "global_points")
+EXPERIMENT_KEYS = ("name", "trace", "overrides", "ignore_columns", "commands", "command_delay")
 FORCE_TABLE_KEYS = ("name", "table", "muscle", "noise", "relative_noise")
 PARAMETER_KEYS = ("min", "max", "start")
 SIGNAL_KEYS = ("noise", "weight")
@@ -88,6 +91,8 @@ class Experiment:
     scenario: Scenario
     trace: Trace
     overrides: dict            # dotted path -> SI value
+    commands: str | None = None  # the valve commands replayed (frogsim.fit.replay), or None: the closed loop
+    command_delay: float = 0.0   # [s] from a sample to its valve write on the board, added to the dead times
 
 
 @dataclass(frozen=True)
@@ -118,6 +123,7 @@ class FitSpec:
     max_evaluations: int = 200
     diff_step: float = 1e-3
     threads: int | None = None
+    global_points: int | None = None   # the global stage's Latin-hypercube points (None: 10 per parameter)
     force_tables: tuple = ()
     profile: tuple = ()        # parameter paths whose profile interval is computed as well
     notes: tuple = ()          # said with the fit's warnings: temperature columns left out
@@ -255,12 +261,36 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
                 raise ScenarioError(_where(fname, err.field), UNKNOWN, err.allowed)
         if not isinstance(e.get("trace"), str):
             raise ScenarioError(f"{where}.trace", e.get("trace", MISSING), "expected the path of a trace file")
-        over = _overrides(e.get("overrides", {}), base, f"{where}.overrides")
+        exp_base, commands = base, None
+        if "commands" in e:
+            if not isinstance(e["commands"], str):
+                raise ScenarioError(f"{where}.commands", e["commands"], "expected the path of a commands file "
+                                                                        "(commands.csv of frogsim sil or frogsim log)")
+            from frogsim.fit.replay import replayed
+            commands = str(base_dir / e["commands"])
+            if not Path(commands).is_file():
+                raise ScenarioError(f"{where}.commands", e["commands"], "no such file")
+            exp_base = replayed(base, commands)
+        delay = 0.0
+        if "command_delay" in e:
+            if commands is None:
+                raise ScenarioError(f"{where}.command_delay", e["command_delay"], "needs commands = ...: the delay is "
+                                                                                  "that of the replayed commands")
+            delay = to_si(e["command_delay"], "time", f"{where}.command_delay")
+            period = 1.0 / base.controller.rate
+            if not (math.isfinite(delay) and 0.0 <= delay < period):
+                raise ScenarioError(f"{where}.command_delay", e["command_delay"],
+                                    f"must lie from 0 to below the controller period ({period * 1e3:g} ms): a write "
+                                    "comes within its sample's period")
+            v = exp_base.valves
+            exp_base = exp_base.replace({"valves.charge.dead_time": v.charge.dead_time + delay,
+                                         "valves.discharge.dead_time": v.discharge.dead_time + delay})
+        over = _overrides(e.get("overrides", {}), exp_base, f"{where}.overrides")
         clash = sorted(set(over) & {q.path for q in parameters})
         if clash:
             raise ScenarioError(f"{where}.overrides.{clash[0]}", UNKNOWN, "is also fitted: set it in one place")
         try:
-            scenario = base.replace(over) if over else base
+            scenario = exp_base.replace(over) if over else exp_base
         except ScenarioError as exc:
             raise ScenarioError(f"{where}.overrides", UNKNOWN, str(exc)) from None
         ignore = e.get("ignore_columns", [])
@@ -272,7 +302,7 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
         if not isinstance(name, str) or name in names:
             raise ScenarioError(f"{where}.name", name, "expected a name used by no other experiment")
         names.add(name)
-        experiments.append(Experiment(name, scenario, trace, over))
+        experiments.append(Experiment(name, scenario, trace, over, commands, delay))
 
     force_tables = _force_tables(raw, base, base_dir, fname, names)
 
@@ -336,13 +366,16 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
         raise ScenarioError(_where(fname, "diff_step"), step,
                             "expected the finite-difference step as a fraction of each parameter's "
                             "range, from 1e-8 to 0.1")
+    gp = raw.get("global_points")
+    if gp is not None:
+        gp = _int(gp, "global_points", fname, 0, 100000)
     thr = raw.get("threads") if threads is None else threads
     if thr is not None:
         thr = _int(thr, "threads", fname, 1, 1024)
     return FitSpec(path=str(path), base=base, experiments=tuple(experiments), parameters=tuple(parameters),
                    noise=noise, weights=weights, noise_given=given, starts=starts_n, seed=seed,
                    confidence=float(conf), interval=interval, max_evaluations=max_eval,
-                   diff_step=float(step), threads=thr, force_tables=tuple(force_tables), profile=tuple(prof),
+                   diff_step=float(step), threads=thr, global_points=gp, force_tables=tuple(force_tables), profile=tuple(prof),
                    notes=tuple(notes))
 
 

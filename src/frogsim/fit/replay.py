@@ -1,0 +1,93 @@
+"""An experiment driven by the valve commands a board issued: an open-loop replay.
+
+A board's log of format 3 carries every valve command it issued (each record's valve histories,
+:func:`frogsim.export.serial_log.commands`); `frogsim sil` and `frogsim log` write them as
+``commands.csv`` beside ``serial.csv``::
+
+    time [s],"hip command [1 = charge, 0 = hold, -1 = vent]"
+    0,1
+    0.049,0
+
+one row where a command changes (a command holds until the next row). An experiment with
+``commands = "commands.csv"`` runs its scenario with those commands as each muscle's program (one
+step per change, at the sample's time k / rate: the model's valve schedule applies each valve's
+dead time to it, as it does to a compiled law's command at that sample) and without the
+scenario's controllers and ``[firmware]`` section. A parameter change then moves the pressures
+only, not the switching times: the fit's cost is smooth in the plant's parameters, where
+re-running the closed loop makes it a staircase (a rise ends one sample earlier or later).
+
+Refused in one line naming the file and column: a column that is no muscle of the scenario, a
+command other than -1, 0, 1, times not increasing or off the controller's sample grid, a
+controller left driving a muscle the file does not command.
+"""
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import numpy as np
+
+from frogsim.errors import ScenarioError
+from frogsim.scenario.tables import read_table, split_header
+
+COMMAND_UNIT = "1 = charge, 0 = hold, -1 = vent"
+STATE = {1: "charge", 0: "hold", -1: "vent"}
+
+
+def read_commands(path, scenario) -> dict:
+    """muscle -> [(time [s], state)], one step per change of a commands file (module docstring)."""
+    df = read_table(Path(path), "commands file")
+    where = f"commands file {Path(path).name}"
+    cols = list(df.columns)
+    name, unit = split_header(cols[0]) if cols else ("", "")
+    if not cols or name != "time" or unit != "s":
+        raise ScenarioError(f"{where}: {cols[0] if cols else '(no column)'}", "(first column)",
+                            "must be 'time [s]': the sample times k / rate")
+    t = df[cols[0]].to_numpy(dtype=float)
+    rate = float(scenario.controller.rate)
+    if len(t) < 1 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
+        raise ScenarioError(f"{where}: time [s]", "(not increasing)", "must increase from row to row")
+    k = np.rint(t * rate)
+    if np.any(np.abs(t * rate - k) > 1e-6):
+        bad = t[np.argmax(np.abs(t * rate - k))]
+        raise ScenarioError(f"{where}: time [s]", f"{bad!r}", f"must lie on the controller's sample grid (1/{rate:g} s): "
+                                                              "the log of a board at another rate")
+    out = {}
+    for col in cols[1:]:
+        name, unit = split_header(col)
+        muscle = name[:-len(" command")] if name.endswith(" command") else None
+        if muscle not in scenario.muscles or unit != COMMAND_UNIT:
+            raise ScenarioError(f"{where}: {col}", "(column)", f"must be '<muscle> command [{COMMAND_UNIT}]' "
+                                                               f"for a muscle of the scenario ({', '.join(scenario.muscles)})")
+        v = df[col].to_numpy(dtype=float)
+        if not np.all(np.isin(v, (-1.0, 0.0, 1.0))):
+            bad = v[~np.isin(v, (-1.0, 0.0, 1.0))][0]
+            raise ScenarioError(f"{where}: {col}", f"{bad!r}", "must be -1 (vent), 0 (hold) or 1 (charge)")
+        steps, last = [], None
+        for ti, vi in zip(k / rate, v.astype(int)):
+            if vi != last:
+                steps.append((float(ti), STATE[vi]))
+                last = vi
+        out[muscle] = steps
+    if not out:
+        raise ScenarioError(f"{where}", "(no command column)", f"needs a '<muscle> command [{COMMAND_UNIT}]' column")
+    return out
+
+
+def replayed(scenario, path):
+    """``scenario`` with the commands of ``path`` as its muscles' programs, its controllers and
+    ``[firmware]`` section left out (module docstring)."""
+    from frogsim.scenario.load import scenario_from_raw
+    steps = read_commands(path, scenario)
+    for cname, c in scenario.controllers.items():
+        left = [m for m in c.driven() if m not in steps]
+        if left:
+            raise ScenarioError(f"commands file {Path(path).name}", "(muscles)",
+                                f"has no column for {left[0]!r}, which controller {cname!r} drives: the replay "
+                                "takes every controlled muscle's commands from the log")
+    raw = copy.deepcopy(scenario.raw)
+    raw.pop("controllers", None)
+    raw.pop("firmware", None)
+    for m, st in steps.items():
+        raw["muscles"][m]["program"] = {"steps": [{"at": f"{t!r} s", "state": s} for t, s in st]}
+    return scenario_from_raw(raw, scenario.base_dir)
