@@ -304,7 +304,14 @@ class BoardRun:
         return {"executions": n, "busy": busy, "response": response,
                 "cpu_load_percent": stat(busy, 100.0 / P),
                 "response_us": stat(response, us),
-                "valve_write_latency_us": {**stat(latency, us), "samples_with_a_valve_change": int(wrote.sum())},
+                "valve_write_latency_us": {**stat(latency, us), "samples_with_a_valve_change": int(wrote.sum()),
+                                           # sample 0's conversion is the ADC's first (25 clocks, not 13):
+                                           # a replay of the log's commands takes the two apart
+                                           "first_sample": float(latency[0]) * us if wrote.size and wrote[0] else None,
+                                           "mean_after_the_first_sample": (float(latency[1:].mean()) * us
+                                                                           if wrote.size and wrote[0] and latency.size > 1
+                                                                           else float(latency.mean()) * us
+                                                                           if latency.size and not wrote[0] else None)},
                 "lag_behind_the_nominal_sample_us": stat(lag, us),
                 "samples_late": int((response > P).sum())}
 

@@ -49,8 +49,6 @@ from frogsim.fit.traces import information_factor, model_grid, simulated
 #: a lag-1 autocorrelation above this many of its standard errors (1/sqrt(n) for independent errors)
 #: makes the residuals correlated (residual_correlation)
 CORRELATED_SE = 3.0
-#: the settings a replayed experiment's command delay adds to (frogsim.fit.replay)
-DEAD_TIMES = ("valves.charge.dead_time", "valves.discharge.dead_time")
 #: the global stage's Latin-hypercube points per fitted parameter (FIT.toml global_points), and
 #: how many of them one batch runs
 GLOBAL_PER_PARAMETER = 10
@@ -120,12 +118,20 @@ class Evaluator:
         self.paths = [p.path for p in spec.parameters]
         self.lower = np.array([p.lower for p in spec.parameters])
         self.span = np.array([p.upper - p.lower for p in spec.parameters])
-        self.blocks = []       # per experiment: [(signal, measured, scale)]
+        self.blocks = []       # per experiment: (times, [(signal, measured, scale)], information factor)
+        self.at = []           # per experiment: the model grid's indices compared (None: all of them)
         self.n_points = 0.0
         for e in spec.experiments:
             t = model_grid(e.scenario)
-            meas = e.trace.resample(t)
             f = information_factor(e.trace, e.scenario)
+            at = on_grid(e.trace, t) if f < 1.0 else None
+            if at is not None:              # a coarse trace whose samples are grid points: compared there only
+                inside = e.trace.time <= t[-1] + 1e-12
+                meas = {s_: v[inside] for s_, v in e.trace.signals.items()}
+                t, f = t[at], 1.0
+            else:
+                meas = e.trace.resample(t)
+            self.at.append(at)
             rows = []
             for s in sorted(meas):
                 scale = spec.weights[s] * np.sqrt(f) / spec.noise[s]
@@ -160,11 +166,7 @@ class Evaluator:
             scen_points = [{p: pt[p] for p in self.scenario_paths} for pt in points]
             models = []
             for e in self.spec.experiments:
-                pts = scen_points
-                if e.command_delay:        # a fitted dead time is the valve's: the board's write delay added
-                    pts = [{p: v + (e.command_delay if p in DEAD_TIMES else 0.0) for p, v in pt.items()}
-                           for pt in scen_points]
-                models.extend(build_models(e.scenario, pts))
+                models.extend(build_models(e.scenario, scen_points))
             runs = run_models(models, threads=self.threads)
             with self._lock:
                 self.model_runs += len(models)
@@ -173,9 +175,10 @@ class Evaluator:
 
     def residual(self, runs) -> np.ndarray:
         parts = []
-        for (t, rows, _), r in zip(self.blocks, runs):
+        for (t, rows, _), at, r in zip(self.blocks, self.at, runs):
             for s, meas, scale in rows:
-                parts.append(scale * (simulated(r, s) - meas))
+                sim = simulated(r, s)
+                parts.append(scale * ((sim if at is None else sim[at]) - meas))
         for ft, forces in zip(self.spec.force_tables, runs[len(self.blocks):]):
             parts.append((forces - ft.table.force) / ft.sigma)
         return np.concatenate(parts)
@@ -211,6 +214,23 @@ class Evaluator:
               [np.where(np.arange(p) == j, down[j], theta) for j in range(p)]
         fs = self.residuals(pts)
         return ((fs[:p] - fs[p:]) / (up - down)[:, None]).T
+
+
+def on_grid(trace, grid) -> np.ndarray | None:
+    """The indices of the model grid ``grid`` at the trace's samples (those within the run), if
+    every one of them is a grid point (a board's log: every log_every-th sample of the controller,
+    on the output grid): the fit then compares the model with the trace at the trace's own samples,
+    not with the trace interpolated between them (which would put a line through the valve pulses a
+    coarse log steps over). None if some sample lies between grid points."""
+    tt = trace.time[trace.time <= grid[-1] + 1e-12]
+    if tt.size < 2:
+        return None
+    k = np.searchsorted(grid, tt - 1e-9)
+    k = np.minimum(k, grid.size - 1)
+    tol = 1e-6 * (grid[1] - grid[0]) if grid.size > 1 else 1e-12
+    if np.all(np.abs(grid[k] - tt) <= tol):
+        return k
+    return None
 
 
 def _least_squares(ev: Evaluator, theta0, spec: FitSpec, bar) -> Start:
@@ -299,10 +319,12 @@ def fit_spec(spec: FitSpec, progress: bool = False) -> FitResult:
     res["warnings"] += _residual_warnings(spec, ev, after_runs, res["residual_variance"])
     res["warnings"] += list(spec.notes)
     curves, rms_after, rms_before = [], {}, {}
-    for e, (t, rows, _), rb, ra in zip(spec.experiments, ev.blocks, before_runs, after_runs):
+    for e, (t, rows, _), at, rb, ra in zip(spec.experiments, ev.blocks, ev.at, before_runs, after_runs):
         c = {"name": e.name, "t": t, "signals": {}}
         for s, meas, _ in rows:
             sb, sa = simulated(rb, s), simulated(ra, s)
+            if at is not None:
+                sb, sa = sb[at], sa[at]
             c["signals"][s] = {"measured": meas, "before": sb, "after": sa}
             rms_after[(e.name, s)] = float(np.sqrt(np.mean((sa - meas) ** 2)))
             rms_before[(e.name, s)] = float(np.sqrt(np.mean((sb - meas) ** 2)))

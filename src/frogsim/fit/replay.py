@@ -10,9 +10,13 @@ A board's log of format 3 carries every valve command it issued (each record's v
 
 one row where a command changes (a command holds until the next row). An experiment with
 ``commands = "commands.csv"`` runs its scenario with those commands as each muscle's program (one
-step per change, at the sample's time k / rate: the model's valve schedule applies each valve's
-dead time to it, as it does to a compiled law's command at that sample) and without the
-scenario's controllers and ``[firmware]`` section. A parameter change then moves the pressures
+step per change) and without the scenario's controllers and ``[firmware]`` section. Each step
+comes at its sample's time k / rate plus the board's delay from the sample to the valve write
+(``command_delay``: the conversions and the law run first; sample 0's is longer, the ADC's first
+conversion taking 25 clocks instead of 13), and the model's valve schedule adds each valve's dead
+time, as it does to a compiled law's command. So that a step can fall between two samples, the
+replay's program runs at a multiple of the controller rate (:data:`FINE_RATE` at most: a step's
+time is good to 1/(that rate), 20 µs at 1 kHz). A parameter change then moves the pressures
 only, not the switching times: the fit's cost is smooth in the plant's parameters, where
 re-running the closed loop makes it a staircase (a rise ends one sample earlier or later).
 
@@ -32,6 +36,8 @@ from frogsim.scenario.tables import read_table, split_header
 
 COMMAND_UNIT = "1 = charge, 0 = hold, -1 = vent"
 STATE = {1: "charge", 0: "hold", -1: "vent"}
+#: [Hz] the highest rate the replay's program steps are placed on (a whole multiple of the rate)
+FINE_RATE = 50e3
 
 
 def read_commands(path, scenario) -> dict:
@@ -74,9 +80,10 @@ def read_commands(path, scenario) -> dict:
     return out
 
 
-def replayed(scenario, path):
-    """``scenario`` with the commands of ``path`` as its muscles' programs, its controllers and
-    ``[firmware]`` section left out (module docstring)."""
+def replayed(scenario, path, delay: tuple = (0.0, 0.0)):
+    """``scenario`` with the commands of ``path`` as its muscles' programs, each step ``delay``
+    [s] after its sample (sample 0's, the later samples'), its controllers and ``[firmware]``
+    section left out (module docstring)."""
     from frogsim.scenario.load import scenario_from_raw
     steps = read_commands(path, scenario)
     for cname, c in scenario.controllers.items():
@@ -85,9 +92,15 @@ def replayed(scenario, path):
             raise ScenarioError(f"commands file {Path(path).name}", "(muscles)",
                                 f"has no column for {left[0]!r}, which controller {cname!r} drives: the replay "
                                 "takes every controlled muscle's commands from the log")
+    rate = float(scenario.controller.rate)
+    fine = rate * max(1, int(FINE_RATE // rate))
     raw = copy.deepcopy(scenario.raw)
     raw.pop("controllers", None)
     raw.pop("firmware", None)
+    raw["controller"] = dict(raw.get("controller", {}), rate=f"{fine!r} Hz")
     for m, st in steps.items():
-        raw["muscles"][m]["program"] = {"steps": [{"at": f"{t!r} s", "state": s} for t, s in st]}
+        at = [t + (delay[0] if t == 0.0 else delay[1]) for t, _ in st]
+        # on the fine grid, rounded to its nearest point (a step is issued at the first point at or after it)
+        at = [round(a * fine) / fine for a in at]
+        raw["muscles"][m]["program"] = {"steps": [{"at": f"{a!r} s", "state": s} for a, (_, s) in zip(at, st)]}
     return scenario_from_raw(raw, scenario.base_dir)

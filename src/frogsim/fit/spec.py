@@ -13,7 +13,8 @@
     trace = "trace-6bar.csv"           # relative to this file
     ignore_columns = ["hip_left angle [deg]"]
     commands = "commands.csv"          # optional: replay a board's valve commands (frogsim.fit.replay)
-    command_delay = "0.14 ms"          # with commands: a sample to its valve write on the board
+    command_delay = ["0.22 ms", "0.12 ms"]   # with commands: a sample to its valve write on the board
+                                       # (sample 0's, the later samples'; one time: both)
     overrides = { "source.initial_pressure_gauge" = "6 bar" }   # written with units
 
     [parameters]
@@ -92,7 +93,7 @@ class Experiment:
     trace: Trace
     overrides: dict            # dotted path -> SI value
     commands: str | None = None  # the valve commands replayed (frogsim.fit.replay), or None: the closed loop
-    command_delay: float = 0.0   # [s] from a sample to its valve write on the board, added to the dead times
+    command_delay: tuple = (0.0, 0.0)  # [s] from a sample to its valve writes on the board: sample 0's, the others'
 
 
 @dataclass(frozen=True)
@@ -266,25 +267,18 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
             if not isinstance(e["commands"], str):
                 raise ScenarioError(f"{where}.commands", e["commands"], "expected the path of a commands file "
                                                                         "(commands.csv of frogsim sil or frogsim log)")
-            from frogsim.fit.replay import replayed
             commands = str(base_dir / e["commands"])
             if not Path(commands).is_file():
                 raise ScenarioError(f"{where}.commands", e["commands"], "no such file")
-            exp_base = replayed(base, commands)
-        delay = 0.0
+        delay = (0.0, 0.0)
         if "command_delay" in e:
             if commands is None:
                 raise ScenarioError(f"{where}.command_delay", e["command_delay"], "needs commands = ...: the delay is "
                                                                                   "that of the replayed commands")
-            delay = to_si(e["command_delay"], "time", f"{where}.command_delay")
-            period = 1.0 / base.controller.rate
-            if not (math.isfinite(delay) and 0.0 <= delay < period):
-                raise ScenarioError(f"{where}.command_delay", e["command_delay"],
-                                    f"must lie from 0 to below the controller period ({period * 1e3:g} ms): a write "
-                                    "comes within its sample's period")
-            v = exp_base.valves
-            exp_base = exp_base.replace({"valves.charge.dead_time": v.charge.dead_time + delay,
-                                         "valves.discharge.dead_time": v.discharge.dead_time + delay})
+            delay = _command_delay(e["command_delay"], base, f"{where}.command_delay")
+        if commands is not None:
+            from frogsim.fit.replay import replayed
+            exp_base = replayed(base, commands, delay)
         over = _overrides(e.get("overrides", {}), exp_base, f"{where}.overrides")
         clash = sorted(set(over) & {q.path for q in parameters})
         if clash:
@@ -377,6 +371,24 @@ def load_fit_spec(source, *, starts: int | None = None, threads: int | None = No
                    confidence=float(conf), interval=interval, max_evaluations=max_eval,
                    diff_step=float(step), threads=thr, global_points=gp, force_tables=tuple(force_tables), profile=tuple(prof),
                    notes=tuple(notes))
+
+
+def _command_delay(raw, base: Scenario, where: str) -> tuple:
+    """(sample 0's, the later samples') delay [s] from a sample to its valve write: one time for
+    both, or a list of two; each from 0 to below the controller period."""
+    items = raw if isinstance(raw, list) else [raw, raw]
+    if len(items) != 2:
+        raise ScenarioError(where, raw, 'expected a time ("0.12 ms") or two (["0.22 ms", "0.12 ms"]: sample 0\'s, '
+                                        "the later samples')")
+    period = 1.0 / base.controller.rate
+    out = []
+    for x in items:
+        d = to_si(x, "time", where)
+        if not (math.isfinite(d) and 0.0 <= d < period):
+            raise ScenarioError(where, x, f"must lie from 0 to below the controller period ({period * 1e3:g} ms): a "
+                                          "write comes within its sample's period")
+        out.append(d)
+    return tuple(out)
 
 
 def _without_unnoised_temperatures(trace: Trace, signals_raw, notes: list) -> Trace:
