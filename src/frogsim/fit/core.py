@@ -357,6 +357,7 @@ def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
     autocorrelation (:func:`residual_correlation`); an interval that would leave the parameter's
     bounds computed on the logit of its place between them."""
     from scipy import stats
+    from scipy.special import expit
     p = len(theta)
     n = ev.n_points
     dof = n - p
@@ -366,8 +367,6 @@ def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
     norms = np.linalg.norm(J, axis=0)
     safe = np.where(norms > 0, norms, 1.0)
     Jn = J / safe
-    sv = np.linalg.svd(Jn, compute_uv=False)
-    cond = float((sv[0] / sv[-1]) ** 2) if sv[-1] > 0 else float("inf")
     verdict = {}
     for j in range(p):
         if not norms[j] > 0:
@@ -375,9 +374,12 @@ def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
             warnings.append(f"{paths[j]} has no effect on the measured signals or forces: it cannot be fitted from "
                             "them (unidentifiable; the other parameters' intervals do not depend on it)")
     keep = [j for j in range(p) if j not in verdict]
+    # the condition number of the parameters that have an effect (those without one are said so above)
+    sv = np.linalg.svd(Jn[:, keep], compute_uv=False) if keep else np.ones(1)
+    cond = float((sv[0] / sv[-1]) ** 2) if sv[-1] > 0 else float("inf")
     if cond > CONDITION_LIMIT:
-        v = np.linalg.svd(Jn)[2][-1]            # the direction the data do not see
-        involved = [paths[j] for j in range(p) if abs(v[j]) > 0.2 * np.abs(v).max() and j in keep]
+        v = np.linalg.svd(Jn[:, keep])[2][-1]            # the direction the data do not see
+        involved = [paths[keep[i]] for i in range(len(keep)) if abs(v[i]) > 0.2 * np.abs(v).max()]
         extra = ("no interval can be given for the parameters said unidentifiable" if cond > SINGULAR_LIMIT
                  else "the intervals are unreliable")
         warnings.append(f"J^T J is near-singular (condition number {cond:.3g} after scaling its columns, "
@@ -435,8 +437,8 @@ def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
         if BOUND_TOLERANCE < t < 1 - BOUND_TOLERANCE:
             su = std[j] / ev.span[j] / (t * (1 - t))         # the logit's standard error
             u = np.log(t / (1 - t))
-            lo[j] = ev.lower[j] + ev.span[j] / (1 + np.exp(-(u - q * su)))
-            hi[j] = ev.lower[j] + ev.span[j] / (1 + np.exp(-(u + q * su)))
+            lo[j] = ev.lower[j] + ev.span[j] * expit(u - q * su)
+            hi[j] = ev.lower[j] + ev.span[j] * expit(u + q * su)
             how[j] = "logit of the place between min and max (the linearised interval left them)"
         else:
             lo[j], hi[j] = max(lo[j], spec.parameters[j].lower), min(hi[j], spec.parameters[j].upper)
@@ -454,11 +456,14 @@ def residual_correlation(ev: Evaluator, f) -> dict:
     tau_b = 1 + 2 sum rho_k of each signal (the initial positive sequence: summed up to the first
     lag whose rho is not positive; the residuals not centred, their mean being 0 under the model). The
     residuals count as correlated when a signal's lag-1 autocorrelation exceeds 3/sqrt(its samples)
-    (three times its standard error for independent errors: 0.1 % false alarms); then ``inflation`` = n / sum(n_b / tau_b), the points over the
+    (three times its standard error for independent errors: 0.1 % false alarms) or its runs test's
+    z is below -3; then ``inflation`` = n / sum(n_b / tau_b), the points over the
     effective independent ones, by which the covariance is multiplied (an AR(1) error of lag-1
     autocorrelation rho gives (1 + rho)/(1 - rho)), else 1. A force table's rows are not a time
-    series: they count as independent. The runs test is reported beside, not acted on (a run of tiny
-    residuals of one sign is no error worth widening for)."""
+    series: they count as independent. The runs test sees what the autocorrelation misses when a
+    few large residuals (a fast rise) dominate its sums and long stretches of small ones keep their
+    sign (a converter's step held while the pressure holds): with z below -3 the signal counts as
+    many independent points as it has runs, tau_b at least the expected runs over the runs seen."""
     pos, worst, worst_z, n_all, n_eff, correlated = 0, None, None, 0.0, 0.0, False
     for (t, rows, fe) in ev.blocks:
         step = max(1, int(round(1.0 / fe)))
@@ -485,7 +490,9 @@ def residual_correlation(ev: Evaluator, f) -> dict:
                     mu = 2.0 * n1 * n2 / (n1 + n2) + 1.0
                     var = (mu - 1.0) * (mu - 2.0) / (n1 + n2 - 1.0)
                     z = (runs - mu) / np.sqrt(var) if var > 0 else 0.0
-                if rho1 > CORRELATED_SE / np.sqrt(m):
+                    if z < -CORRELATED_SE:       # long runs of one sign: as many independent points as runs
+                        tau = max(tau, mu / runs)
+                if rho1 > CORRELATED_SE / np.sqrt(m) or z < -CORRELATED_SE:
                     correlated = True
             worst = rho1 if worst is None else max(worst, rho1)
             worst_z = z if worst_z is None else min(worst_z, z)
@@ -496,7 +503,8 @@ def residual_correlation(ev: Evaluator, f) -> dict:
     return {"lag1_autocorrelation": worst, "runs_test_z": None if worst_z is None else float(worst_z), "correlated": correlated,
             "effective_points": float(ev.n_points / inflation), "inflation": float(inflation),
             "method": ("effective sample size: the covariance multiplied by the points over the effective "
-                       "independent ones (integrated autocorrelation time of each signal's residuals)"
+                       "independent ones (each signal's integrated autocorrelation time, or its expected "
+                       "over its observed runs of one sign where the runs test finds too few)"
                        if correlated else "none: the residuals show no correlation in time")}
 
 
