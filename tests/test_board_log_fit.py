@@ -147,6 +147,13 @@ def test_the_intervals_cover_the_truth_over_20_board_logs(hold):
                 covered[p] += int(res.ci_low[j] <= truth[p] <= res.ci_high[j])
     print("coverage of the 95 % intervals in 20 board logs:", covered)
     assert all(n >= 17 for n in covered.values()), covered
+    # docs/firmware.md quotes these counts
+    import re
+    page = " ".join((ROOT / "docs" / "firmware.md").read_text().split())
+    m = re.search(r"the 95 % intervals held the truth (\d+) and (\d+) times in 20 \(C, b fitted together\) and "
+                  r"(\d+) times \(the dead volume alone\)", page)
+    assert m, "docs/firmware.md no longer quotes the 20 board logs' coverage"
+    assert [str(covered[p]) for p in (C_PATH, B_PATH, V_PATH)] == list(m.groups())
 
 
 @pytest.mark.slow
