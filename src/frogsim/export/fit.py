@@ -15,7 +15,7 @@ Two sources for the interrupt's cycles:
   loop's runs :data:`JOINT_HOLD_CYCLES`, a joint's second law following the first's run
   :data:`JOINT_FOLLOW_CYCLES`; each with :data:`LAW_OVERHEAD_CYCLES`), each law starting when its
   channels are converted, the ADC's interrupts (:data:`ADC_INTERRUPT_CYCLES`) taken from them; the runtime's
-  own work (:data:`RUNTIME_CYCLES`, :data:`VALVE_CYCLES`), and the log's formatting and sending
+  own work (:data:`RUNTIME_CYCLES`, :data:`VALVE_CYCLES`, :data:`HISTORY_CYCLES`), and the log's formatting and sending
   (:data:`FORMAT_CYCLES_PER_DIGIT`, :data:`UART_CYCLES_PER_BYTE`) at its rate.
 
 A plan fits when the interrupt's worst case plus the log's share is at most the period
@@ -51,6 +51,10 @@ LAW_OVERHEAD_CYCLES = 100
 RUNTIME_CYCLES = 300
 #: per muscle: its two valve pins written (closing first, then opening) and its bits in a record
 VALVE_CYCLES = 16
+#: per muscle: its command shifted into its 32-bit valve history each sample, the history copied into
+#: a record (log format 3); measured: the interrupt's worst case of tests/firmware/every-kind.toml
+#: (five muscles) grew by 507 cycles with the histories, hold-3bar's (one muscle) by 54
+HISTORY_CYCLES = 100
 #: loop()'s decimal formatting: about nine subtractions of a power of ten a digit
 FORMAT_CYCLES_PER_DIGIT = 90
 #: HardwareSerial's data-register-empty interrupt, one a byte sent
@@ -114,7 +118,7 @@ def estimate(plan, line_bytes: int) -> dict:
         t = max(t + n_analog * ADC_INTERRUPT_CYCLES, chain)
         if t >= worst:
             worst, worst_laws = t, total
-    interrupt = RUNTIME_CYCLES + worst + VALVE_CYCLES * len(plan.muscles)
+    interrupt = RUNTIME_CYCLES + worst + (VALVE_CYCLES + HISTORY_CYCLES) * len(plan.muscles)
     log_rate = plan.rate / plan.log_every
     log_cycles_per_s = log_rate * line_bytes * (FORMAT_CYCLES_PER_DIGIT + UART_CYCLES_PER_BYTE)
     return {"method": "estimate", "period_cycles": int(plan.period_cycles), "interrupt_max_cycles": int(interrupt),
