@@ -108,14 +108,20 @@ def test_a_format_2_log_against_a_format_3_plan_is_refused_by_name():
 
 
 def test_the_history_is_as_long_as_the_plan_says(tmp_path):
-    """firmware.json's history_samples is min(log_every, 16); another value is refused."""
+    """firmware.json's history_samples is log_every up to 16; above, 0: the records have no history
+    fields (a uint32 holds 16 samples: such a log could not carry every command) and the log says
+    it carries no commands; another value is refused."""
     from frogsim.export.serial_log import spec_of
     with pytest.raises(ScenarioError, match="history_samples"):
         spec_of(REC | {"history_samples": 9})
-    assert spec_of(REC | {"log_every": 40, "history_samples": 16}).history == 16
-    log = parse_log(HEADER.replace(b"log_every=10", b"log_every=40") + lines((0, 300, 1, 0, 0, 0, 1)),
-                    REC | {"log_every": 40, "history_samples": 16})
-    assert "holds the last 16 samples only" in commands_missing(log, REC | {"log_every": 40, "history_samples": 16})
+    rec40 = REC | {"log_every": 40, "history_samples": 0}
+    assert spec_of(rec40).history == 0 and spec_of(rec40).width == 6
+    with pytest.raises(ScenarioError, match="history_samples"):
+        spec_of(REC | {"log_every": 40, "history_samples": 16})
+    log = parse_log(HEADER.replace(b"log_every=10", b"log_every=40") + lines((0, 300, 1, 0, 0, 0), (40, 300, 1, 0, 0, 0)),
+                    rec40)
+    assert len(log.records) == 2 and log.bad == 0
+    assert "16 samples at most" in commands_missing(log, rec40)
 
 
 def _replay_files(tmp_path, modes):

@@ -415,7 +415,8 @@ def _firmware_fit(args, plan, sc, export):
     if not args.build:
         n_enc = sum(1 for ch in plan.channels if getattr(ch, "pins", ()))
         line = log_line_bytes(len(plan.channels), len(plan.muscles), command_sample(sc.duration, plan.rate),
-                              plan.adc.bits, n_encoders=n_enc, log_every=plan.log_every)
+                              plan.adc.bits, n_encoders=n_enc,
+                              log_every=plan.log_every if sketch.history_samples(plan) else 10 ** 9)
         return fitting.check_fit(fitting.estimate(plan, line), plan, args.allow_overrun), None
     from frogsim.export.emulator import check_tools
     from frogsim.export.sil import interrupt_timing
@@ -616,7 +617,8 @@ def _carries_commands(rec: dict | None) -> bool:
     """Whether a firmware's log can carry every valve command (format 3, a history as long as
     log_every): commands.csv is then written beside serial.csv."""
     from frogsim.export.serial_log import HISTORY_MAX
-    return bool(rec) and rec.get("format", 0) >= 3 and int(rec["log_every"]) <= HISTORY_MAX
+    return bool(rec) and rec.get("format", 0) >= 3 and int(rec["log_every"]) <= HISTORY_MAX and \
+        rec.get("history_samples", 1) > 0
 
 
 def _write_commands(out, log, rec, last_sample=None) -> None:

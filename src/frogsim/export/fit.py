@@ -118,7 +118,9 @@ def estimate(plan, line_bytes: int) -> dict:
         t = max(t + n_analog * ADC_INTERRUPT_CYCLES, chain)
         if t >= worst:
             worst, worst_laws = t, total
-    interrupt = RUNTIME_CYCLES + worst + (VALVE_CYCLES + HISTORY_CYCLES) * len(plan.muscles)
+    from frogsim.export.sketch import history_samples
+    history = HISTORY_CYCLES if history_samples(plan) else 0
+    interrupt = RUNTIME_CYCLES + worst + (VALVE_CYCLES + history) * len(plan.muscles)
     log_rate = plan.rate / plan.log_every
     log_cycles_per_s = log_rate * line_bytes * (FORMAT_CYCLES_PER_DIGIT + UART_CYCLES_PER_BYTE)
     return {"method": "estimate", "period_cycles": int(plan.period_cycles), "interrupt_max_cycles": int(interrupt),

@@ -13,7 +13,8 @@ record: the sample index k (a multiple of log_every, since the first record is k
 channel's count, the valve bits (bit 2j: muscle j's charge valve, 2j+1 its discharge valve), the
 fault bits (bit i: channel i was read in fault), and the firmware's overrun and dropped-record
 counters (uint16, saturating at 65535), and each muscle's valve history: its commands at the
-samples k - i, i = 0 .. H - 1 (H = min(log_every, 16), firmware.json's ``history_samples``) in
+samples k - i, i = 0 .. H - 1 (H = log_every up to 16, firmware.json's ``history_samples``; above
+16 H = 0 and the records have no history fields) in
 bits 2i, 2i + 1 (1 charge, 2 vent, 0 hold), so that the log carries every command the board issued
 although it is written every log_every samples (:func:`commands`). Format 2 (the same without the
 histories) is still read. Format 1 (the older firmware: ``k,counts,valvebits,
@@ -151,7 +152,7 @@ class _Spec:
 
     @property
     def width(self) -> int:
-        return 1 + len(self.ranges) + (4 if self.format >= 2 else 2) + (self.muscles if self.format >= 3 else 0)
+        return 1 + len(self.ranges) + (4 if self.format >= 2 else 2) + (self.muscles if self.history else 0)
 
 
 def _positive_int(value) -> bool:
@@ -208,10 +209,10 @@ def spec_of(plan: dict) -> _Spec:
         ranges.append(tuple(r))
     history = 0
     if fmt >= 3:
-        history = plan.get("history_samples", min(every, HISTORY_MAX))
-        if not (_positive_int(history) and history == min(every, HISTORY_MAX)):
+        history = plan.get("history_samples", every if every <= HISTORY_MAX else 0)
+        if not (_whole(history) and history in ((0, every) if every <= HISTORY_MAX else (0,))):
             raise ScenarioError("firmware.json history_samples", history,
-                                f"min(log_every, {HISTORY_MAX}) = {min(every, HISTORY_MAX)}")
+                                f"0, or log_every ({every}) when it is {HISTORY_MAX} at most")
     return _Spec(int(fmt), tuple(ranges), len(muscles), every, history)
 
 
@@ -349,7 +350,7 @@ def _record(log: Log, spec: _Spec, line: str) -> str | None:
         faults, overruns, dropped = v[2 + n_ch:5 + n_ch]
         if faults >= 1 << n_ch:
             return "faultbits_out_of_range"
-        if spec.format >= 3:
+        if spec.history:
             for j, h in enumerate(v[5 + n_ch:]):
                 if h >= 4**spec.history or any((h >> (2 * i)) & 3 == 3 for i in range(spec.history)):
                     return "history_out_of_range"
@@ -526,9 +527,13 @@ def commands_missing(log: Log, rec: dict) -> str | None:
         return (f"the log is format {log.format or rec.get('format')}: its records carry the valve bits of "
                 "every log_every-th sample only (format 3 carries each muscle's history; export and flash the "
                 "firmware again)")
+    if (rec.get("history_samples") == 0 and every is not None and every <= HISTORY_MAX):
+        return ("the firmware logs no valve histories: its baud rate cannot carry the longer lines at this log "
+                "rate (raise firmware.baud)")
     if every is None or every > HISTORY_MAX:
-        return (f"a record every {every} samples: its valve history holds the last {HISTORY_MAX} samples only "
-                f"(a log rate of at least controller rate / {HISTORY_MAX} carries every command)")
+        return (f"a record every {every} samples: the firmware logs valve histories for a record every "
+                f"{HISTORY_MAX} samples at most (a log rate of at least the controller rate / {HISTORY_MAX} "
+                "carries every command)")
     if not log.records:
         return "no records"
     gaps = log.missing_from_k_gaps

@@ -34,7 +34,9 @@ The runtime. Timer1 in CTC mode (WGM12) with the smallest prescaler whose compar
 6. shifts each muscle's command into its valve history (a uint32 per muscle, two bits a sample:
    1 charge, 2 vent, 0 hold; the newest sample in the lowest bits), and every ``log_every``
    samples copies (k, counts, valve bits, fault bits, the overrun and dropped counters, each
-   muscle's history of the last min(log_every, 16) samples) into a ring of records; a record that
+   muscle's history of the last log_every samples; none when log_every is above 16, a history
+   that could not carry every command, or when the baud rate cannot carry the longer lines:
+   :func:`history_samples`) into a ring of records; a record that
    finds the ring full is counted in the dropped counter, which the next record carries;
 7. unmasks its interrupt (interrupts off), counts an overrun when Timer1's compare flag OCF1A is
    already set again (the next period began before this one's work ended; the flag is cleared
@@ -76,16 +78,32 @@ TIMER1_PRESCALERS = ((1, 0b001), (8, 0b010), (64, 0b011), (256, 0b100), (1024, 0
 AVAILABLE_FLASH = board.FLASH_BYTES - board.BOOTLOADER_BYTES
 
 
-def history_samples(log_every: int) -> int:
-    """The samples a record's valve history holds: the ``log_every`` since the last record, at most
-    :data:`HISTORY_MAX` (a log written more rarely than every 16 samples does not carry every
-    command: :func:`frogsim.export.serial_log.commands` says so)."""
-    return min(int(log_every), HISTORY_MAX)
+def history_samples(plan) -> int:
+    """The samples a record's valve history holds: the ``log_every`` since the last record; 0 (no
+    history fields) for a log written more rarely than every :data:`HISTORY_MAX` samples, whose
+    records could not carry every command, or one whose lines with the histories the baud rate
+    could not carry (the longest line, k of 10 digits, :func:`frogsim.scenario.firmware.
+    log_line_bytes`): the firmware then logs as before, and
+    :func:`frogsim.export.serial_log.commands_missing` says why the log carries no commands.
+    ``plan``: a FirmwarePlan or firmware.json's record."""
+    from frogsim.scenario.firmware import log_line_bytes
+    if isinstance(plan, dict):
+        every, rate, baud = int(plan["log_every"]), float(plan["rate_hz"]), int(plan["baud"])
+        n_ch, n_m, bits = len(plan["channels"]), len(plan["muscles"]), int(plan["adc"]["bits"])
+        n_enc = sum(1 for ch in plan["channels"] if "analog_input" not in ch)
+    else:
+        every, rate, baud = int(plan.log_every), float(plan.rate), int(plan.baud)
+        n_ch, n_m, bits = len(plan.channels), len(plan.muscles), int(plan.adc.bits)
+        n_enc = sum(1 for ch in plan.channels if getattr(ch, "pins", ()))
+    if every > HISTORY_MAX:
+        return 0
+    line = log_line_bytes(n_ch, n_m, 2 ** 32 - 1, bits, n_encoders=n_enc, log_every=every)
+    return every if line * rate / every <= baud / 10.0 else 0
 
 
-def history_mask(log_every: int) -> int:
-    """The bits of a record's valve history: two a sample (:func:`history_samples`)."""
-    return 4 ** history_samples(log_every) - 1
+def history_mask(samples: int) -> int:
+    """The bits of a record's valve history of ``samples`` samples: two a sample."""
+    return 4 ** int(samples) - 1
 
 
 def timer1_setting(period_cycles: int) -> tuple[int, int, int]:
@@ -152,7 +170,7 @@ def plan_record(plan) -> dict:
         "log_every": int(plan.log_every),
         "log_line": LOG_FORMAT,
         "valve_bits": "bit 2j: charge valve of muscles[j], bit 2j+1: its discharge valve",
-        "history_samples": history_samples(plan.log_every),
+        "history_samples": history_samples(plan),
         "valve_history": "history_j: muscles[j]'s command at sample k - i in bits 2i, 2i+1 (1 charge, 2 vent, "
                          "0 hold), i = 0 .. history_samples - 1",
     }
@@ -209,8 +227,9 @@ def board_header(plan) -> str:
         f"#define FS_ADC_BITS {int(plan.adc.bits)}",
         f"#define FS_BAUD {int(plan.baud)}UL",
         f"#define FS_LOG_EVERY {int(plan.log_every)}UL",
-        f"#define FS_HISTORY_MASK 0x{history_mask(int(plan.log_every)):X}UL  /* two bits a sample, the last "
-        f"{min(int(plan.log_every), HISTORY_MAX)} samples */",
+        f"#define FS_HISTORY {1 if history_samples(plan) else 0}  /* valve histories in the records */",
+        f"#define FS_HISTORY_MASK 0x{history_mask(history_samples(plan)):X}UL  /* two bits a sample, the last "
+        f"{history_samples(plan)} samples */",
         f"#define FS_RING {RING_RECORDS}",
         "",
         f"/* busy pin D{busy.number} = P{busy.port}{busy.bit} */",
@@ -353,7 +372,9 @@ struct fs_record {{
     uint32_t faults;
     uint16_t overruns;
     uint16_t dropped;
+#if FS_HISTORY
     uint32_t history[FS_MUSCLES > 0 ? FS_MUSCLES : 1];
+#endif
 }};
 
 /* not static, C names: software in the loop reads them from the emulated RAM by symbol */
@@ -365,7 +386,9 @@ uint16_t fs_adc[FS_CHANNELS > 0 ? FS_CHANNELS : 1];   /* the counts of the last 
 volatile uint8_t fs_head = 0, fs_tail = 0;  /* the record ring: the ISR writes at head, loop() reads at tail */
 }}
 static int8_t fs_modes[FS_MUSCLES];
+#if FS_HISTORY
 static uint32_t fs_history[FS_MUSCLES > 0 ? FS_MUSCLES : 1];  /* each muscle's commands, 2 bits a sample */
+#endif
 static uint32_t fs_log_count = 0;
 static struct fs_record fs_ring[FS_RING];
 
@@ -417,8 +440,10 @@ ISR(TIMER1_COMPA_vect) {{
     __asm__ __volatile__("" ::: "memory");
 #endif
     fs_write_valves(fs_modes);
+#if FS_HISTORY
     for (uint8_t j = 0; j < FS_MUSCLES; j++)  /* 1 charge, 2 vent, 0 hold: the newest in the low bits */
         fs_history[j] = (fs_history[j] << 2) | (fs_modes[j] > 0 ? 1u : (fs_modes[j] < 0 ? 2u : 0u));
+#endif
     if (fs_log_count == 0) {{
         uint8_t next = (uint8_t)((fs_head + 1) % FS_RING);
         if (next == fs_tail) {{
@@ -436,7 +461,9 @@ ISR(TIMER1_COMPA_vect) {{
             r->faults = frogsim_faults();
             r->overruns = fs_overruns;
             r->dropped = fs_dropped;
+#if FS_HISTORY
             for (uint8_t j = 0; j < FS_MUSCLES; j++) r->history[j] = fs_history[j] & FS_HISTORY_MASK;
+#endif
             fs_head = next;
         }}
     }}
@@ -516,10 +543,12 @@ void loop() {{
         n += fs_format(fs_line + n, r.overruns);
         fs_line[n++] = ',';
         n += fs_format(fs_line + n, r.dropped);
+#if FS_HISTORY
         for (uint8_t j = 0; j < FS_MUSCLES; j++) {{
             fs_line[n++] = ',';
             n += fs_format(fs_line + n, r.history[j]);
         }}
+#endif
         fs_line[n++] = '\n';
         Serial.write((const uint8_t *)fs_line, n);
     }}
@@ -797,9 +826,9 @@ def validate_plan_record(rec, folder) -> None:
     check(rec["adc"], ADC_KEYS, "adc.")
     if rec["format"] >= 3:
         hs = rec.get("history_samples")
-        if not (_whole(hs) and hs == history_samples(rec["log_every"])):
-            bad("history_samples", f"= {shown_value(hs)} must be min(log_every, {HISTORY_MAX}) = "
-                                   f"{history_samples(rec['log_every'])}")
+        if not (_whole(hs) and hs == history_samples(rec)):
+            bad("history_samples", f"= {shown_value(hs)} must be log_every up to {HISTORY_MAX} where the baud "
+                                   f"rate carries the histories, else 0: {history_samples(rec)}")
     for k, ch in enumerate(rec["channels"]):
         check(ch, CHANNEL_KEYS, f"channels[{k}].")
         if ch.get("analog_input") is not None:
