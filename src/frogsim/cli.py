@@ -797,8 +797,9 @@ def _fit_into(args, folder, spec) -> int:
     folder.finish()
     for j, path in enumerate(res.paths):
         prm = spec.parameters[j]
-        _progress(f"  {path} = {prm.shown(res.values[j])}  [{prm.shown(res.ci_low[j])} .. "
-                  f"{prm.shown(res.ci_high[j])}]"
+        ci = (f"[{prm.shown(res.ci_low[j])} .. {prm.shown(res.ci_high[j])}]" if path not in res.unidentifiable
+              else "unidentifiable: " + res.unidentifiable[path])
+        _progress(f"  {path} = {prm.shown(res.values[j])}  {ci}"
                   + (f"  profile [{prm.shown(res.profile[path][0])} .. {prm.shown(res.profile[path][1])}]"
                      if path in res.profile else ""))
     for c in res.force_curves:

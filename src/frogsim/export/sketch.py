@@ -492,7 +492,7 @@ static uint8_t fs_format(char *out, uint32_t x) {{
     return n;
 }}
 
-static char fs_line[16 + 11 * (FS_CHANNELS + 5 + FS_MUSCLES)];
+static char fs_line[16 + 11 * (FS_CHANNELS + 5 + (FS_HISTORY ? FS_MUSCLES : 0))];
 
 void setup() {{
     TIMSK0 = 0;                               /* no millis() interrupt: nothing delays the control ISR */

@@ -363,7 +363,6 @@ def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
     dof = n - p
     warnings = []
     paths = [q_.path for q_ in spec.parameters]
-    s2 = float(f @ f) / dof if dof > 0 else float("nan")
     norms = np.linalg.norm(J, axis=0)
     safe = np.where(norms > 0, norms, 1.0)
     Jn = J / safe
@@ -398,9 +397,12 @@ def _uncertainty(spec: FitSpec, ev: Evaluator, theta, f, J) -> dict:
         warnings.append(f"{paths[drop]} is unidentifiable from these data: {verdict[drop]}; no interval is given for "
                         "it, and the other parameters' intervals hold it at its fitted value")
         keep.remove(drop)
+    # the degrees of freedom: the points less the parameters the data fix (one without effect takes none)
+    dof = n - len(keep)
+    s2 = float(f @ f) / dof if dof > 0 else float("nan")
     corr_info = residual_correlation(ev, f)
     tau = corr_info["inflation"]
-    dof_eff = n / tau - p
+    dof_eff = n / tau - len(keep)
     q = float(stats.t.ppf(0.5 + spec.confidence / 2, dof_eff) if spec.interval == "t" and dof_eff > 0
               else stats.norm.ppf(0.5 + spec.confidence / 2))
     cov = np.full((p, p), np.nan)
