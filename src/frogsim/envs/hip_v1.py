@@ -13,7 +13,8 @@ Observation space
     dead time) are not observed. The time is no longer observed: the task does not depend on
     it. Bounds from physics: pressures from vacuum (-p_atm) to the source's highest pressure
     p_max (its start times 1 + ``reset_noise_scale``, or the pump's switch-off pressure if higher,
-    plus 0.5 bar), the setpoint within ``setpoint_range``; never clipped.
+    plus 0.5 bar), the setpoint within [0, 100] bar gauge (what it may be set to); never
+    clipped.
     ``normalize=True`` divides the pressures and the setpoint by p_max (``env.unwrapped.obs_scale``).
 Start
     ``reset(seed=...)`` draws the setpoint as v0 does and perturbs the start by
@@ -60,7 +61,7 @@ class HipPressureEnv(v0.HipPressureEnv):
         if sc.pump.enabled:
             p_src = max(p_src, sc.pump.off_above_gauge)
         self.p_max = p_src / BAR + PRESSURE_MARGIN
-        lo_sp, hi_sp = self.setpoint_range if setpoint is None else (setpoint, setpoint)
+        lo_sp, hi_sp = v0.SETPOINT_LOW, v0.P_HIGH        # what a reset option may set
         low = np.array([-self.patm / BAR] * (n + 2) + [lo_sp] + [0.0] * (4 * n))
         high = np.array([self.p_max] * (n + 2) + [hi_sp] + [1.0] * (4 * n))
         self.obs_scale = np.array([self.p_max if self.normalize else 1.0] * (n + 3) + [1.0] * (4 * n))
