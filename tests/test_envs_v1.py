@@ -273,3 +273,31 @@ def test_ppo_example_trains_on_a_tiny_budget(tmp_path):
     bad = subprocess.run([sys.executable, "examples/rl/train_ppo.py", "--timesteps", "0"], cwd=ROOT,
                          env=dict(os.environ, PYTHONPATH=str(ROOT / "src")), capture_output=True, text=True)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "--timesteps = 0" in bad.stderr
+
+
+@pytest.mark.parametrize("env_id", V1)
+def test_a_pickled_env_gives_the_same_episodes(env_id):
+    import pickle
+    env = _make(env_id)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    copy = pickle.loads(pickle.dumps(env))
+    a0, a, _ = _episode(env, 7)
+    b0, b, _ = _episode(copy, 7)
+    np.testing.assert_array_equal(a0, b0)
+    np.testing.assert_array_equal(a, b)
+
+
+def test_the_pages_paper_gait_return_is_the_codes():
+    """docs/control.md's reference return of the paper's gait (benchmarks/bench_rl.py's seeds) is
+    what the environment gives, at the page's precision, and reaches the registered threshold."""
+    import re
+    text = (ROOT / "docs" / "control.md").read_text()
+    row = re.search(r"^\| paper gait \(1 s / 1 s\) \| ([\d.]+) \|", text, re.M)
+    assert row, "the reference table has no paper-gait row"
+    env = gym.make("frogsim/Swim-v1")
+    u = env.unwrapped
+    acts = gait_actions(frogsim.load_robot_scenario("swim"), u.muscle_names, u.stepper.period, 2000)
+    mean = np.mean([run_episode(env, lambda o, k: acts[k], seed=s)["return"] for s in (1000, 1001, 1002)])
+    assert f"{mean:.1f}" == row.group(1)
+    assert mean >= gym.spec("frogsim/Swim-v1").reward_threshold

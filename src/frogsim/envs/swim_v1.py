@@ -83,6 +83,10 @@ Rendering
     pressurised and blue when vented, palms as open as they are. Drawn offscreen: MuJoCo reads
     its OpenGL backend from ``MUJOCO_GL`` when first imported, so set ``MUJOCO_GL=egl`` (or
     ``osmesa``) before importing frogsim on a machine without a display.
+Pickling
+    An environment pickles as its arguments: the copy is built anew, needs a ``reset`` and then
+    gives the same episodes for the same seeds (vector environments pickle the functions that
+    make the environments, not the environments).
 Arguments (checked before anything is built; ValueError naming the argument, value and range)
     ``steps_per_action`` a whole number in [1, 100000]; ``forward_reward_weight``,
     ``air_cost_weight``, ``noise_std`` [bar] (Gaussian noise on the pressure readings, seeded by
@@ -128,6 +132,11 @@ class SwimEnv(gym.Env):
         from frogsim.engine.coupled import BODY_SPEED_LIMIT, JOINT_SPEED_LIMIT, CoupledStepper
         from frogsim.engine.coupled_layout import STOP_LOWER, STOP_UPPER
         from frogsim.engine.swim import as_robot_scenario
+        self._init_kwargs = dict(scenario=scenario, steps_per_action=steps_per_action,
+                                 forward_reward_weight=forward_reward_weight, air_cost_weight=air_cost_weight,
+                                 reset_noise_scale=reset_noise_scale, noise_std=noise_std,
+                                 phase_period=phase_period, normalize=normalize, render_mode=render_mode,
+                                 width=width, height=height, camera=camera)
         steps_per_action = checks.whole("steps_per_action", steps_per_action, 1, MAX_STEPS_PER_ACTION)
         self.forward_reward_weight = checks.real("forward_reward_weight", forward_reward_weight, 0.0)
         self.air_cost_weight = checks.real("air_cost_weight", air_cost_weight, 0.0, unit="m/L")
@@ -208,6 +217,11 @@ class SwimEnv(gym.Env):
         self._renderer = None
         self.steps = 0
         self.episode = checks.Episode()
+
+    def __reduce__(self):
+        """Pickled as its arguments: the copy is built anew and needs a reset (the coupled model's
+        compiled views into MuJoCo's arrays cannot travel), then gives the same episodes."""
+        return (_rebuild, (self._init_kwargs,))
 
     # -- observation -----------------------------------------------------------------------------
     def _obs(self) -> np.ndarray:
@@ -345,3 +359,6 @@ class SwimEnv(gym.Env):
         level = np.clip((s.pressures() - self.patm) / self._p_full, 0.0, 1.0)
         return self._renderer.draw(cm.mjd.qpos, fan, level)
 
+
+def _rebuild(kwargs: dict) -> SwimEnv:
+    return SwimEnv(**kwargs)
