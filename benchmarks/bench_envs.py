@@ -1,6 +1,6 @@
 """Stepping rates of the closed-loop interfaces: Swim-v0, Swim-v1 and the bare coupled stepper.
 
-Run:  python benchmarks/bench_envs.py [--seconds S] [--rounds R]
+Run:  python benchmarks/bench_envs.py [--seconds S] [--rounds R] [--instructions]
 
 Cases
     ``frogsim/Swim-v0`` (the shipped ``swim`` robot, 6 muscles, 10 MuJoCo steps of 1 ms per env
@@ -16,6 +16,10 @@ Cases
 What is timed
     wall time of the stepping loop only (models built and Numba code loaded before), pinned to
     one CPU. Reported: env steps per second, MuJoCo steps per second and real-time factor.
+
+    With ``--instructions`` the v0 / v1 pairs are also counted by valgrind's callgrind
+    (``bench_baseline.py``'s helpers), switched on around the stepping loop only: instructions per
+    env step, which the machine's load does not move.
 
 Target
     Swim-v0 at least 1,000 env steps/s (10 x real time); a v1 step no slower than its v0's
@@ -38,7 +42,11 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=8.0, help="simulated seconds per case")
     ap.add_argument("--rounds", type=int, default=3, help="v0 / v1 rounds in turns")
+    ap.add_argument("--instructions", action="store_true", help="also count instructions per step with callgrind")
+    ap.add_argument("--count", help=argparse.SUPPRESS)      # the child callgrind runs: one env id
     args = ap.parse_args(argv)
+    if args.count:
+        return _count_child(args.count, args.seconds)
     if hasattr(os, "sched_setaffinity"):
         cpu = min(os.sched_getaffinity(0))
         os.sched_setaffinity(0, {cpu})
@@ -95,8 +103,72 @@ def main(argv=None) -> int:
     ok = rate >= TARGET
     print(f"Swim-v0 rate {rate:,.0f} steps/s (target >= {TARGET:,.0f}): {'MET' if ok else 'NOT MET'}")
     ok = versions(T, args.rounds) and ok
+    if args.instructions:
+        ok = instruction_counts(min(T, 1.0)) and ok
     vector_rates(T)
     return 0 if ok else 1
+
+
+PAIRS_KW = {"Swim": ({}, {}), "HipPressure": ({"setpoint": 3.0}, {"setpoint": 3.0})}
+
+
+def _count_child(env_id: str, T: float) -> int:
+    """Under callgrind (counting off): step env_id for T simulated seconds, counting on around the
+    loop only; prints the steps."""
+    import subprocess
+    import gymnasium as gym
+
+    import frogsim  # noqa: F401
+    name = env_id.split("/")[1].rsplit("-", 1)[0]
+    kw = dict(PAIRS_KW[name][0 if env_id.endswith("v0") else 1])
+    if env_id.endswith("v0"):
+        kw["duration"] = T + 1.0
+    env = gym.make(env_id, **kw).unwrapped
+    swim = name == "Swim"
+    period = env.stepper.period if swim else env.plant.period
+    steps = int(round(T / period))
+    n = env.n if swim else 1
+    acts = [_swim_action(n, k, period) for k in range(steps)] if swim else None
+    env.reset(seed=0)
+    env.step(acts[0] if swim else np.array([1]))                 # warm
+    obs, _ = env.reset(seed=0)
+    on, hold = np.array([2]), np.array([1])
+    subprocess.run(["callgrind_control", "-i", "on", str(os.getpid())], check=True, capture_output=True)
+    for k in range(steps):
+        if swim:
+            env.step(acts[k])
+        else:
+            obs, *_ = env.step(on if obs[0] < 3.0 else hold)
+    subprocess.run(["callgrind_control", "-i", "off", str(os.getpid())], check=True, capture_output=True)
+    print(steps)
+    return 0
+
+
+def instruction_counts(T: float) -> bool:
+    """Instructions per env step of each v0 / v1 pair (callgrind); True when no v1 counts more
+    than 1 % above its v0."""
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    from bench_baseline import callgrind_prefix, callgrind_total
+    ok = True
+    with tempfile.TemporaryDirectory(prefix="frogsim-bench-envs-") as tmp:
+        for name in PAIRS_KW:
+            per = {}
+            for v in ("v0", "v1"):
+                out = str(Path(tmp) / f"{name}-{v}.out")
+                p = subprocess.run([*callgrind_prefix(out), sys.executable, __file__, "--count", f"frogsim/{name}-{v}",
+                                    "--seconds", str(T)], capture_output=True, text=True)
+                if p.returncode != 0:
+                    raise SystemExit(f"callgrind of {name}-{v} failed:\n{p.stderr[-2000:]}")
+                steps = int(p.stdout.split()[-1])
+                per[v] = callgrind_total(out) / steps
+            met = per["v1"] <= 1.01 * per["v0"]
+            ok = ok and met
+            print(f"{name}-v1 {per['v1'] / 1e6:.3f} M instructions per step against {name}-v0 {per['v0'] / 1e6:.3f} M "
+                  f"(callgrind): {per['v1'] / per['v0']:.3f} x, {'MET' if met else 'NOT MET'} (at most 1 % more)")
+    return ok
 
 
 def _swim_action(n, k, period):
