@@ -87,39 +87,63 @@ def render_animation(result, path, fps: float = 20.0, width: int = 480, height: 
                             + (f"). Install one: {hint}" if hint else ")"))
 
 
+class SceneRenderer:
+    """Draws states of a robot's MJCF offscreen: one MuJoCo Renderer on a model of its own.
+
+    :meth:`draw` takes the MuJoCo positions, the palms' fan angles [rad] (left, right) and each
+    muscle's pressure level (0 vented .. 1 full, colouring its tendon blue to red) and returns an
+    (height, width, 3) uint8 image from ``camera``. The OpenGL backend is the one MuJoCo chose
+    from MUJOCO_GL when it was imported; without one that works, RenderUnavailable says so.
+    """
+
+    def __init__(self, xml: str, muscles, width: int, height: int, camera: str = "track"):
+        import mujoco
+        from frogsim.robot.mjcf import PALM_STRIPS
+        self._mujoco = mujoco
+        m = mujoco.MjModel.from_xml_string(str(xml))
+        self.m, self.d = m, mujoco.MjData(m)
+        try:
+            self.renderer = mujoco.Renderer(m, int(height), int(width))
+        except Exception as exc:        # noqa: BLE001  (the GL libraries raise many kinds)
+            gl = os.environ.get("MUJOCO_GL", "unset: MuJoCo's default needs a display")
+            hint = "; ".join(f"{b}: apt-get install {p}" for b, p in APT_PACKAGES.items())
+            raise RenderUnavailable(f"no OpenGL context for offscreen drawing (MUJOCO_GL={gl}): {exc}. "
+                                    f"Set MUJOCO_GL=egl or osmesa before importing frogsim ({hint})") from None
+        self.camera = camera
+        self.palms = [[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"palm_{side}_membrane{k}")
+                       for k in range(PALM_STRIPS)] for side in ("left", "right")]
+        self.strip = 2.0 * float(m.geom_size[self.palms[0][0], 0]) * PALM_STRIPS
+        self.tendons = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, str(name)) for name in muscles]
+
+    def draw(self, qpos, fan, level) -> np.ndarray:
+        from frogsim.robot.mjcf import palm_visual_heights
+        m, d = self.m, self.d
+        d.qpos[:] = qpos
+        for p, gids in enumerate(self.palms):
+            for gid, hh in zip(gids, palm_visual_heights(float(fan[p]), self.strip)):
+                m.geom_size[gid, 2] = hh
+        for i, tid in enumerate(self.tendons):
+            a = float(level[i])
+            m.tendon_rgba[tid] = (0.2 + 0.75 * a, 0.3 * (1.0 - a) + 0.15, 0.9 * (1.0 - a) + 0.1, 1.0)
+        self._mujoco.mj_forward(m, d)
+        self.renderer.update_scene(d, camera=self.camera)
+        return self.renderer.render()
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
 def _draw(npz: str, gif: str) -> None:
     """Worker: draw every frame with the backend MUJOCO_GL names and save the GIF."""
-    import mujoco
     from PIL import Image, ImageDraw, ImageFont
 
-    from frogsim.robot.mjcf import PALM_STRIPS, palm_visual_heights
-
     data = np.load(npz)
-    m = mujoco.MjModel.from_xml_string(str(data["xml"]))
-    d = mujoco.MjData(m)
     width, height = (int(x) for x in data["size"])
-    renderer = mujoco.Renderer(m, height, width)
-    camera = str(data["camera"])
-    palms = []
-    for side in ("left", "right"):
-        gid = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, f"palm_{side}_membrane{k}")
-               for k in range(PALM_STRIPS)]
-        palms.append(gid)
-    L = 2.0 * float(m.geom_size[palms[0][0], 0]) * PALM_STRIPS
+    renderer = SceneRenderer(str(data["xml"]), data["muscles"], width, height, str(data["camera"]))
     font = ImageFont.load_default()
-    tendons = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TENDON, str(name)) for name in data["muscles"]]
     images = []
     for k in range(data["qpos"].shape[0]):
-        d.qpos[:] = data["qpos"][k]
-        for p, gids in enumerate(palms):
-            for gid, hh in zip(gids, palm_visual_heights(float(data["fan"][k, p]), L)):
-                m.geom_size[gid, 2] = hh
-        for i, tid in enumerate(tendons):
-            a = float(data["level"][k, i])
-            m.tendon_rgba[tid] = (0.2 + 0.75 * a, 0.3 * (1.0 - a) + 0.15, 0.9 * (1.0 - a) + 0.1, 1.0)
-        mujoco.mj_forward(m, d)
-        renderer.update_scene(d, camera=camera)
-        image = Image.fromarray(renderer.render())
+        image = Image.fromarray(renderer.draw(data["qpos"][k], data["fan"][k], data["level"][k]))
         draw = ImageDraw.Draw(image)
         draw.rectangle((0, 0, width, 20), fill=(10, 30, 40))
         draw.text((6, 4), str(data["captions"][k]), fill=(235, 235, 235), font=font)
