@@ -444,9 +444,9 @@ def cmd_firmware(args) -> int:
 
     from frogsim._files import write_json
     from frogsim.export import sketch
-    from frogsim.io.outputs import scenario_inputs, scenario_record
+    from frogsim.io.outputs import scenario_record
     out = out_folder(args.out)
-    kind, sc, model, plan = _firmware_target(args.scenario, args.cycles)   # all validation before any write
+    kind, sc, model, plan = _firmware_target(_patched(args), args.cycles)   # all validation before any write
     pneumatic = sc if kind == "pneumatic" else sc.pneumatic
     if args.build:
         from frogsim.export.emulator import require
@@ -455,7 +455,7 @@ def cmd_firmware(args) -> int:
     files = [f"{plan.name}/{f}" for f in (f"{plan.name}.ino", "frogsim_board.h", "frogsim_laws.h", "frogsim_laws.c",
                                           "Makefile", "README.md")] + ["firmware.json"] + \
         ([f"build/{plan.name}.elf", f"build/{plan.name}.hex"] if args.build else [])
-    inputs = scenario_inputs(pneumatic, args.scenario)
+    inputs = _inputs(pneumatic, args)
     export = {"scenario": sc.name, "cycles": sc.gait.cycles if kind == "robot" else None, "inputs": inputs,
               "scenario_file": next((f["path"] for f in inputs if f["role"] == "scenario"), None)}
     fit, built_tmp = _firmware_fit(args, plan, pneumatic, export)       # refused here: nothing written
@@ -514,13 +514,13 @@ def cmd_sil(args) -> int:
     from frogsim.export import sil
     from frogsim.export.serial_log import parse_log, write_log_csv
     from frogsim.export.sketch import find_elf, read_plan_record
-    from frogsim.io.outputs import scenario_inputs, scenario_record
+    from frogsim.io.outputs import scenario_record
     out = out_folder(args.out)
     rec = read_plan_record(args.firmware)      # a plan frogsim wrote, every key SIL reads checked
     elf = find_elf(args.firmware)              # built, not older than its sources, an ATmega2560 ELF
-    kind, sc, model, plan = _firmware_target(args.scenario, args.cycles)
+    kind, sc, model, plan = _firmware_target(_patched(args), args.cycles)
     pneumatic = sc if kind == "pneumatic" else sc.pneumatic
-    inputs = scenario_inputs(pneumatic, args.scenario)
+    inputs = _inputs(pneumatic, args)
     sil.check_plan(rec, plan, sc.name, sc.gait.cycles if kind == "robot" else None, inputs)
     if args.board_process == "yes":
         if args.timing != "cycle":
@@ -1062,6 +1062,7 @@ def build_parser() -> argparse.ArgumentParser:
     _flag(s, "--build", action="store_true")
     _flag(s, "--cycles", "the scenario's; the program tables cover them", type=int, default=None, metavar="N")
     _flag(s, "--allow-overrun", action="store_true")
+    _flag(s, "--patch", "none", default=None, metavar="PATCH.toml")
     _writes(s)
     s.set_defaults(func=cmd_firmware)
     s = sub.add_parser("sil", help="software in the loop: the built firmware on an emulated ATmega2560 "
@@ -1073,6 +1074,7 @@ def build_parser() -> argparse.ArgumentParser:
     _flag(s, "--timing", "cycle", choices=("cycle", "grid"), default="cycle")
     _flag(s, "--board-process", "auto", choices=("auto", "yes", "no"), default="auto")
     _flag(s, "--no-animation", action="store_true")
+    _flag(s, "--patch", "none; as exported", default=None, metavar="PATCH.toml")
     _writes(s)
     s.set_defaults(func=cmd_sil)
     s = sub.add_parser("log", help="record a board's serial log (pyserial): serial.csv (the records that "
