@@ -6,7 +6,7 @@
                                             default; name leg-in-air for the robot's in-air study)
     frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
     frogsim control [STUDY ...] --out DIR   the closed-loop control studies (control-pressure, control-joint,
-                                            hysteresis, heat)
+                                            hysteresis, heat, control-tune)
     frogsim simulate SCENARIO [--patch PATCH.toml] --out DIR
                                             run one scenario (TOML path or shipped name)
     frogsim swim SCENARIO [--cycles N] [--output-interval T] --out DIR
@@ -23,10 +23,10 @@
                                             search the controllers' gains (resumable; docs/control.md)
     frogsim compare RUN[:SIGNAL] ... [--signal NAME] --out DIR
                                             overlay one signal of several runs or scenarios
-    frogsim firmware SCENARIO --out DIR [--build]
+    frogsim firmware SCENARIO [--patch PATCH.toml] --out DIR [--build]
                                             the valve controllers as an Arduino Mega 2560 sketch
                                             (docs/firmware.md); --build compiles it
-    frogsim sil SCENARIO --firmware DIR --out DIR
+    frogsim sil SCENARIO [--patch PATCH.toml] --firmware DIR --out DIR
                                             the built firmware on an emulated ATmega2560 in
                                             lockstep with the plant (software in the loop)
     frogsim log --port PORT [--firmware DIR] --out DIR
@@ -1014,7 +1014,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_reproduce)
     for name, what, func in (("design", "the design studies (main tubes, endurance, valves)", cmd_design),
                              ("control", "the closed-loop control studies (control-pressure, control-joint, "
-                                         "hysteresis, heat)", cmd_control)):
+                                         "hysteresis, heat, control-tune)", cmd_control)):
         s = sub.add_parser(name, help=f"run {what}: a PNG and a CSV per study, DIR/summary.json with written "
                                       "conclusions")
         s.add_argument("studies", nargs="*", metavar="STUDY",
@@ -1142,7 +1142,7 @@ def build_parser() -> argparse.ArgumentParser:
 #: the studies ``frogsim design`` and ``frogsim control`` run, named in their --help (written out, not
 #: read from the registry, which would make every command import the studies; a test compares them)
 GROUP_STUDIES = {"design": ("design-tubes", "design-endurance", "design-valve", "design-valve-type"),
-                 "control": ("control-pressure", "control-joint", "hysteresis", "heat")}
+                 "control": ("control-pressure", "control-joint", "hysteresis", "heat", "control-tune")}
 #: what ``frogsim --help`` says first (the module docstring's first line is for programmers)
 DESCRIPTION = textwrap.fill("frogsim simulates the frog-inspired swimming robot powered by pneumatic muscles (Chinese "
                "Journal of Mechanical Engineering, 2017): the paper's studies, single runs, the robot "
