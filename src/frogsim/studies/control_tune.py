@@ -6,7 +6,9 @@ integer laws: the scenario has ``[firmware]``), cut to :data:`CYCLES` gait cycle
 searched by ``frogsim tune`` (:mod:`frogsim.optimize.tune`) for the Pareto front of tracking and
 air (:data:`TRIALS` trials, seeded, batches of :data:`WORKERS`): left and right tied, the integral
 gains fixed at 0 as the scenario has them (its loops are PD: the board does not measure the
-source pressure). The tuned gains are the front's member that tracks best at no more air than the
+source pressure), and the two bounds the board sets (docs/control.md, "The tuned firmware in
+SIL"): bands of one count of its 8-bit conversion (0.05 bar) or more, Kd up to 1 bar s/rad. The
+tuned gains are the front's member that tracks best at no more air than the
 starting gains (the front's lowest tracking overall where none does). Then the starting and tuned
 gains run side by side in water (the search's own case) and in air with the base fixed (the same
 robot, gains, setpoints and palms), and the study reports each joint's tracking RMS, the
@@ -27,7 +29,7 @@ from frogsim.studies.registry import StudyData, register
 
 SCENARIO = "swim-board"
 CYCLES = 2                 # gait cycles of 2 s: 4 s a run
-TRIALS = 40                # the search's trials (a Pareto search prunes nothing: each runs whole)
+TRIALS = 80                # the search's trials (a Pareto search prunes nothing: each runs whole)
 WORKERS = 2                # trials asked together (the search depends on it: fixed)
 SEED = 0
 JOINTS = ("hip", "knee", "ankle")
@@ -37,7 +39,8 @@ ENVIRONMENTS = {"water": {"environment": "water", "base": "free"}, "air": {"envi
 TIME = header("time", "s")
 TUNE = {"tie": [[f"{j}_{s}" for s in SIDES] for j in JOINTS],
         "pareto": ["tracking", "air"],
-        "gains": {f"{j}_left": {"integral_gain": "0 bar/(rad*s)"} for j in JOINTS}}
+        "gains": {f"{j}_left": {"integral_gain": "0 bar/(rad*s)", "band": ["0.05 bar", "1 bar"],
+                                "derivative_gain": ["0 bar*s/rad", "1 bar*s/rad"]} for j in JOINTS}}
 
 
 def column(controller: str, what: str) -> str:
