@@ -2,12 +2,13 @@
 swimming robot, six joint-angle controllers tracking 1 Hz sines about the middle of each joint's
 range, 4 s), and what limits the tracking.
 
-Run:  python benchmarks/bench_tune_joint.py [--trials 200] [--workers 2] [--out DIR]
+Run:  python benchmarks/bench_tune_joint.py [--trials 200] [--workers 2] [--out DIR] [--kd-at-most 1]
 
 The case is written as a scenario file with a [tune] section: left and right joints tied (one set
 of gains per joint, as the robot is symmetric), tracking minimised (the mean over the six joints of
 each RMS over the starting gains' mean RMS) under the bound "no more air than the starting gains"
-([tune.at_most] air = 1). `python -m frogsim tune FILE --trials N --workers 2` then runs in a fresh
+([tune.at_most] air = 1); with --kd-at-most the derivative gains are searched from 0 up to it
+(bench_tune_board.py's bound for the board). `python -m frogsim tune FILE --trials N --workers 2` then runs in a fresh
 process, timed with its start-up. Targets (issue 28): hip <= 3 deg, knee <= 2 deg, ankle <= 1.5 deg
 RMS after the settle time, at no more air than the starting gains; 200 trials in <= 10 min with
 --workers 2 on this two-core machine. Each is printed PASS or FAIL.
@@ -59,13 +60,16 @@ def machine() -> str:
     return f"{platform.node()} ({cpu}, {os.cpu_count()} cores, Python {platform.python_version()})"
 
 
-def case_file(folder: Path) -> Path:
+def case_file(folder: Path, kd_at_most: float | None = None) -> Path:
     from frogsim.sweep.spec import dumps_toml
     raw = J.case_raw(True)
     raw.pop("base_dir", None)
     raw["name"] = "joint-control-case"
     raw["description"] = "bench_joint_control.py's case: six joint-angle controllers on the swimming robot"
-    raw["tune"] = TUNE
+    raw["tune"] = dict(TUNE)
+    if kd_at_most is not None:      # the derivative gains' range cut at kd_at_most (the board's bound)
+        raw["tune"]["gains"] = {f"{j}_left": {"derivative_gain": ["0 bar*s/rad", f"{kd_at_most:g} bar*s/rad"]}
+                                for j in JOINTS}
     path = folder / "case.toml"
     path.write_text(dumps_toml(raw))
     return path
@@ -133,6 +137,8 @@ def main() -> int:
     ap.add_argument("--trials", type=int, default=200)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=None, help="the tune folder (default: a temporary one)")
+    ap.add_argument("--kd-at-most", type=float, default=None, metavar="BAR_S_PER_RAD",
+                    help="search the derivative gains from 0 up to this (default: the kind's 0-8 bar s/rad)")
     args = ap.parse_args()
     print(f"machine: {machine()}")
     import frogsim
@@ -141,7 +147,7 @@ def main() -> int:
     print(f"  warm-up (the swim engine compiled or loaded from Numba's cache): {time.perf_counter() - t0:.0f} s")
     tmp = tempfile.TemporaryDirectory(prefix="bench-tune-")
     folder = Path(args.out) if args.out else Path(tmp.name) / "tune"
-    case = case_file(Path(tmp.name))
+    case = case_file(Path(tmp.name), args.kd_at_most)
     env = {**os.environ, "PYTHONPATH": str(HERE.parent / "src") + os.pathsep + os.environ.get("PYTHONPATH", "")}
     cmd = [sys.executable, "-m", "frogsim", "tune", str(case), "--trials", str(args.trials), "--workers",
            str(args.workers), "--out", str(folder), "--quiet"]

@@ -14,8 +14,8 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 BENCHMARKS = ("bench_engine.py", "bench_variants.py", "bench_sweep.py", "bench_swim.py", "bench_fit.py",
-              "bench_control.py", "bench_envs.py", "bench_rl.py", "bench_joint_control.py", "bench_tune_joint.py", "bench_heat.py",
-              "bench_sil.py",
+              "bench_control.py", "bench_envs.py", "bench_rl.py", "bench_joint_control.py", "bench_tune_joint.py",
+              "bench_heat.py", "bench_sil.py", "bench_tune_board.py",
               "bench_fw_laws.py", "bench_solver_methods.py",
               "bench_baseline.py")
 

@@ -85,7 +85,7 @@ def test_the_control_command_runs_the_studies_the_page_names():
     assert m, text[:400]
     others = re.findall(r"`([\w-]+)`", m.group(2))
     assert ["control-pressure"] + others == studies_in("control")
-    assert {"three": 3}[m.group(1)] == len(others)
+    assert {"four": 4}[m.group(1)] == len(others)
 
 
 # --- the board: counts, rates and bounds the page works out -----------------------------------------

@@ -46,10 +46,10 @@ def test_control_without_studies_runs_every_control_study_as_the_pages_say(tmp_p
     ran = []
     monkeypatch.setattr(cli, "_studies_into", lambda args, folder, out, names, summaries: ran.extend(names) or 0)
     assert main(["control", "--out", str(tmp_path / "c"), "--quiet"]) == 0
-    assert ran == studies_in("control") and len(ran) == 4 and "heat" in ran
-    # the pages say so: four studies, heat among them, and control-pressure alone by its name
-    assert "`frogsim control --out DIR` runs it with the other\nthree control studies" in CONTROL_MD
-    assert "runs the four control studies" in README
+    assert ran == studies_in("control") and len(ran) == 5 and "heat" in ran
+    # the pages say so: five studies, heat among them, and control-pressure alone by its name
+    assert "`frogsim control --out DIR` runs it with the other\nfour control studies" in CONTROL_MD
+    assert "runs the five control studies" in README
 
 
 def test_the_top_help_is_written_for_users(capsys):

@@ -80,8 +80,21 @@ def write(tmp_path, text: str, name: str = "sc.toml"):
     return path
 
 
-def run(argv, capsys=None) -> int:
+def run(argv) -> int:
     return main(["tune", *map(str, argv), "--quiet"])
+
+
+def summary(out):
+    return json.loads((out / "summary.json").read_text())
+
+
+def tuned(tmp_path, text: str, *argv, folder: str = "t"):
+    """The scenario ``text`` written to a file and searched by `frogsim tune ARGV --out
+    tmp_path/folder --quiet` (which must succeed): (scenario path, output folder, summary.json)."""
+    sc = write(tmp_path, text)
+    out = tmp_path / folder
+    assert run([sc, *argv, "--out", out]) == 0
+    return sc, out, summary(out)
 
 
 # --- bad input ------------------------------------------------------------------------------------
@@ -126,13 +139,10 @@ def test_a_patch_naming_another_controller_is_refused(tmp_path, capsys):
 
 # --- the search -----------------------------------------------------------------------------------
 def test_a_second_run_continues_the_study(tmp_path):
-    sc = write(tmp_path, HOLD)
-    out = tmp_path / "t"
-    assert run([sc, "--trials", "3", "--out", out]) == 0
-    s = json.loads((out / "summary.json").read_text())
+    sc, out, s = tuned(tmp_path, HOLD, "--trials", "3")
     assert s["trials"] == 3 and s["trials_run_now"] == 3
     assert run([sc, "--trials", "5", "--out", out]) == 0
-    s = json.loads((out / "summary.json").read_text())
+    s = summary(out)
     assert s["trials"] == 5 and s["trials_run_now"] == 2
     rows = list(csv.DictReader((out / "trials.csv").open()))
     assert [int(r["trial"]) for r in rows] == [0, 1, 2, 3, 4]
@@ -140,7 +150,7 @@ def test_a_second_run_continues_the_study(tmp_path):
     write(tmp_path, HOLD + '\n[tune.gains.hold]\nband = ["0.05 bar", "0.5 bar"]\n')
     assert run([sc, "--trials", "6", "--out", out]) == 2
     assert run([sc, "--trials", "2", "--out", out, "--overwrite"]) == 0
-    assert json.loads((out / "summary.json").read_text())["trials"] == 2
+    assert summary(out)["trials"] == 2
 
 
 def test_tied_gains_are_equal_in_every_trial(tmp_path, monkeypatch):
@@ -154,9 +164,7 @@ def test_tied_gains_are_equal_in_every_trial(tmp_path, monkeypatch):
         seen.append(dict(texts))
         return real(tune, texts, report)
     monkeypatch.setattr(T, "run", spy)
-    sc = write(tmp_path, PAIR + '\n[tune]\ntie = [["ca", "cb"]]\n')
-    out = tmp_path / "t"
-    assert run([sc, "--trials", "6", "--workers", "2", "--out", out]) == 0
+    _, out, _ = tuned(tmp_path, PAIR + '\n[tune]\ntie = [["ca", "cb"]]\n', "--trials", "6", "--workers", "2")
     trials = [t for t in seen if t]             # the baseline runs the scenario as written
     assert len(trials) == 6
     for t in trials:
@@ -167,17 +175,14 @@ def test_tied_gains_are_equal_in_every_trial(tmp_path, monkeypatch):
 
 
 def test_best_toml_through_simulate_reproduces_the_best_trial(tmp_path):
-    sc = write(tmp_path, PAIR)
-    out = tmp_path / "t"
-    assert run([sc, "--trials", "8", "--workers", "2", "--out", out]) == 0
-    s = json.loads((out / "summary.json").read_text())
+    sc, out, s = tuned(tmp_path, PAIR, "--trials", "8", "--workers", "2")
     table = assert_unit_headers(out / "trials.csv")
     assert len(table) == 8 and (out / "history.png").stat().st_size > 0
     assert s["trials_complete"] + s["trials_pruned"] + s["trials_failed"] == 8
     best = s["best"]["controllers"]
     sim = tmp_path / "sim"
     assert main(["simulate", str(sc), "--patch", str(out / "best.toml"), "--out", str(sim), "--quiet"]) == 0
-    got = json.loads((sim / "summary.json").read_text())["control"]
+    got = summary(sim)["control"]
     for c in ("ca", "cb"):
         assert got[c]["tracking_error_rms_bar"] == best[c]["tracking_rms"]
         assert got[c]["switchings_per_s"] == best[c]["switchings_per_s"]
@@ -191,10 +196,8 @@ def test_best_toml_through_simulate_reproduces_the_best_trial(tmp_path):
 
 
 def test_pareto_front_is_non_dominated(tmp_path):
-    sc = write(tmp_path, PAIR + '\n[tune]\npareto = ["tracking", "switchings"]\n')
-    out = tmp_path / "p"
-    assert run([sc, "--trials", "16", "--workers", "2", "--pareto", "--out", out]) == 0
-    s = json.loads((out / "summary.json").read_text())
+    _, out, s = tuned(tmp_path, PAIR + '\n[tune]\npareto = ["tracking", "switchings"]\n', "--trials", "16",
+                      "--workers", "2", "--pareto")
     assert (out / "pareto.png").stat().st_size > 0 and not (out / "history.png").exists()
     rows = [r for r in csv.DictReader((out / "trials.csv").open()) if r["state"] == "COMPLETE" and not r["failure"]]
     pts = {int(r["trial"]): (float(r["tracking [-]"]), float(r["switchings [-]"])) for r in rows}
@@ -226,10 +229,7 @@ def test_the_tuned_band_of_a_bang_bang_hold_is_where_eq8_and_the_dead_time_put_i
     psi = math.sqrt(1.0 - ((ratio - B_MHJ9) / (1.0 - B_MHJ9)) ** 2)
     r = K_AIR * R_AIR * T_REF * C_MHJ9 * RHO_REF * P_SOURCE * psi / HIP_V
     low, high = 2 * r * DEAD, 2 * r * (DEAD + DT)
-    sc = write(tmp_path, HOLD)
-    out = tmp_path / "h"
-    assert run([sc, "--trials", "30", "--out", out]) == 0
-    s = json.loads((out / "summary.json").read_text())
+    _, _, s = tuned(tmp_path, HOLD, "--trials", "30")
     band = float(s["best_gains"]["controllers.hold.band"].split()[0]) * BAR
     # the source has given some air (it cools and its pressure falls a little): 5 % below low
     assert 0.95 * low <= band <= high, (band / BAR, low / BAR, high / BAR)
@@ -254,6 +254,25 @@ def test_two_runs_sharing_a_storage_url_share_one_study(tmp_path):
     url = f"sqlite:///{tmp_path / 'shared.db'}"
     assert run([sc, "--trials", "2", "--storage", url, "--out", tmp_path / "m1"]) == 0
     assert run([sc, "--trials", "4", "--storage", url, "--out", tmp_path / "m2"]) == 0
-    s = json.loads((tmp_path / "m2" / "summary.json").read_text())
+    s = summary(tmp_path / "m2")
     assert s["trials"] == 4 and s["trials_run_now"] == 2 and s["storage"] == url
     assert not (tmp_path / "m1" / "study.db").exists() and not (tmp_path / "m2" / "study.db").exists()
+
+
+def test_optimize_gait_and_tune_share_one_optuna_plumbing():
+    """The issue's rule "one module, no second copy": in frogsim.optimize, Optuna's studies,
+    samplers, pruners and storages are made, and trials are run on threads, only in study.py,
+    and both searches go through it."""
+    import re
+    from pathlib import Path
+
+    import frogsim.optimize
+    folder = Path(frogsim.optimize.__file__).parent
+    makers = re.compile(r"\b(create_study|load_study|\w+Sampler|\w+Pruner|RDBStorage|JournalStorage|"
+                        r"ThreadPoolExecutor|tqdm)\b")
+    found = {p.name: sorted(set(makers.findall(p.read_text()))) for p in folder.glob("*.py") if p.name != "study.py"}
+    assert {"gait.py", "tune.py"} <= set(found)
+    assert not any(found.values()), found
+    for name in ("gait.py", "tune.py"):
+        assert "from frogsim.optimize import study as S" in (folder / name).read_text(), name
+    assert makers.search((folder / "study.py").read_text())

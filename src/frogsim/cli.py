@@ -6,7 +6,7 @@
                                             default; name leg-in-air for the robot's in-air study)
     frogsim design [STUDY ...] --out DIR    the design studies (main tubes, endurance, valves)
     frogsim control [STUDY ...] --out DIR   the closed-loop control studies (control-pressure, control-joint,
-                                            hysteresis, heat)
+                                            hysteresis, heat, control-tune)
     frogsim simulate SCENARIO [--patch PATCH.toml] --out DIR
                                             run one scenario (TOML path or shipped name)
     frogsim swim SCENARIO [--cycles N] [--output-interval T] --out DIR
@@ -23,10 +23,10 @@
                                             search the controllers' gains (resumable; docs/control.md)
     frogsim compare RUN[:SIGNAL] ... [--signal NAME] --out DIR
                                             overlay one signal of several runs or scenarios
-    frogsim firmware SCENARIO --out DIR [--build]
+    frogsim firmware SCENARIO [--patch PATCH.toml] --out DIR [--build]
                                             the valve controllers as an Arduino Mega 2560 sketch
                                             (docs/firmware.md); --build compiles it
-    frogsim sil SCENARIO --firmware DIR --out DIR
+    frogsim sil SCENARIO [--patch PATCH.toml] --firmware DIR --out DIR
                                             the built firmware on an emulated ATmega2560 in
                                             lockstep with the plant (software in the loop)
     frogsim log --port PORT [--firmware DIR] --out DIR
@@ -445,9 +445,9 @@ def cmd_firmware(args) -> int:
 
     from frogsim._files import write_json
     from frogsim.export import sketch
-    from frogsim.io.outputs import scenario_inputs, scenario_record
+    from frogsim.io.outputs import scenario_record
     out = out_folder(args.out)
-    kind, sc, model, plan = _firmware_target(args.scenario, args.cycles)   # all validation before any write
+    kind, sc, model, plan = _firmware_target(_patched(args), args.cycles)   # all validation before any write
     pneumatic = sc if kind == "pneumatic" else sc.pneumatic
     if args.build:
         from frogsim.export.emulator import require
@@ -456,7 +456,7 @@ def cmd_firmware(args) -> int:
     files = [f"{plan.name}/{f}" for f in (f"{plan.name}.ino", "frogsim_board.h", "frogsim_laws.h", "frogsim_laws.c",
                                           "Makefile", "README.md")] + ["firmware.json"] + \
         ([f"build/{plan.name}.elf", f"build/{plan.name}.hex"] if args.build else [])
-    inputs = scenario_inputs(pneumatic, args.scenario)
+    inputs = _inputs(pneumatic, args)
     export = {"scenario": sc.name, "cycles": sc.gait.cycles if kind == "robot" else None, "inputs": inputs,
               "scenario_file": next((f["path"] for f in inputs if f["role"] == "scenario"), None)}
     fit, built_tmp = _firmware_fit(args, plan, pneumatic, export)       # refused here: nothing written
@@ -515,13 +515,13 @@ def cmd_sil(args) -> int:
     from frogsim.export import sil
     from frogsim.export.serial_log import COMMANDS_CSV, parse_log, write_commands_csv, write_log_csv
     from frogsim.export.sketch import find_elf, read_plan_record
-    from frogsim.io.outputs import scenario_inputs, scenario_record
+    from frogsim.io.outputs import scenario_record
     out = out_folder(args.out)
     rec = read_plan_record(args.firmware)      # a plan frogsim wrote, every key SIL reads checked
     elf = find_elf(args.firmware)              # built, not older than its sources, an ATmega2560 ELF
-    kind, sc, model, plan = _firmware_target(args.scenario, args.cycles)
+    kind, sc, model, plan = _firmware_target(_patched(args), args.cycles)
     pneumatic = sc if kind == "pneumatic" else sc.pneumatic
-    inputs = scenario_inputs(pneumatic, args.scenario)
+    inputs = _inputs(pneumatic, args)
     sil.check_plan(rec, plan, sc.name, sc.gait.cycles if kind == "robot" else None, inputs)
     if args.board_process == "yes":
         if args.timing != "cycle":
@@ -1044,7 +1044,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=cmd_reproduce)
     for name, what, func in (("design", "the design studies (main tubes, endurance, valves)", cmd_design),
                              ("control", "the closed-loop control studies (control-pressure, control-joint, "
-                                         "hysteresis, heat)", cmd_control)):
+                                         "hysteresis, heat, control-tune)", cmd_control)):
         s = sub.add_parser(name, help=f"run {what}: a PNG and a CSV per study, DIR/summary.json with written "
                                       "conclusions")
         s.add_argument("studies", nargs="*", metavar="STUDY",
@@ -1092,6 +1092,7 @@ def build_parser() -> argparse.ArgumentParser:
     _flag(s, "--build", action="store_true")
     _flag(s, "--cycles", "the scenario's; the program tables cover them", type=int, default=None, metavar="N")
     _flag(s, "--allow-overrun", action="store_true")
+    _flag(s, "--patch", "none", default=None, metavar="PATCH.toml")
     _writes(s)
     s.set_defaults(func=cmd_firmware)
     s = sub.add_parser("sil", help="software in the loop: the built firmware on an emulated ATmega2560 "
@@ -1103,6 +1104,7 @@ def build_parser() -> argparse.ArgumentParser:
     _flag(s, "--timing", "cycle", choices=("cycle", "grid"), default="cycle")
     _flag(s, "--board-process", "auto", choices=("auto", "yes", "no"), default="auto")
     _flag(s, "--no-animation", action="store_true")
+    _flag(s, "--patch", "none; as exported", default=None, metavar="PATCH.toml")
     _writes(s)
     s.set_defaults(func=cmd_sil)
     s = sub.add_parser("log", help="record a board's serial log (pyserial): serial.csv (the records that "
@@ -1170,7 +1172,7 @@ def build_parser() -> argparse.ArgumentParser:
 #: the studies ``frogsim design`` and ``frogsim control`` run, named in their --help (written out, not
 #: read from the registry, which would make every command import the studies; a test compares them)
 GROUP_STUDIES = {"design": ("design-tubes", "design-endurance", "design-valve", "design-valve-type"),
-                 "control": ("control-pressure", "control-joint", "hysteresis", "heat")}
+                 "control": ("control-pressure", "control-joint", "hysteresis", "heat", "control-tune")}
 #: what ``frogsim --help`` says first (the module docstring's first line is for programmers)
 DESCRIPTION = textwrap.fill("frogsim simulates the frog-inspired swimming robot powered by pneumatic muscles (Chinese "
                "Journal of Mechanical Engineering, 2017): the paper's studies, single runs, the robot "

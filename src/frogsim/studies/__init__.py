@@ -11,3 +11,4 @@ from frogsim.studies import control_joint  # noqa: F401,E402  (registers the joi
 from frogsim.studies import hysteresis  # noqa: F401,E402  (registers the hysteresis study)
 from frogsim.studies import heat  # noqa: F401,E402  (registers the wall heat transfer study)
 from frogsim.studies import valve_type  # noqa: F401,E402  (registers the valve-type design study)
+from frogsim.studies import control_tune  # noqa: F401,E402  (registers the gains-tuning study)
