@@ -1,10 +1,14 @@
-"""One state layout: where every volume's and muscle's state lives, and every record column of the
-coupled engine, is said in the layout modules only (frogsim.circuit.layout,
-frogsim.engine.coupled_layout), and what they say matches the physics.
+"""One layout of the flat arrays: where every volume's and muscle's state lives, every valve's entry
+of the valve vector u (and of the right-hand side's flows aux and an output row), every field of
+the right-hand side's scratch work, every law's block and queue in the controllers' state cs, and
+every record column of the coupled engine, is said in the layout modules only
+(frogsim.circuit.layout, frogsim.control.signals, frogsim.engine.coupled_layout), and what they
+say matches the physics.
 
 The source scan reads every module of the package (as tests/test_layers.py does) and fails where one
 outside the layout modules names the raw offsets (the first muscle's block, the record's variable
-part, the block width) or indexes a state or record array with arithmetic on a variable (``y[j + 1]``,
+part, the block width, the controllers' blocks and queues) or indexes a state, valve, flow, scratch or
+record array with arithmetic on a variable (``y[j + 1]``, ``u[2 * i + 1]``, ``work[n + i]``,
 ``rr[c + n + i]``): those offsets belong to the layout's index functions. A test plants such offsets
 in a copy of the package and checks the scan finds each. (``y[k - 1]``, a series' row before k,
 is not an offset.)
@@ -26,11 +30,16 @@ from frogsim.engine import coupled_layout as C
 from conftest import P_ATM, R_AIR
 
 PACKAGE = Path(__file__).resolve().parent.parent / "src" / "frogsim"
-LAYOUT_MODULES = ("circuit/layout.py", "engine/coupled_layout.py")
+LAYOUT_MODULES = ("circuit/layout.py", "engine/coupled_layout.py", "control/signals.py")
 #: names only the layout modules may use: raw starts of variable blocks and block widths
-RAW_OFFSETS = {"Y_MUSCLE0", "R_FIXED", "MUSCLE_WIDTH"}
+RAW_OFFSETS = {"Y_MUSCLE0", "R_FIXED", "MUSCLE_WIDTH", "CS_SIZE", "B_Q0"}
 #: names under which the package holds state vectors, state histories and record rows
 STATE_ARRAYS = {"y", "y0", "y_end", "yn", "yt", "ys", "dydt", "out_y", "oy", "atol", "scale", "rec", "rr", "Y"}
+#: ... valve vectors (and their histories, schedules, dead times), the right-hand side's flows and
+#: its scratch
+VALVE_ARRAYS = {"u", "u0", "u_prev", "u_cmd", "out_u", "ou", "sched_u", "valves", "dead", "aux", "flows", "work",
+                "_diagnostics"}
+INDEXED = STATE_ARRAYS | VALVE_ARRAYS
 #: the layout's fixed columns: a constant one plus a variable is a hand-made offset too
 FIXED_COLUMNS = {n for n in vars(L) if n.startswith("Y_")} | {n for n in vars(C) if n.startswith("R_")}
 
@@ -55,6 +64,14 @@ def _constant(node) -> bool:
     if isinstance(node, ast.UnaryOp):
         return _constant(node.operand)
     return False
+
+
+def _array_name(node) -> str | None:
+    """The name of the array a subscript indexes: ``u`` of ``u[j]``, ``self.u[k, j]`` and
+    ``self._diagnostics[0][:, j]`` alike."""
+    while isinstance(node, ast.Subscript):
+        node = node.value
+    return _name(node)
 
 
 def _row_before(node) -> bool:
@@ -83,7 +100,7 @@ def _file_violations(rel: str, text: str) -> tuple[str, ...]:
             hit = True
         elif isinstance(node, ast.alias) and node.name in RAW_OFFSETS:
             hit = True
-        elif isinstance(node, ast.Subscript) and _name(node.value) in STATE_ARRAYS:
+        elif isinstance(node, ast.Subscript) and _array_name(node.value) in INDEXED:
             hit = any(isinstance(s, ast.BinOp) and not _constant(s) and not _row_before(s)
                       for s in ast.walk(node.slice))
         elif isinstance(node, ast.BinOp) and not _constant(node):
@@ -95,8 +112,9 @@ def _file_violations(rel: str, text: str) -> tuple[str, ...]:
 
 def test_no_module_outside_the_layout_computes_an_offset():
     bad = offset_violations(PACKAGE)
-    assert not bad, "state or record offsets computed outside the layout modules (use the index " \
-                    "functions of frogsim.circuit.layout / frogsim.engine.coupled_layout): " + "; ".join(bad)
+    assert not bad, "offsets computed outside the layout modules (use the index functions of " \
+                    "frogsim.circuit.layout / frogsim.control.signals / frogsim.engine.coupled_layout): " + \
+                    "; ".join(bad)
 
 
 @pytest.mark.parametrize("planted", [
@@ -106,6 +124,14 @@ def test_no_module_outside_the_layout_computes_an_offset():
     "def f(rr, n, i, x):\n    rr[c + n + i] = x\n",
     "def f(y, i):\n    return y[:, L.Y_PS + i]\n",
     "def f(n):\n    return C.R_FIXED + 2 * n\n",
+    "def f(u, i):\n    return u[2 * i + 1]\n",
+    "def f(r, i):\n    return r.u[:, 2 * i]\n",
+    "def f(self, i):\n    return self._diagnostics[0][:, 2 * i + 1]\n",
+    "def f(aux, n, x):\n    aux[2 * n] = x\n",
+    "def f(work, n, i):\n    return work[2 * n + i]\n",
+    "def f(sched_u, i):\n    sched_u[:, 2 * i:2 * i + 2] = 0.0\n",
+    "def f(cs, c):\n    return cs[int(S.CS_SIZE + c * cs[3])]\n",
+    "from frogsim.control.signals import B_Q0\n",
 ])
 def test_the_scan_finds_a_planted_offset(package_copy, planted):
     target = package_copy / "engine" / "result.py"
