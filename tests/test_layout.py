@@ -250,3 +250,75 @@ def test_record_blocks_tile_the_row_and_agree_with_the_fixed_columns():
     qpos = rec[:, cols["qpos"]]
     leg_qpos = cm.arrays["leg_qpos"]
     assert np.array_equal(rec[:, cols["angle"]], qpos[:, leg_qpos])
+
+
+# --- the valve vector, the flows aux and the scratch work ---------------------------------------------
+def test_valve_offsets_tile_the_vector_and_aux():
+    n = 4
+    entries = sorted([L.charge_valve(i) for i in range(n)] + [L.vent_valve(i) for i in range(n)])
+    assert entries == list(range(L.valve_size(n))) == list(range(2 * n))      # two paths per muscle
+    assert L.pump_entry(n) == L.valve_size(n) and L.flows_size(n) == 2 * n + 1   # then the pump
+    u = np.arange(L.valve_size(n))
+    assert list(u[L.charge_slice(n)]) == [L.charge_valve(i) for i in range(n)]
+    assert list(u[L.vent_slice(n)]) == [L.vent_valve(i) for i in range(n)]
+    assert list(u[L.muscle_valve_slice(2)]) == [L.charge_valve(2), L.vent_valve(2)]
+    dead = L.per_valve(n, 2e-3, 5e-3)
+    assert (dead[L.charge_slice(n)] == 2e-3).all() and (dead[L.vent_slice(n)] == 5e-3).all()
+    blocks = sorted(L.work_index(f, i, n) for f in (L.WORK_T, L.WORK_V, L.WORK_DV, L.WORK_L) for i in range(n))
+    assert blocks == list(range(L.work_size(n))) == list(range(4 * n))
+
+
+def test_rhs_fills_its_scratch_and_flows_where_the_layout_says():
+    """One call of the right-hand side at t = 0 of the paper's cycle, knee_left at 1 bar gauge: every
+    muscle at its rest length (the datasheet's 180 mm hip, 150 mm knee and ankle), its volume the
+    DMSP-20's cylinder pi D0^2 L0 / 4 (Eq. (5) at rest) plus the 5 cm^3 of fittings, at rest
+    (dV/dt = 0 before the contraction starts at 0.1 s), its air at the ambient 293.15 K. With every
+    charge path open and the vent paths shut, air flows into the muscles at atmospheric pressure only
+    through the charge entries of aux; with knee_left's vent path open instead, out of it only."""
+    from frogsim.circuit.rhs import rhs
+    sc = frogsim.load_scenario("paper-cycle").replace({"muscles.knee_left.initial_pressure_gauge": 1e5})
+    m = frogsim.build_model(sc)
+    n = m.n
+    y = m.y0.copy()
+    rest = {"hip": 0.180, "knee": 0.150, "ankle": 0.150}
+    work, aux, dydt = np.full(L.work_size(n), np.nan), np.full(L.flows_size(n), np.nan), np.empty(y.size)
+    u = np.zeros(L.valve_size(n))
+    u[L.charge_slice(n)] = 1.0
+    rhs(0.0, y, u, 0.0, *m.rhs_model, dydt, aux, work)
+    for i, name in enumerate(m.names):
+        L0 = rest[name.split("_")[0]]
+        assert work[L.work_index(L.WORK_L, i, n)] == pytest.approx(L0, rel=1e-12)
+        assert work[L.work_index(L.WORK_V, i, n)] == pytest.approx(np.pi * 0.020 ** 2 * L0 / 4 + 5e-6, rel=1e-9)
+        assert work[L.work_index(L.WORK_DV, i, n)] == 0.0
+        assert work[L.work_index(L.WORK_T, i, n)] == pytest.approx(293.15, rel=1e-12)
+        assert aux[L.charge_valve(i)] > 1e-4             # choked from 6 bar gauge: grams per second
+        assert aux[L.vent_valve(i)] == 0.0
+        assert dydt[L.charged_index(i, n)] == aux[L.charge_valve(i)]
+    assert aux[L.pump_entry(n)] == 0.0
+    knee = m.names.index("knee_left")
+    u[:] = 0.0
+    u[L.vent_valve(knee)] = 1.0
+    rhs(0.0, y, u, 0.0, *m.rhs_model, dydt, aux, work)
+    assert aux[L.vent_valve(knee)] > 1e-4 and dydt[L.vented_index(knee, n)] == aux[L.vent_valve(knee)]
+    assert np.count_nonzero(aux) == 1
+
+
+def test_a_runs_valve_columns_and_flows_follow_the_paper_cycle():
+    """paper-cycle opens every charge valve for 1 s, then every discharge valve for 1 s (each 2 ms
+    after its command): the output's valve columns say so, and each path's flow, integrated over its
+    second, is the mass the state's counters say went through it (the first second: nothing vented)."""
+    r = frogsim.simulate(frogsim.load_scenario("paper-cycle"))
+    n = r.n
+    t = r.t
+    mid1, mid2 = np.searchsorted(t, 0.5), np.searchsorted(t, 1.5)
+    first, second = (t >= 0.0) & (t <= 1.0), (t >= 1.0) & (t <= 2.0)
+    for i, name in enumerate(r.names):
+        assert r.u[mid1, L.charge_valve(i)] == 1.0 and r.u[mid1, L.vent_valve(i)] == 0.0
+        assert r.u[mid2, L.charge_valve(i)] == 0.0 and r.u[mid2, L.vent_valve(i)] == 1.0
+        k1 = np.searchsorted(t, 1.0)
+        charged = np.trapezoid(r.charge_flow(name)[first], t[first])
+        assert charged == pytest.approx(r.y[k1, L.charged_index(i, n)], rel=1e-2)
+        assert r.y[k1, L.vented_index(i, n)] == 0.0
+        vented = np.trapezoid(r.discharge_flow(name)[second], t[second])
+        assert vented == pytest.approx(r.y[-1, L.vented_index(i, n)], rel=1e-2)
+    assert (r.u[:, L.pump_entry(n)] == 0.0).all()           # paper-cycle's pump is off

@@ -36,6 +36,15 @@ the caller compiles to the machine code the offsets written out in place gave it
 """
 from numba.extending import register_jitable
 
+#: the right-hand side's model tuple, as :func:`frogsim.circuit.rhs.rhs` and the driver
+#: (:func:`frogsim.engine.integrator.advance`, ``model``) take it: the names of its members in order
+#: (:attr:`frogsim.circuit.model.PneumaticModel.rhs_model`)
+MODEL_GROUP = ("g", "mp", "mot_t", "mot_L", "mot_d", "mot_n")
+#: the driver's ``commands`` tuple: the valve schedule, the sampled laws, the controller period
+COMMANDS_GROUP = ("sched_t", "sched_u", "laws", "ctrl_dt")
+#: the driver's ``out`` tuple: output times, states, valve rows (:func:`flows_size` columns)
+OUT_GROUP = ("out_t", "out_y", "out_u")
+
 # global parameter vector g
 G_K = 0            # heat capacity ratio [-]
 G_R = 1            # gas constant [J/(kg K)]

@@ -621,8 +621,8 @@ def run_schedule(y0, u0, t0, t_end, model, commands, solver, out_t, h0, pause_ev
     Returns (out_y, out_u, y_end, stats, status, t_reached, cs, u, ds).
     """
     sched_t, sched_u, laws, ctrl_dt = commands
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, model[1], laws, sched_t, sched_u, ctrl_dt,
-                                                        out_t, h0)
+    g, mp, mot_t, mot_L, mot_d, mot_n = model
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, mp, laws, sched_t, sched_u, ctrl_dt, out_t, h0)
     ds[D_PAUSE] = pause_every
     status = advance(t_end, y, u, ds, cs, model, commands, solver, (out_t, out_y, out_u), stats)
     status = finished_status(status, ds, out_t.size)

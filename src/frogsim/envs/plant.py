@@ -92,14 +92,15 @@ class PneumaticPlant:
         """Back to the scenario's initial state at t = 0 with every valve shut; returns the first
         observation. ``seed`` seeds the sensor noise."""
         m = self.model
-        nu = 2 * self.n
+        nu = L.valve_size(self.n)
         empty_t, empty_u = np.zeros(0), np.zeros((0, nu))
         # the pump's band only: the valves are the agent's (a scenario's closed-loop controllers
         # are not run here)
-        _, _, y, u, ds, cs, stats, commands = begin(m.y0, 0.0, np.zeros(nu), m.mp, sampled_laws(m.g), empty_t,
-                                                    empty_u, self.ctrl_dt, np.zeros(0), self.h0)
+        laws = sampled_laws(m.g)
+        _, _, y, u, ds, cs, stats, _ = begin(m.y0, 0.0, np.zeros(nu), m.mp, laws, empty_t, empty_u, self.ctrl_dt,
+                                             np.zeros(0), self.h0)
         self.y, self.u, self.ds, self.cs, self.stats = y, u, ds, cs, stats
-        self.laws = commands[2]
+        self.laws = laws
         self.k = 0
         self.u_cmd = np.zeros(nu)
         self.u_due = np.zeros(nu)
