@@ -211,9 +211,13 @@ def manifold_pressure(p_s, T_s, y, u, g, mp, n, work):
 
 def _branches_of(flows):
     """The muscles' branches under one valve type whose ``flows`` (its compiled mass flows,
-    :class:`frogsim.circuit.valves.spec.ValveType`) is called directly: each muscle's charge and
-    discharge flows, its dm/dt, dp/dt and counters, aux's entries, and the chambers' sums (mass in,
-    enthalpy in (sum m_dot T_in), mass out of the source and of the exhaust) returned."""
+    :class:`frogsim.circuit.valves.spec.ValveType`) is inlined into the loop (a copy of it compiled
+    for compiled callers only, as :func:`frogsim._jit.jit_inner` makes: the loop pays no call per
+    muscle): each muscle's charge and discharge flows, its dm/dt, dp/dt and counters, aux's entries,
+    and the chambers' sums (mass in, enthalpy in (sum m_dot T_in), mass out of the source and of the
+    exhaust) returned."""
+    flows = jit_inner(getattr(flows, "py_func", flows))
+
     @jit_inner
     def branches(n, y, u, mp, p_up, T_s, p_e, T_e, rho_ref, T_ref, mode, limit, R, k, dydt, aux, work):
         min_s = 0.0
