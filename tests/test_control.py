@@ -304,7 +304,8 @@ def test_setpoint_generators_against_their_formulas(tmp_path):
 
 def test_sensor_quantisation_lag_and_seeded_noise():
     from frogsim.control.table import L_BITS, L_FS, L_LAG, L_NOISE, L_PATM, L_SEED, L_SIZE
-    from frogsim.control.sampled import B_Q0, sense, sensor_noise
+    from frogsim.control.sampled import sense, sensor_noise
+    from frogsim.control.signals import B_Q0
     laws = np.zeros((1, L_SIZE))
     laws[0, L_PATM] = P_ATM
     laws[0, L_BITS], laws[0, L_FS] = 10, 10 * BAR          # 10 bits over 0-10 bar

@@ -185,3 +185,33 @@ def test_the_run_rate_excludes_compilation(monkeypatch):
     solver = res.summary()["solver"]
     assert solver["compile_time_s"] >= 0.5
     assert solver["real_time_factor"] == pytest.approx(res.t[-1] / res.wall_s)
+
+
+def test_the_kernels_groups_and_its_loose_form_come_from_one_list(full_robot):
+    """step_kernel_loose's parameters, the named groups step_kernel reads and the arguments the
+    engine hands either are made from KERNEL_GROUPS: each group member is the model's array of that
+    name (the circuit: advance's model tuple), the loose arguments the same arrays in the same order."""
+    import inspect
+    from frogsim.circuit import layout as CL
+    from frogsim.engine import coupled_kernel as K
+    params = tuple(inspect.signature(K.step_kernel_loose.py_func).parameters)
+    assert params == ("k", "stepping", "row") + K.loose_names()
+    cm = C.build_coupled(full_robot)
+    groups = C.kernel_args(cm)
+    assert [type(gr) for gr in groups] == list(K.GROUP_CLASSES)
+    flat = []
+    for gr, (_, _, members) in zip(groups, K.KERNEL_GROUPS):
+        assert gr._fields == members
+        for m in members:
+            v = getattr(gr, m)
+            if m == "circuit":
+                assert all(a is cm.arrays[k] for a, k in zip(v, CL.MODEL_GROUP)) and len(v) == 6
+                flat.extend(v)
+            else:
+                if gr is not groups[-1]:
+                    assert v is cm.arrays[m]
+                flat.append(v)
+    assert np.shares_memory(groups[-1].xfrc, cm.mjd.xfrc_applied)
+    assert np.shares_memory(groups[-1].body_mass, cm.mjm.body_mass)
+    loose = C.kernel_loose_args(cm)
+    assert len(loose) == len(flat) and all(a is b for a, b in zip(loose, flat))

@@ -16,7 +16,8 @@ from frogsim.components import atmega2560 as chip
 from frogsim.control import firmware as fwm
 from frogsim.control import fixed
 from frogsim.control.kinds import bang_bang, joint_angle, program, pwm, sliding_mode
-from frogsim.control.sampled import B_MODE, B_SENSED, CS_BLOCK, CS_SIZE, sample_controllers, start_controllers
+from frogsim.control.sampled import B_MODE, B_SENSED, CS_BLOCK, sample_controllers, start_controllers
+from frogsim.control.signals import CS_SIZE
 from frogsim.control.signals import FW_MEM, SN_SIZE, fw_sine
 from frogsim.control.table import L_FW, L_MUSCLE
 from frogsim.errors import ScenarioError

@@ -20,11 +20,30 @@ through :func:`charged_index`, :func:`vented_index`, :func:`pump_index`, the siz
 (a wall temperature, a tube segment's pressure) is one more entry of MUSCLE_FIELDS here, with its
 place as a MUSCLE_* constant.
 
+The valve vector u (what the driver holds constant over a piece, :mod:`frogsim.engine.integrator`)
+has :data:`VALVE_WIDTH` entries per muscle, its charge path then its discharge (vent) path
+(:func:`valve_index`, :func:`charge_valve`, :func:`vent_valve`; :func:`valve_size` entries in
+all). The same columns, one more after them, hold the right-hand side's diagnostic flows ``aux``
+(each path's mass flow, then the pump's flow) and an output row of the valves (each path's state,
+then the pump's switch): :func:`pump_entry`, :func:`flows_size`. The schedule's rows (sched_u) are
+valve vectors. The right-hand side's scratch ``work`` has one block of n per field of
+:data:`WORK_FIELDS` (a muscle's temperature, volume, volume rate, length): :func:`work_index`,
+:func:`work_size`.
+
 The index functions are plain Python for Python callers and inlined into each compiled caller's
 Numba IR (``numba.extending.register_jitable`` with ``inline="always"``: no dispatcher of their own;
 the caller compiles to the machine code the offsets written out in place gave it).
 """
 from numba.extending import register_jitable
+
+#: the right-hand side's model tuple, as :func:`frogsim.circuit.rhs.rhs` and the driver
+#: (:func:`frogsim.engine.integrator.advance`, ``model``) take it: the names of its members in order
+#: (:attr:`frogsim.circuit.model.PneumaticModel.rhs_model`)
+MODEL_GROUP = ("g", "mp", "mot_t", "mot_L", "mot_d", "mot_n")
+#: the driver's ``commands`` tuple: the valve schedule, the sampled laws, the controller period
+COMMANDS_GROUP = ("sched_t", "sched_u", "laws", "ctrl_dt")
+#: the driver's ``out`` tuple: output times, states, valve rows (:func:`flows_size` columns)
+OUT_GROUP = ("out_t", "out_y", "out_u")
 
 # global parameter vector g
 G_K = 0            # heat capacity ratio [-]
@@ -170,3 +189,110 @@ def state_labels(names) -> list[tuple[str, str]]:
         out[vented_index(i, n)] = (f"{name} vented mass", "kg")
     out[pump_index(n)] = ("pumped mass", "kg")
     return out
+
+
+# --- the valve vector u, the right-hand side's flows aux, an output row's valve columns -------------
+VALVE_CHARGE = 0       # a muscle's charge path (source -> muscle)
+VALVE_VENT = 1         # its discharge path (muscle -> exhaust)
+VALVE_WIDTH = 2        # entries per muscle
+
+
+@register_jitable(inline="always", _nrt=False)
+def valve_index(i, which):
+    """Entry of muscle i's path ``which`` (VALVE_CHARGE or VALVE_VENT) in the valve vector (and in
+    aux and an output row's valve columns)."""
+    return VALVE_WIDTH * i + which
+
+
+@register_jitable(inline="always", _nrt=False)
+def charge_valve(i):
+    """Entry of muscle i's charge path in the valve vector (its mass flow's in aux)."""
+    return VALVE_WIDTH * i + VALVE_CHARGE
+
+
+@register_jitable(inline="always", _nrt=False)
+def vent_valve(i):
+    """Entry of muscle i's discharge (vent) path in the valve vector (its mass flow's in aux)."""
+    return VALVE_WIDTH * i + VALVE_VENT
+
+
+@register_jitable(inline="always", _nrt=False)
+def valve_size(n):
+    """Entries of the valve vector for n muscles."""
+    return VALVE_WIDTH * n
+
+
+@register_jitable(inline="always", _nrt=False)
+def pump_entry(n):
+    """The entry after the n muscles' valves: the pump's flow in aux, the pump's switch in an output
+    row of the valves."""
+    return VALVE_WIDTH * n
+
+
+@register_jitable(inline="always", _nrt=False)
+def flows_size(n):
+    """Entries of aux (and of an output row of the valves) for n muscles: the valves, then the pump."""
+    return VALVE_WIDTH * n + 1
+
+
+@register_jitable(inline="always", _nrt=False)
+def valve_muscles(nu):
+    """Number of muscles of a valve vector of nu entries (the inverse of :func:`valve_size`)."""
+    return nu // VALVE_WIDTH
+
+
+def charge_slice(n: int) -> slice:
+    """The muscles' charge paths, in muscle order, as a slice of the valve vector (or of aux, or of
+    an output row of the valves)."""
+    return slice(VALVE_CHARGE, VALVE_WIDTH * n, VALVE_WIDTH)
+
+
+def vent_slice(n: int) -> slice:
+    """The muscles' discharge paths, in muscle order, as a slice of the valve vector (or aux)."""
+    return slice(VALVE_VENT, VALVE_WIDTH * n, VALVE_WIDTH)
+
+
+def per_valve(n: int, charge, vent):
+    """A valve vector for n muscles holding ``charge`` at every charge path's entry and ``vent`` at
+    every discharge path's (e.g. each valve's dead time [s])."""
+    import numpy as np
+    out = np.empty(valve_size(n))
+    out[charge_slice(n)] = charge
+    out[vent_slice(n)] = vent
+    return out
+
+
+def valve_slice(n: int) -> slice:
+    """The valve entries (without the pump's entry after them) of aux or an output row."""
+    return slice(0, VALVE_WIDTH * n)
+
+
+def muscle_valve_slice(i: int) -> slice:
+    """Muscle i's two entries (charge, discharge) of the valve vector."""
+    return slice(VALVE_WIDTH * i, VALVE_WIDTH * i + VALVE_WIDTH)
+
+
+# --- the right-hand side's scratch work: one block of n per field -----------------------------------
+WORK_FIELDS = (("temperature", "K"), ("volume", "m^3"), ("volume rate", "m^3/s"), ("length", "m"))
+WORK_T = 0             # a muscle's air temperature [K]
+WORK_V = 1             # its total volume [m^3]
+WORK_DV = 2            # its volume's rate dV/dt [m^3/s]
+WORK_L = 3             # its length [m] (the wall area's)
+_WORK_BLOCKS = len(WORK_FIELDS)
+
+
+@register_jitable(inline="always", _nrt=False)
+def work_index(field, i, n):
+    """Entry of muscle i's field ``field`` (a WORK_* block) in work, for n muscles."""
+    return field * n + i
+
+
+@register_jitable(inline="always", _nrt=False)
+def work_size(n):
+    """Entries of work for n muscles."""
+    return _WORK_BLOCKS * n
+
+
+def work_slice(field: int, n: int) -> slice:
+    """The n muscles' entries of field ``field`` (a WORK_* block) as a slice of work."""
+    return slice(field * n, field * n + n)

@@ -36,15 +36,15 @@ def build_schedule(programs: list, rate: float, charge_dead: float, discharge_de
             tq = command_time(t_cmd, rate)
             new = VALVE_STATES[state]
             if new[0] != prev[0]:
-                events.append((tq + charge_dead, 2 * i, float(new[0])))
+                events.append((tq + charge_dead, L.charge_valve(i), float(new[0])))
                 if new[0]:
                     ch_open.append(tq + charge_dead)
             if new[1] != prev[1]:
-                events.append((tq + discharge_dead, 2 * i + 1, float(new[1])))
+                events.append((tq + discharge_dead, L.vent_valve(i), float(new[1])))
             prev = new
         opens.append(np.array(ch_open))
-    sched_t, sched_u = schedule_from_events(events, np.zeros(2 * len(names)))
-    return sched_t, sched_u, np.zeros(2 * len(names)), opens
+    sched_t, sched_u = schedule_from_events(events, np.zeros(L.valve_size(len(names))))
+    return sched_t, sched_u, np.zeros(L.valve_size(len(names))), opens
 
 
 def schedule_from_events(events, u_start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -232,7 +232,7 @@ def _schedule_stage(sc, laws, motion):
             if c.closed_loop:
                 for m in c.driven():
                     i = names.index(m)
-                    sched_u[:, 2 * i:2 * i + 2] = np.nan
+                    sched_u[:, L.muscle_valve_slice(i)] = np.nan
     return sched_u
 
 

@@ -1,12 +1,16 @@
 """Right-hand side of the pneumatic circuit: Eqs. (2)-(9) assembled for n muscles.
 
-``rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)`` writes dy/dt. ``u`` holds
-the valve states (u[2i] the charge path, u[2i+1] the discharge path of muscle i, each its opening:
-1 = open, 0 = shut; a proportional valve's edges open in between), constant over the call's
-segment, turned into mass flows by the muscle's valve type (:mod:`frogsim.circuit.valves`); muscle lengths come from the motion tables (cubic Hermite knots, see
-:func:`motion_length`). ``aux`` receives per-muscle charge and discharge mass flows [kg/s] (2n) and
-the pump flow (last entry) for diagnostics; ``work`` is scratch space of length 4n (no allocation
-in the hot loop).
+``rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work)`` writes dy/dt. ``u``
+holds the valve states (each muscle's charge path and discharge path at its entries of the valve
+vector, :func:`frogsim.circuit.layout.valve_index`; each its opening: 1 = open, 0 = shut, a
+proportional valve's edges open in between), constant over the call's segment, turned into mass
+flows by the circuit's valve type (:mod:`frogsim.circuit.valves`: one type per circuit, as a
+scenario's ``[valves]`` names one, read off the first muscle's row and dispatched once per call,
+:data:`muscle_branches`); muscle lengths come from the motion tables (cubic Hermite knots, see
+:func:`motion_length`). ``aux`` receives each muscle's charge and discharge mass flows [kg/s] and
+the pump's flow for diagnostics; ``work`` is scratch space (no allocation in the hot loop). ``aux``
+and ``work`` are laid out by :mod:`frogsim.circuit.layout` (:func:`~frogsim.circuit.layout.flows_size`,
+:func:`~frogsim.circuit.layout.work_index`).
 
 Each volume whose heat transfer coefficient is positive (mp[i, M_H], g[G_H_S], g[G_H_E]) takes the
 wall heat Q = h A (T_wall - T) into its energy balance (Eq. (**) of :mod:`frogsim.physics.heat`),
@@ -20,14 +24,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from frogsim._jit import jit, jit_step
+from frogsim._jit import jit, jit_inner, jit_step
 
+from frogsim.circuit import valves as valve_types
 from frogsim.circuit.valves import valve_flows
 from frogsim.circuit.layout import (
     G_A_E, G_A_S, G_BRANCH_LIMIT, G_H_E, G_H_S, G_HEAT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF,
     G_SUPPLY_MODE, G_TAMB, G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_B0, M_DEAD, M_FIXEDV, M_H, M_N,
-    M_VALVE, SUPPLY_PAPER, SUPPLY_PHYSICAL, Y_ME, Y_MS, Y_PE, Y_PS,
-    charged_index, mass_index, pressure_index, pump_index, vented_index,
+    M_VALVE, SUPPLY_PAPER, SUPPLY_PHYSICAL, WORK_DV, WORK_L, WORK_T, WORK_V, Y_ME, Y_MS, Y_PE, Y_PS,
+    charge_valve, charged_index, mass_index, pressure_index, pump_entry, pump_index, vent_valve, vented_index,
+    work_index,
 )
 from frogsim.physics.flow import iso6358_mass_flow, pump_mass_flow
 from frogsim.physics.gas import pressure_rate
@@ -139,7 +145,7 @@ def muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n):
 
 
 @jit_step
-def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
+def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, work):
     """Main-tube inflow minus the open branches' outflow at manifold pressure pm [kg/s]."""
     R = g[G_R]
     rho_ref = g[G_RHOREF]
@@ -147,16 +153,17 @@ def _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus):
     f = iso6358_mass_flow(p_s, T_s, pm, T_s, g[G_TUBE_C], g[G_TUBE_B], 0.5, g[G_TUBE_RLAM],
                           rho_ref, T_ref)
     for i in range(n):
-        if u[2 * i] > 0.0:
+        u_c = u[charge_valve(i)]
+        if u_c > 0.0:
             p_i = y[pressure_index(i)]
-            mc, _ = valve_flows(mp[i, M_VALVE], mp, i, u[2 * i], 0.0, pm, T_s, p_i, T_mus[i], p_i, T_mus[i],
-                                rho_ref, T_ref)
+            T_i = work[work_index(WORK_T, i, n)]
+            mc, _ = valve_flows(mp[i, M_VALVE], mp, i, u_c, 0.0, pm, T_s, p_i, T_i, p_i, T_i, rho_ref, T_ref)
             f -= mc
     return f
 
 
 @jit_step
-def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
+def manifold_pressure(p_s, T_s, y, u, g, mp, n, work):
     """Physical tube mode: pressure where the main tube feeds the open branches [Pa abs].
 
     Solves main-tube flow(p_s -> pm) = sum of open charge-path flows(pm -> p_i) (a path of zero
@@ -168,15 +175,15 @@ def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
     hi = p_s
     any_open = False
     for i in range(n):
-        if u[2 * i] > 0.0:
+        if u[charge_valve(i)] > 0.0:
             any_open = True
             p_i = y[pressure_index(i)]
             lo = min(lo, p_i)
             hi = max(hi, p_i)
     if not any_open or hi - lo <= 0.0:
         return p_s
-    f_lo = _manifold_residual(lo, p_s, T_s, y, u, g, mp, n, T_mus)
-    f_hi = _manifold_residual(hi, p_s, T_s, y, u, g, mp, n, T_mus)
+    f_lo = _manifold_residual(lo, p_s, T_s, y, u, g, mp, n, work)
+    f_hi = _manifold_residual(hi, p_s, T_s, y, u, g, mp, n, work)
     side = 0
     pm = 0.5 * (lo + hi)
     for _ in range(100):
@@ -184,7 +191,7 @@ def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
             pm = 0.5 * (lo + hi)
         else:
             pm = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
-        f = _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, T_mus)
+        f = _manifold_residual(pm, p_s, T_s, y, u, g, mp, n, work)
         if f > 0.0:
             lo = pm
             f_lo = f
@@ -200,6 +207,97 @@ def manifold_pressure(p_s, T_s, y, u, g, mp, n, T_mus):
         if hi - lo <= 1e-12 * hi or f == 0.0:
             break
     return pm
+
+
+def _branches_of(flows):
+    """The muscles' branches under one valve type whose ``flows`` (its compiled mass flows,
+    :class:`frogsim.circuit.valves.spec.ValveType`) is inlined into the loop (a copy of it compiled
+    for compiled callers only, as :func:`frogsim._jit.jit_inner` makes: the loop pays no call per
+    muscle): each muscle's charge and discharge flows, its dm/dt, dp/dt and counters, aux's entries,
+    and the chambers' sums (mass in, enthalpy in (sum m_dot T_in), mass out of the source and of the
+    exhaust) returned."""
+    flows = jit_inner(getattr(flows, "py_func", flows))
+
+    @jit_inner
+    def branches(n, y, u, mp, p_up, T_s, p_e, T_e, rho_ref, T_ref, mode, limit, R, k, dydt, aux, work):
+        min_s = 0.0
+        hin_s = 0.0
+        out_s = 0.0
+        min_e = 0.0
+        hin_e = 0.0
+        out_e = 0.0
+        for i in range(n):
+            p_i = y[pressure_index(i)]
+            T_i = work[work_index(WORK_T, i, n)]
+            hin_i = 0.0
+            out_i = 0.0
+            # 0.0 exactly through a shut path
+            mc, md = flows(mp, i, u[charge_valve(i)], u[vent_valve(i)], p_up, T_s, p_i, T_i, p_e, T_e, rho_ref,
+                           T_ref)
+            if mc != 0.0:
+                if mode == SUPPLY_PAPER:
+                    mc = min(max(mc, -limit), limit)
+                if mc >= 0.0:          # source -> muscle, at the source temperature
+                    out_s += mc
+                    hin_i += mc * T_s
+                else:                  # muscle -> source (source below the muscle)
+                    out_i -= mc
+                    min_s -= mc
+                    hin_s -= mc * T_i
+            if md != 0.0:
+                if md >= 0.0:          # muscle -> exhaust, at the muscle temperature
+                    out_i += md
+                    min_e += md
+                    hin_e += md * T_i
+                else:                  # exhaust -> muscle
+                    out_e -= md
+                    hin_i -= md * T_e
+            dydt[mass_index(i)] = mc - md
+            V_i = work[work_index(WORK_V, i, n)]
+            dydt[pressure_index(i)] = pressure_rate(p_i, V_i, work[work_index(WORK_DV, i, n)], hin_i, out_i, T_i, R, k)
+            dydt[charged_index(i, n)] = mc
+            dydt[vented_index(i, n)] = md
+            aux[charge_valve(i)] = mc
+            aux[vent_valve(i)] = md
+        return min_s, hin_s, out_s, min_e, hin_e, out_e
+    return branches
+
+
+def _branch_chain(types):
+    """``muscle_branches(code, n, y, u, mp, ...)``: :func:`_branches_of` the valve type whose code is
+    ``code``, the circuit's one type (a scenario's ``[valves]`` writes one type into every muscle
+    row, :func:`frogsim.circuit.model.build_model`), tested once per call instead of once per
+    muscle; one inlined branch per type of the registry, in the order of their codes (as
+    :data:`frogsim.circuit.valves.valve_flows`), the last raising for a code no type declares. A
+    circuit without muscles passes code 0.0 and runs no branch's loop."""
+    def last(code, flows):
+        body = _branches_of(flows)
+
+        @jit_inner
+        def branch(vc, n, y, u, mp, p_up, T_s, p_e, T_e, rho_ref, T_ref, mode, limit, R, k, dydt, aux, work):
+            if vc != code and n > 0:
+                raise ValueError("rhs: a muscle row's valve code is no valve type's (frogsim.circuit.valves)")
+            return body(n, y, u, mp, p_up, T_s, p_e, T_e, rho_ref, T_ref, mode, limit, R, k, dydt, aux, work)
+        return branch
+
+    def link(code, flows, rest):
+        body = _branches_of(flows)
+
+        @jit_inner
+        def branch(vc, n, y, u, mp, p_up, T_s, p_e, T_e, rho_ref, T_ref, mode, limit, R, k, dydt, aux, work):
+            if vc == code:
+                return body(n, y, u, mp, p_up, T_s, p_e, T_e, rho_ref, T_ref, mode, limit, R, k, dydt, aux, work)
+            return rest(vc, n, y, u, mp, p_up, T_s, p_e, T_e, rho_ref, T_ref, mode, limit, R, k, dydt, aux, work)
+        return branch
+
+    out = last(types[-1].code, types[-1].flows)
+    for vt in reversed(types[:-1]):
+        out = link(vt.code, vt.flows, out)
+    return out
+
+
+#: the muscles' branches of the right-hand side under the circuit's valve type (row 0's code)
+muscle_branches = _branch_chain(sorted(valve_types.BY_CODE.values(), key=lambda vt: vt.code))
 
 
 @jit
@@ -224,16 +322,9 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     V_e = g[G_VE]
     T_s = p_s * V_s / (y[Y_MS] * R)
     T_e = p_e * V_e / (y[Y_ME] * R)
-    # per volume: mass in, enthalpy in (sum m_dot T_in), mass out
-    min_s = 0.0
-    hin_s = 0.0
-    out_s = 0.0
-    min_e = 0.0
-    hin_e = 0.0
-    out_e = 0.0
     mode = int(g[G_SUPPLY_MODE])
-    # work holds muscle temperatures [0, n), volumes [n, 2n), volume rates [2n, 3n) and lengths
-    # [3n, 4n) (the last for the wall heat)
+    # work holds the muscles' temperatures, volumes, volume rates and lengths (the last for the wall
+    # heat): its WORK_* blocks (frogsim.circuit.layout)
     lo = common_piece(t, mp, mot_t, mot_n)
     if lo >= 0:
         # the same numbers as the loop below (motion_length's piece, muscle_volume_state's sums)
@@ -242,60 +333,31 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
             b0 = mp[i, M_B0]
             nt = mp[i, M_N]
             V = muscle_volume(L, b0, nt) + mp[i, M_DEAD]
-            work[n + i] = V
-            work[2 * n + i] = muscle_volume_slope(L, b0, nt) * dL
-            work[3 * n + i] = L
-            work[i] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
+            work[work_index(WORK_V, i, n)] = V
+            work[work_index(WORK_DV, i, n)] = muscle_volume_slope(L, b0, nt) * dL
+            work[work_index(WORK_L, i, n)] = L
+            work[work_index(WORK_T, i, n)] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
     else:
         for i in range(n):
             V, dV, L = muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n)
-            work[n + i] = V
-            work[2 * n + i] = dV
-            work[3 * n + i] = L
-            work[i] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
+            work[work_index(WORK_V, i, n)] = V
+            work[work_index(WORK_DV, i, n)] = dV
+            work[work_index(WORK_L, i, n)] = L
+            work[work_index(WORK_T, i, n)] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
     p_up = p_s
     if mode == SUPPLY_PHYSICAL:
         p_up = manifold_pressure(p_s, T_s, y, u, g, mp, n, work)
-    limit = g[G_BRANCH_LIMIT]
-    for i in range(n):
-        p_i = y[pressure_index(i)]
-        T_i = work[i]
-        hin_i = 0.0
-        out_i = 0.0
-        # the muscle's valve type (frogsim.circuit.valves): 0.0 exactly through a shut path
-        mc, md = valve_flows(mp[i, M_VALVE], mp, i, u[2 * i], u[2 * i + 1], p_up, T_s, p_i, T_i, p_e, T_e,
-                             rho_ref, T_ref)
-        if mc != 0.0:
-            if mode == SUPPLY_PAPER:
-                mc = min(max(mc, -limit), limit)
-            if mc >= 0.0:          # source -> muscle, at the source temperature
-                out_s += mc
-                hin_i += mc * T_s
-            else:                  # muscle -> source (source below the muscle)
-                out_i -= mc
-                min_s -= mc
-                hin_s -= mc * T_i
-        if md != 0.0:
-            if md >= 0.0:          # muscle -> exhaust, at the muscle temperature
-                out_i += md
-                min_e += md
-                hin_e += md * T_i
-            else:                  # exhaust -> muscle
-                out_e -= md
-                hin_i -= md * T_e
-        dydt[mass_index(i)] = mc - md
-        dydt[pressure_index(i)] = pressure_rate(p_i, work[n + i], work[2 * n + i], hin_i, out_i, T_i, R, k)
-        dydt[charged_index(i, n)] = mc
-        dydt[vented_index(i, n)] = md
-        aux[2 * i] = mc
-        aux[2 * i + 1] = md
+    # the muscles' valves: the circuit's one valve type, dispatched once (see _branches)
+    min_s, hin_s, out_s, min_e, hin_e, out_e = muscle_branches(
+        mp[0, M_VALVE] if n > 0 else 0.0, n, y, u, mp, p_up, T_s, p_e, T_e, rho_ref, T_ref, mode,
+        g[G_BRANCH_LIMIT], R, k, dydt, aux, work)
     m_pump = 0.0
     if pump_on > 0.5:
         m_pump = pump_mass_flow(p_e, T_e, p_s, g[G_PUMP_DISP], g[G_PUMP_RMAX], R)
         out_e += m_pump
         min_s += m_pump
         hin_s += m_pump * g[G_TAMB]   # delivered through the pump's cooling fin at ambient T
-    aux[2 * n] = m_pump
+    aux[pump_entry(n)] = m_pump
     dydt[Y_MS] = min_s - out_s
     dydt[Y_PS] = pressure_rate(p_s, V_s, 0.0, hin_s, out_s, T_s, R, k)
     dydt[Y_ME] = min_e - out_e
@@ -303,12 +365,12 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     dydt[pump_index(n)] = m_pump
     if g[G_HEAT] > 0.0:
         # the walls' heat, (k - 1) Q / V on each volume's pressure rate (Eq. (**)); Q = h A (T_wall - T)
-        # with a muscle's A the braid cylinder's mantle at its length (work[3n + i]; a muscle of fixed
+        # with a muscle's A the braid cylinder's mantle at its length (work's WORK_L block; a muscle of fixed
         # volume keeps its one knot's length, the rest length); h = 0 gives Q = 0
         T_wall = g[G_TAMB]
         for i in range(n):
-            Q = wall_heat_flow(mp[i, M_H], muscle_wall_area(work[3 * n + i], mp[i, M_B0], mp[i, M_N]), T_wall,
-                               work[i])
-            dydt[pressure_index(i)] += heat_pressure_rate(Q, work[n + i], k)
+            Q = wall_heat_flow(mp[i, M_H], muscle_wall_area(work[work_index(WORK_L, i, n)], mp[i, M_B0], mp[i, M_N]),
+                               T_wall, work[work_index(WORK_T, i, n)])
+            dydt[pressure_index(i)] += heat_pressure_rate(Q, work[work_index(WORK_V, i, n)], k)
         dydt[Y_PS] += heat_pressure_rate(wall_heat_flow(g[G_H_S], g[G_A_S], T_wall, T_s), V_s, k)
         dydt[Y_PE] += heat_pressure_rate(wall_heat_flow(g[G_H_E], g[G_A_E], T_wall, T_e), V_e, k)

@@ -46,15 +46,15 @@ import math
 import numpy as np
 
 from frogsim._jit import jit, jit_alloc, jit_inner, jit_step
-from frogsim.circuit.layout import M_VALVE, pressure_index
+from frogsim.circuit.layout import M_VALVE, VALVE_CHARGE, VALVE_VENT, VALVE_WIDTH, pressure_index, valve_index
 from frogsim.circuit.valves import valve_openings
 from frogsim.control import kinds
 from frogsim.control.signals import (  # noqa: F401  (the memory layout and signals, re-exported)
     B_A_FILT, B_A_FILT_ON, B_A_SENSED, B_ANGLE, B_CLIPS, B_CMD_C, B_CMD_D, B_FILT, B_FILT_ON, B_INT, B_MODE,
-    B_OMEGA, B_PHASE, B_PULSE, B_Q0, B_QC_HEAD, B_QC_N, B_QD_HEAD, B_QD_N, B_SENSED, B_SP, B_SW_C, B_SW_D,
-    B_TARGET, B_VALVE, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_FW, CS_PUMP, CS_Q, CS_SAMPLE, CS_SIZE, MODE_CHARGE,
+    B_OMEGA, B_PHASE, B_PULSE, B_QC_HEAD, B_QC_N, B_QD_HEAD, B_QD_N, B_SENSED, B_SP, B_SW_C, B_SW_D,
+    B_TARGET, B_VALVE, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_FW, CS_PUMP, CS_Q, CS_SAMPLE, MODE_CHARGE,
     MODE_HOLD, MODE_VENT, TOL, B_FAULT_A, B_FAULT_P, B_FW0, FW_MEM, adc_count, fw_fault, pump_band, sense,
-    sense_joint, sensor_noise, setpoint)
+    sense_joint, sensor_noise, setpoint, block_size, controller_state_size, law_block, queue_due, queue_start)
 from frogsim.control.table import (  # noqa: F401  (the table's layout, re-exported)
     KIND_EXTERNAL, KIND_PUMP_BAND, L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0,
     L_ADC_V0, L_ADC_VREF, L_DEAD_C, L_DEAD_D, L_FAULT_AHI, L_FAULT_ALO, L_FAULT_MODE, L_FAULT_N, L_FAULT_PHI,
@@ -89,7 +89,7 @@ def observe_joints(laws, cs, qpos, qvel, leg_qpos, leg_dof):
 # --- commands, their dead time and the driver's protocol ------------------------------------------------
 @jit_step
 def _block(cs, c):
-    return int(CS_SIZE + c * cs[CS_BLOCK])
+    return law_block(cs, c)
 
 
 @jit_step
@@ -97,8 +97,9 @@ def _push(cs, b, head, q0, due, state):
     Q = int(cs[CS_Q])
     n = int(cs[b + head + 1])
     j = (int(cs[b + head]) + n) % Q
-    cs[b + q0 + 2 * j] = due
-    cs[b + q0 + 2 * j + 1] = state
+    e = b + queue_due(q0, j)
+    cs[e] = due
+    cs[e + 1] = state
     cs[b + head + 1] = n + 1
 
 
@@ -115,17 +116,17 @@ def command_openings(laws, c, cs, want_c, want_d, ts, mode):
     close_d = -math.inf
     if want_c < cs[b + B_CMD_C]:
         close_c = ts + laws[c, L_DEAD_C]
-        _push(cs, b, B_QC_HEAD, B_Q0, close_c, want_c)
+        _push(cs, b, B_QC_HEAD, queue_start(VALVE_CHARGE, Q), close_c, want_c)
         cs[b + B_CMD_C] = want_c
     if want_d < cs[b + B_CMD_D]:
         close_d = ts + laws[c, L_DEAD_D]
-        _push(cs, b, B_QD_HEAD, B_Q0 + 2 * Q, close_d, want_d)
+        _push(cs, b, B_QD_HEAD, queue_start(VALVE_VENT, Q), close_d, want_d)
         cs[b + B_CMD_D] = want_d
     if want_c > cs[b + B_CMD_C]:
-        _push(cs, b, B_QC_HEAD, B_Q0, max(ts + laws[c, L_DEAD_C], close_d), want_c)
+        _push(cs, b, B_QC_HEAD, queue_start(VALVE_CHARGE, Q), max(ts + laws[c, L_DEAD_C], close_d), want_c)
         cs[b + B_CMD_C] = want_c
     if want_d > cs[b + B_CMD_D]:
-        _push(cs, b, B_QD_HEAD, B_Q0 + 2 * Q, max(ts + laws[c, L_DEAD_D], close_c), want_d)
+        _push(cs, b, B_QD_HEAD, queue_start(VALVE_VENT, Q), max(ts + laws[c, L_DEAD_D], close_c), want_d)
         cs[b + B_CMD_D] = want_d
     cs[b + B_MODE] = mode
 
@@ -167,16 +168,18 @@ def apply_due(laws, t, u, cs):
             continue
         b = _block(cs, c)
         i = int(laws[c, L_MUSCLE])
-        for valve in range(2):
-            head = B_QC_HEAD if valve == 0 else B_QD_HEAD
-            q0 = B_Q0 if valve == 0 else B_Q0 + 2 * Q
+        for valve in range(VALVE_WIDTH):          # VALVE_CHARGE, then VALVE_VENT
+            head = B_QC_HEAD if valve == VALVE_CHARGE else B_QD_HEAD
+            q0 = queue_start(valve, Q)
             while cs[b + head + 1] > 0:
                 h = int(cs[b + head])
-                if cs[b + q0 + 2 * h] > t + TOL:
+                e = b + queue_due(q0, h)
+                if cs[e] > t + TOL:
                     break
-                state = cs[b + q0 + 2 * h + 1]
-                if u[2 * i + valve] != state:
-                    u[2 * i + valve] = state
+                state = cs[e + 1]
+                j = valve_index(i, valve)
+                if u[j] != state:
+                    u[j] = state
                     cs[b + B_SW_C + valve] += 1.0
                     changed = True
                 cs[b + head] = float((h + 1) % Q)
@@ -217,9 +220,9 @@ def next_due_time(laws, cs):
             continue
         b = _block(cs, c)
         if cs[b + B_QC_N] > 0:
-            t = min(t, cs[b + B_Q0 + 2 * int(cs[b + B_QC_HEAD])])
+            t = min(t, cs[b + queue_due(queue_start(VALVE_CHARGE, Q), int(cs[b + B_QC_HEAD]))])
         if cs[b + B_QD_N] > 0:
-            t = min(t, cs[b + B_Q0 + 2 * Q + 2 * int(cs[b + B_QD_HEAD])])
+            t = min(t, cs[b + queue_due(queue_start(VALVE_VENT, Q), int(cs[b + B_QD_HEAD]))])
     if t < math.inf:
         dt = cs[CS_DT]
         ts = math.floor(t / dt + 0.5) * dt
@@ -436,7 +439,7 @@ def start_controllers(laws, mp, t0, y, u, ctrl_dt):
     at or just before t0 taken (its commands hold from t0 on, or a dead time later); ``mp`` as
     :func:`sample_controllers` takes it."""
     if laws.ndim == 1:                     # open loop: no valve laws, no command queue
-        cs = np.zeros(CS_SIZE)
+        cs = np.zeros(controller_state_size(0, 0))
         cs[CS_DT] = ctrl_dt
         cs[CS_SAMPLE] = math.floor(t0 / ctrl_dt + 1e-9) - 1.0
         sample_controllers(laws, mp, t0, y, u, cs)
@@ -446,8 +449,8 @@ def start_controllers(laws, mp, t0, y, u, ctrl_dt):
         if _is_valve_law(laws[c, L_KIND]):
             dead = max(dead, laws[c, L_DEAD_C], laws[c, L_DEAD_D])
     Q = int(math.ceil(dead / ctrl_dt)) + 3
-    block = B_Q0 + 4 * Q
-    cs = np.zeros(CS_SIZE + laws.shape[0] * block)
+    block = block_size(Q)
+    cs = np.zeros(controller_state_size(laws.shape[0], block))
     cs[CS_DT] = ctrl_dt
     cs[CS_BLOCK] = block
     cs[CS_Q] = Q
@@ -466,7 +469,7 @@ def switch_counts(laws, cs) -> dict:
         return out
     for c in range(laws.shape[0]):
         if _is_valve_law(laws[c, L_KIND]):
-            b = int(CS_SIZE + c * cs[CS_BLOCK])
+            b = law_block(cs, c)
             out[c] = (int(cs[b + B_SW_C]), int(cs[b + B_SW_D]))
     return out
 
@@ -498,7 +501,7 @@ def command_from_python(laws, rows: dict, cs, cmds, t_k: float, u, t_now: float)
             raise SimulationError(f"controller function: a command for {name!r} issued at t = {t!r} s would act "
                                   f"before now ({t_now:g} s): a command may be issued before the sample only "
                                   "by less than the valves' dead time")
-        b = int(CS_SIZE + rows[name] * cs[CS_BLOCK])
+        b = law_block(cs, rows[name])
         if max(cs[b + B_QC_N], cs[b + B_QD_N]) >= cs[CS_Q] - 1:
             raise SimulationError(f"controller function: more valve commands for {name!r} within one dead time "
                                   f"than its queue holds ({int(cs[CS_Q])}) at t = {t:g} s")

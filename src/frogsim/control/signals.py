@@ -12,6 +12,8 @@ import math
 
 import numpy as np
 
+from numba.extending import register_jitable
+
 from frogsim._jit import jit, jit_step
 from frogsim.control.table import (L_A_BITS, L_A_FS, L_A_LAG, L_A_NOISE, L_A_SEED, L_BITS, L_FS, L_LAG,
                                    L_NOISE, L_PATM, L_SEED, L_SP0, L_SP_A, L_SP_B, L_SP_C, L_SP_D,
@@ -28,7 +30,7 @@ CS_DT = 2        # the controller period [s]
 CS_BLOCK = 3     # length of each law's block of memory
 CS_Q = 4         # capacity of each valve's queue of pending commands
 CS_FW = 5        # 1 if some row of the table has a firmware block (its integer twin runs), else 0
-CS_SIZE = 6      # law c's block starts at CS_SIZE + c * cs[CS_BLOCK]
+CS_SIZE = 6      # law c's block follows (law_block)
 # a valve law's block (offsets)
 B_MODE = 0       # the mode last commanded (MODE_*)
 B_CMD_C = 1      # the charge valve's last commanded state (queued or applied)
@@ -64,8 +66,42 @@ B_FAULT_A = 34   # ... of the angle channel
 B_VALVE = 35     # the valve's memory between samples (a proportional valve: its spool position [-]),
                  # carried by the valve type's controller view (frogsim.circuit.valves)
 B_ERR = 36       # pid: the pressure error at the last sample [Pa]
-B_Q0 = 37        # queues: charge (due, state) x Q, then discharge (due, state) x Q
+B_Q0 = 37        # queues: charge (due, state) x Q, then discharge (due, state) x Q (queue_start)
 TOL = 1e-9       # [s] a due time this close to a sample is that sample
+_ENTRY = 2       # a queue entry: (due time [s], state)
+
+
+@register_jitable(inline="always", _nrt=False)
+def law_block(cs, c):
+    """Start of law c's block in the controllers' state cs (its fields at the B_* offsets from it):
+    every block has cs[CS_BLOCK] entries, after the CS_* ones."""
+    return int(CS_SIZE + c * cs[CS_BLOCK])
+
+
+@register_jitable(inline="always", _nrt=False)
+def block_size(Q):
+    """Entries of a law's block whose two queues (charge, discharge) hold Q commands each."""
+    return B_Q0 + 2 * _ENTRY * Q
+
+
+@register_jitable(inline="always", _nrt=False)
+def controller_state_size(rows, block):
+    """Entries of cs for a table of ``rows`` laws whose blocks have ``block`` entries each."""
+    return CS_SIZE + rows * block
+
+
+@register_jitable(inline="always", _nrt=False)
+def queue_start(valve, Q):
+    """Offset (from a law's block) of the queue of valve path ``valve`` (0 charge, 1 discharge, the
+    valve vector's VALVE_CHARGE and VALVE_VENT) for queues of Q commands."""
+    return B_Q0 + _ENTRY * Q * valve
+
+
+@register_jitable(inline="always", _nrt=False)
+def queue_due(q, j):
+    """Offset of the due time [s] of entry j of the queue at offset q (:func:`queue_start`); its
+    state is the next entry."""
+    return q + _ENTRY * j
 
 
 @jit

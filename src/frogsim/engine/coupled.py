@@ -31,7 +31,8 @@ import numpy as np
 from frogsim.circuit import layout as CL
 from frogsim.circuit.model import build_model, schedule_from_events
 from frogsim.control.sampled import sampled_laws
-from frogsim.engine.coupled_kernel import apply_added_mass, step_kernel_loose
+from frogsim.engine.coupled_kernel import (CIRCUIT, GROUP_CLASSES, KERNEL_GROUPS, MuJoCo, apply_added_mass,
+                                          loose_names, step_kernel_loose)
 from frogsim.engine.coupled_loop import mujoco_c, run_steps
 # R_* and T_PEAK*: the record's and the state's columns, read by callers of run_coupled
 from frogsim.engine.coupled_layout import (  # noqa: F401
@@ -272,47 +273,49 @@ def build_bare(xml: str, tables, density: float, gravity: float, duration: float
                      (np.zeros(0), np.zeros(0)), sc, [], duration, output_interval)
 
 
-#: step_kernel's groups of arrays (before MuJoCo's), by their names in CoupledModel.arrays
-KERNEL_GROUPS = (("sc", "st", "rec"), ("el", "strip_s", "strip_k", "pa", "vprev"),
-                 ("pal_t", "pal_target", "frac", "frac_new", "leg_qpos", "leg_dof", "stops"),
-                 ("mu", "tension", "anchors", "slip_k", "slip_f"),
-                 ("y", "u", "ds", "cs", ("g", "mp", "mot_t", "mot_L", "mot_d", "mot_n"), "sched_t", "sched_u",
-                  "laws", "atol", "stats"))
+#: where kernel_args finds the MuJoCo group's members (coupled_kernel.KERNEL_GROUPS): (mjData "d" or
+#: mjModel "m", its attribute)
+_MUJOCO_ARRAYS = {"ten_length": ("d", "ten_length"), "ten_velocity": ("d", "ten_velocity"), "xpos": ("d", "xpos"),
+                  "xmat": ("d", "xmat"), "xipos": ("d", "xipos"), "cvel": ("d", "cvel"),
+                  "subtree_com": ("d", "subtree_com"), "body_rootid": ("m", "body_rootid"),
+                  "body_parentid": ("m", "body_parentid"), "body_mass": ("m", "body_mass"),
+                  "body_ipos": ("m", "body_ipos"), "body_inertia": ("m", "body_inertia"),
+                  "body_subtreemass": ("m", "body_subtreemass"), "ctrl": ("d", "ctrl"),
+                  "xfrc": ("d", "xfrc_applied"), "qpos": ("d", "qpos"), "qvel": ("d", "qvel"),
+                  "qfrc": ("d", "qfrc_applied"), "dof_damping": ("m", "dof_damping")}
 
 
-def _loose(names: tuple) -> tuple:
-    return tuple(a for n in names for a in (_loose(n) if isinstance(n, tuple) else (n,)))
-
-
-_KERNEL_LOOSE = _loose(KERNEL_GROUPS)
-
-
-def _mujoco_views(cm: CoupledModel) -> tuple:
+def _mujoco_views(cm: CoupledModel):
+    """The MuJoCo group (:class:`frogsim.engine.coupled_kernel.MuJoCo`) of the model's MuJoCo
+    arrays, made again only when the model or data changed."""
     m, d = cm.mjm, cm.mjd
     if cm._views[0] is not m or cm._views[1] is not d:
-        cm._views = (m, d, (
-            d.ten_length, d.ten_velocity, d.xpos, d.xmat, d.xipos, d.cvel, d.subtree_com,
-            m.body_rootid, m.body_parentid, m.body_mass, m.body_ipos, m.body_inertia,
-            m.body_subtreemass, d.ctrl, d.xfrc_applied, d.qpos, d.qvel, d.qfrc_applied,
-            m.dof_damping))
+        src = {"m": m, "d": d}
+        cm._views = (m, d, MuJoCo(**{name: getattr(src[which], attr)
+                                     for name, (which, attr) in _MUJOCO_ARRAYS.items()}))
     return cm._views[2]
 
 
 def kernel_args(cm: CoupledModel) -> tuple:
-    """The groups step_kernel takes after (k, stepping, row): records, water, body, muscles,
-    pneumatics (:data:`KERNEL_GROUPS`), then MuJoCo's views; for the compiled loop."""
-    a = cm.arrays          # written out (the order of KERNEL_GROUPS): called once per controller period
-    return ((a["sc"], a["st"], a["rec"]), (a["el"], a["strip_s"], a["strip_k"], a["pa"], a["vprev"]),
-            (a["pal_t"], a["pal_target"], a["frac"], a["frac_new"], a["leg_qpos"], a["leg_dof"], a["stops"]),
-            (a["mu"], a["tension"], a["anchors"], a["slip_k"], a["slip_f"]),
-            (a["y"], a["u"], a["ds"], a["cs"], (a["g"], a["mp"], a["mot_t"], a["mot_L"], a["mot_d"], a["mot_n"]),
-             a["sched_t"], a["sched_u"], a["laws"], a["atol"], a["stats"]), _mujoco_views(cm))
+    """The groups step_kernel takes after (k, stepping, row), as named tuples
+    (:data:`frogsim.engine.coupled_kernel.KERNEL_GROUPS`): the model's arrays by their names, the
+    circuit as advance's model tuple, MuJoCo's views; for the compiled loop."""
+    a = cm.arrays
+    circuit = tuple(a[k] for k in CIRCUIT)
+    groups = tuple(cls(**{m: (circuit if m == "circuit" else a[m]) for m in members})
+                   for cls, (_, _, members) in zip(GROUP_CLASSES[:-1], KERNEL_GROUPS[:-1]))
+    return groups + (_mujoco_views(cm),)
 
 
 def kernel_loose_args(cm: CoupledModel) -> tuple:
-    """The same arrays loose, in the same order, for :func:`step_kernel_loose` (Python's calls)."""
+    """The same arrays loose, in the same order (:func:`frogsim.engine.coupled_kernel.loose_names`),
+    for :func:`step_kernel_loose` (Python's calls)."""
     a = cm.arrays
-    return tuple(a[k] for k in _KERNEL_LOOSE) + _mujoco_views(cm)
+    return tuple(a[k] for k in _LOOSE_OWN) + tuple(_mujoco_views(cm))
+
+
+#: step_kernel_loose's parameters that are the model's arrays (the MuJoCo group's follow)
+_LOOSE_OWN = loose_names()[:-len(KERNEL_GROUPS[-1][2])]
 
 
 def forces_now(cm: CoupledModel) -> np.ndarray:
@@ -480,12 +483,11 @@ class CoupledStepper:
         self.cm = cm
         self.n = n
         self.steps_per_action = int(steps_per_action)
-        self.dead = np.array([rs.pneumatic.valves.charge.dead_time,
-                              rs.pneumatic.valves.discharge.dead_time] * n)
+        self.dead = CL.per_valve(n, rs.pneumatic.valves.charge.dead_time, rs.pneumatic.valves.discharge.dead_time)
         self.rate = rs.pneumatic.controller.rate
         # no open-loop commands: an empty schedule and no palm commands; the valves start shut
         a["pal_t"], a["pal_target"] = np.zeros(0), np.zeros(0)
-        a["sched_t"], a["sched_u"] = np.zeros(0), np.zeros((0, 2 * n))
+        a["sched_t"], a["sched_u"] = np.zeros(0), np.zeros((0, CL.valve_size(n)))
         a["u"][:] = 0.0
         ds, cs = start(0.0, 1e-4, a["y"], a["u"], a["mp"], (a["sched_t"], a["sched_u"], a["laws"],
                                                              a["sc"][S_CTRL_DT]))
@@ -543,11 +545,11 @@ class CoupledStepper:
         :meth:`reset`."""
         cm, a = self.cm, self.cm.arrays
         u = np.asarray(u, float)
-        if u.shape == (self.n, 2):
-            u = u.reshape(-1)
-        if u.shape != (2 * self.n,):
+        if u.shape == (self.n, CL.VALVE_WIDTH):
+            u = u.reshape(-1)                    # rows (charge, discharge): the valve vector's order
+        if u.shape != (CL.valve_size(self.n),):
             raise ValueError(f"u has shape {u.shape}, expected ({self.n}, 2): (charge, discharge) per muscle, "
-                             f"or ({2 * self.n},) flattened")
+                             f"or ({CL.valve_size(self.n)},) flattened")
         t = self.t
         changed = np.nonzero(u != self.u_cmd)[0]
         for j in changed:

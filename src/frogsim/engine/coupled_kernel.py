@@ -67,6 +67,7 @@ Every step checks the state: a non-finite position or velocity, a leg joint fast
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 
@@ -145,22 +146,43 @@ def apply_added_mass(el, pa, frac, only_palms, body_mass, body_ipos, body_inerti
         body_subtreemass[body_parentid[b]] += body_subtreemass[b]
 
 
-@jit
-def step_kernel_loose(k, stepping, row, sc, st, rec, el, strip_s, strip_k, pa, vprev, pal_t, pal_target, frac,
-                      frac_new, leg_qpos, leg_dof, stops, mu, tension, anchors, slip_k, slip_f, y, u, ds, cs, g,
-                      mp, mot_t, mot_L, mot_d, mot_n, sched_t, sched_u, laws, atol, stats, ten_length, ten_velocity,
-                      xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass, body_ipos,
-                      body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel, qfrc, dof_damping):
-    """:func:`step_kernel` for callers in Python (the Python loops, one call per MuJoCo step): its
-    groups' arrays in their order, loose (:func:`frogsim.engine.coupled.kernel_loose_args`), which
-    Numba's dispatcher unboxes faster than tuples; the groups are made again in compiled code."""
-    return step_kernel(k, stepping, row, (sc, st, rec), (el, strip_s, strip_k, pa, vprev),
-                       (pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof, stops),
-                       (mu, tension, anchors, slip_k, slip_f),
-                       (y, u, ds, cs, (g, mp, mot_t, mot_L, mot_d, mot_n), sched_t, sched_u, laws, atol, stats),
-                       (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid,
-                        body_mass, body_ipos, body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel, qfrc,
-                        dof_damping))
+# --- step_kernel's arguments: one list, its groups named ---------------------------------------------
+#: The arrays step_kernel takes after (k, stepping, row), in groups: (the group's class name, its
+#: parameter name in step_kernel, its members). The one place that orders them: the groups are
+#: named tuples made from this list (step_kernel reads their members by name), and
+#: :func:`step_kernel_loose` (its parameters and the groups it makes) and
+#: :func:`frogsim.engine.coupled.kernel_args` are made from it. The members are the names of
+#: ``CoupledModel.arrays`` (MuJoCo's: of its model or data, :func:`frogsim.engine.coupled.kernel_args`),
+#: except ``circuit``: the right-hand side's model tuple (g, mp, mot_t, mot_L, mot_d, mot_n), which
+#: goes to :func:`frogsim.engine.integrator.advance` as its ``model`` (a plain tuple, the type the
+#: pneumatic engine passes, so that the driver is compiled once for both engines).
+CIRCUIT = CL.MODEL_GROUP
+KERNEL_GROUPS = (
+    ("Records", "records", ("sc", "st", "rec")),
+    ("Water", "water", ("el", "strip_s", "strip_k", "pa", "vprev")),
+    ("Body", "body", ("pal_t", "pal_target", "frac", "frac_new", "leg_qpos", "leg_dof", "stops")),
+    ("Muscles", "muscles", ("mu", "tension", "anchors", "slip_k", "slip_f")),
+    ("Pneumatics", "pneumatics", ("y", "u", "ds", "cs", "circuit", "sched_t", "sched_u", "laws", "atol", "stats")),
+    ("MuJoCo", "mujoco", ("ten_length", "ten_velocity", "xpos", "xmat", "xipos", "cvel", "subtree_com",
+                          "body_rootid", "body_parentid", "body_mass", "body_ipos", "body_inertia",
+                          "body_subtreemass", "ctrl", "xfrc", "qpos", "qvel", "qfrc", "dof_damping")),
+)
+Records = namedtuple("Records", KERNEL_GROUPS[0][2])
+Water = namedtuple("Water", KERNEL_GROUPS[1][2])
+Body = namedtuple("Body", KERNEL_GROUPS[2][2])
+Muscles = namedtuple("Muscles", KERNEL_GROUPS[3][2])
+Pneumatics = namedtuple("Pneumatics", KERNEL_GROUPS[4][2])
+MuJoCo = namedtuple("MuJoCo", KERNEL_GROUPS[5][2])
+#: the group classes, in KERNEL_GROUPS' order (module-level names: Numba's cache finds them by name)
+GROUP_CLASSES = (Records, Water, Body, Muscles, Pneumatics, MuJoCo)
+assert tuple(c.__name__ for c in GROUP_CLASSES) == tuple(name for name, _, _ in KERNEL_GROUPS)
+
+
+def loose_names() -> tuple:
+    """step_kernel_loose's parameters after (k, stepping, row): every group's members in order,
+    ``circuit`` as its six arrays."""
+    return tuple(a for _, _, members in KERNEL_GROUPS for m in members
+                 for a in (CIRCUIT if m == "circuit" else (m,)))
 
 
 @jit
@@ -168,7 +190,8 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
     """One coupled step at t = k dt (see the module docstring). Returns 0, or a FAIL_* code.
 
     ``stepping`` = 0 only checks, computes forces and records (the last row of a run).
-    ``row`` >= 0 records the state at t into rec[row]. The arrays come in groups, each a tuple
+    ``row`` >= 0 records the state at t into rec[row]. The arrays come in groups, each a named
+    tuple of :data:`KERNEL_GROUPS` whose members are read by name here
     (:func:`frogsim.engine.coupled.kernel_args`):
 
     * ``records``: the constants sc (S_*), the kernel's state st (T_*) and the record rec (R_*);
@@ -193,14 +216,23 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
     dispatcher unboxes tuples of arrays far slower than loose arrays (about 8,600 more
     instructions a call for these 48 arrays, measured with callgrind).
     """
-    sc, st, rec = records
-    el, strip_s, strip_k, pa, vprev = water
-    pal_t, pal_target, frac, frac_new, leg_qpos, leg_dof, stops = body
-    mu, tension, anchors, slip_k, slip_f = muscles
-    y, u, ds, cs, circuit, sched_t, sched_u, laws, atol, stats = pneumatics
-    g, mp, mot_t, mot_L, mot_d, mot_n = circuit
-    (ten_length, ten_velocity, xpos, xmat, xipos, cvel, subtree_com, body_rootid, body_parentid, body_mass,
-     body_ipos, body_inertia, body_subtreemass, ctrl, xfrc, qpos, qvel, qfrc, dof_damping) = mujoco
+    sc, st, rec = records.sc, records.st, records.rec
+    el, strip_s, strip_k, pa, vprev = water.el, water.strip_s, water.strip_k, water.pa, water.vprev
+    pal_t, pal_target, frac, frac_new = body.pal_t, body.pal_target, body.frac, body.frac_new
+    leg_qpos, leg_dof, stops = body.leg_qpos, body.leg_dof, body.stops
+    mu, tension, anchors, slip_k, slip_f = muscles.mu, muscles.tension, muscles.anchors, muscles.slip_k, muscles.slip_f
+    y, u, ds, cs, circuit = pneumatics.y, pneumatics.u, pneumatics.ds, pneumatics.cs, pneumatics.circuit
+    sched_t, sched_u, laws, atol, stats = (pneumatics.sched_t, pneumatics.sched_u, pneumatics.laws, pneumatics.atol,
+                                           pneumatics.stats)
+    g, mp, mot_t, mot_L, mot_d, mot_n = circuit          # advance's model tuple (CIRCUIT)
+    ten_length, ten_velocity, xpos, xmat, xipos = (mujoco.ten_length, mujoco.ten_velocity, mujoco.xpos, mujoco.xmat,
+                                                   mujoco.xipos)
+    cvel, subtree_com = mujoco.cvel, mujoco.subtree_com
+    body_rootid, body_parentid = mujoco.body_rootid, mujoco.body_parentid
+    body_mass, body_ipos, body_inertia, body_subtreemass = (mujoco.body_mass, mujoco.body_ipos, mujoco.body_inertia,
+                                                            mujoco.body_subtreemass)
+    ctrl, xfrc, qpos, qvel, qfrc, dof_damping = (mujoco.ctrl, mujoco.xfrc, mujoco.qpos, mujoco.qvel, mujoco.qfrc,
+                                                 mujoco.dof_damping)
     dt = sc[S_DT]
     t = k * dt
     n = mu.shape[0]
@@ -437,8 +469,8 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
             rr[rec_length(i, n)] = ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
             rr[rec_tension(i, n)] = tension[i]
             rr[rec_charged(i, n)] = y[CL.charged_index(i, n)]
-            rr[rec_valve(i, n, 0)] = u[2 * i]
-            rr[rec_valve(i, n, 1)] = u[2 * i + 1]
+            rr[rec_valve(i, n, CL.VALVE_CHARGE)] = u[CL.charge_valve(i)]
+            rr[rec_valve(i, n, CL.VALVE_VENT)] = u[CL.vent_valve(i)]
         for p in range(npal):
             rr[rec_palm(p, n)] = frac[p]
         for j in range(nj):
@@ -492,3 +524,34 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
         apply_added_mass(el, pa, frac, np.bool_(True), body_mass, body_ipos, body_inertia,
                          body_subtreemass, body_parentid)
     return 0
+
+
+def _loose_source() -> str:
+    """The source of :func:`step_kernel_loose`, made from KERNEL_GROUPS."""
+    groups = ", ".join(
+        f"{cls}(" + ", ".join(f"({', '.join(CIRCUIT)})" if m == "circuit" else m for m in members) + ")"
+        for cls, _, members in KERNEL_GROUPS)
+    return (f"def step_kernel_loose(k, stepping, row, {', '.join(loose_names())}):\n"
+            f"    return step_kernel(k, stepping, row, {groups})\n")
+
+
+# compiled under this file's name, so that Numba caches it as it caches the functions written here
+exec(compile(_loose_source(), __file__, "exec"))
+step_kernel_loose.__doc__ = """:func:`step_kernel` for callers in Python (the Python loops, one call per
+    MuJoCo step): its groups' arrays loose, in the order of :func:`loose_names`
+    (:func:`frogsim.engine.coupled.kernel_loose_args`), which Numba's dispatcher unboxes faster than
+    tuples; the groups are made again in compiled code. Made from :data:`KERNEL_GROUPS` (its
+    source: :func:`_loose_source`)."""
+step_kernel_loose = jit(step_kernel_loose)
+
+
+def _check_groups() -> None:
+    """step_kernel's group parameters are KERNEL_GROUPS' (its one hand-written order: a mismatch is
+    an ImportError)."""
+    import inspect
+    params = tuple(inspect.signature(getattr(step_kernel, "py_func", step_kernel)).parameters)
+    if params != ("k", "stepping", "row") + tuple(p for _, p, _ in KERNEL_GROUPS):
+        raise ImportError(f"step_kernel's parameters {params} are not KERNEL_GROUPS' groups in their order")
+
+
+_check_groups()

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from numba.extending import register_jitable
 
+from frogsim.circuit.layout import VALVE_WIDTH, valve_index, valve_size
 from frogsim.engine.methods.spec import PAR_SIZE
 
 # --- muscle table mu[i, :] -------------------------------------------------------------------------
@@ -100,14 +101,15 @@ R_FIXED = 18     # then the blocks of :func:`record_columns`
 R_POSITION = slice(R_X, R_X + 3)
 R_VELOCITY = slice(R_V, R_V + 3)
 
-# the variable part: blocks of n columns (one per muscle) in this order, then the valves (2 per
-# muscle: charge, discharge), then np palm openings, nj joint angles, nj joint velocities, nq MuJoCo positions
+# the variable part: blocks of n columns (one per muscle) in this order, then the valves (laid out
+# as the valve vector, frogsim.circuit.layout.valve_index), then np palm openings, nj joint angles,
+# nj joint velocities, nq MuJoCo positions
 _REC_PRESSURE = 0    # muscle pressures [Pa abs]
 _REC_LENGTH = 1      # muscle lengths [m]
 _REC_TENSION = 2     # muscle tensions [N]
 _REC_CHARGED = 3     # air charged into each muscle since t = 0 [kg]
 _REC_VALVES = 4      # first block after the per-muscle ones
-_REC_MUSCLE_WIDTH = 6    # columns per muscle: four values and two valve states
+_REC_MUSCLE_WIDTH = _REC_VALVES + VALVE_WIDTH    # columns per muscle: four values and the valve states
 
 
 @register_jitable(inline="always", _nrt=False)
@@ -136,8 +138,8 @@ def rec_charged(i, n):
 
 @register_jitable(inline="always", _nrt=False)
 def rec_valve(i, n, which):
-    """Column of muscle i's valve ``which`` (0 charge, 1 discharge)."""
-    return R_FIXED + _REC_VALVES * n + 2 * i + which
+    """Column of muscle i's valve ``which`` (VALVE_CHARGE or VALVE_VENT, frogsim.circuit.layout)."""
+    return R_FIXED + _REC_VALVES * n + valve_index(i, which)
 
 
 @register_jitable(inline="always", _nrt=False)
@@ -171,7 +173,7 @@ def record_columns(n: int, npal: int, nj: int, nq: int) -> dict:
             "length": slice(rec_length(0, n), rec_length(0, n) + n),
             "tension": slice(rec_tension(0, n), rec_tension(0, n) + n),
             "charged": slice(rec_charged(0, n), rec_charged(0, n) + n),
-            "valves": slice(rec_valve(0, n, 0), rec_valve(0, n, 0) + 2 * n),
+            "valves": slice(rec_valve(0, n, 0), rec_valve(0, n, 0) + valve_size(n)),
             "palm": slice(rec_palm(0, n), rec_palm(0, n) + npal),
             "angle": slice(rec_angle(0, n, npal), rec_angle(0, n, npal) + nj),
             "omega": slice(rec_omega(0, n, npal, nj), rec_omega(0, n, npal, nj) + nj),

@@ -18,9 +18,9 @@ import time
 import numpy as np
 
 from frogsim.circuit import layout as CL
-from frogsim.control.sampled import (B_A_SENSED, B_SENSED, B_W_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE,
+from frogsim.control.sampled import (B_A_SENSED, B_SENSED, B_W_SENSED, CS_SAMPLE,
                                      KIND_EXTERNAL, KIND_PUMP_BAND, L_DEAD_C, L_DEAD_D, L_JOINT1, L_KIND,
-                                     L_MUSCLE, L_SIZE, command_from_python)
+                                     L_MUSCLE, L_SIZE, command_from_python, law_block)
 from frogsim.control.table import L_PATM
 from frogsim.engine.coupled import _failure, kernel_loose_args, run_record
 from frogsim.engine.coupled_kernel import step_kernel_loose
@@ -111,12 +111,11 @@ def run_coupled_python(cm, fn, progress=None, every_muscle: bool = False) -> dic
     a["ds"], a["cs"] = ds, cs
     rows = {cm.muscle_names[int(laws[c, L_MUSCLE])]: c for c in range(laws.shape[0])
             if laws[c, L_KIND] == KIND_EXTERNAL}
-    block = cs[CS_BLOCK]
     sensed_joint = {}
     for c in rows.values():
         j = int(laws[c, L_JOINT1]) - 1
         if j >= 0:
-            sensed_joint[cm.joint_names[j]] = int(CS_SIZE + c * block)
+            sensed_joint[cm.joint_names[j]] = law_block(cs, c)
     leg_qpos, leg_dof = a["leg_qpos"], a["leg_dof"]
     y, u = a["y"], a["u"]
     tb = int(a["sc"][S_TRUNK])
@@ -138,7 +137,7 @@ def run_coupled_python(cm, fn, progress=None, every_muscle: bool = False) -> dic
             obs = {"state": y.copy(), "qpos": d.qpos.copy(), "qvel": d.qvel.copy()}
             command_from_python(laws, rows, cs, fn(t_k, obs), t_k, u, t_k)
             return
-        obs = {n: float(cs[int(CS_SIZE + c * block) + B_SENSED]) for n, c in rows.items()}
+        obs = {n: float(cs[law_block(cs, c) + B_SENSED]) for n, c in rows.items()}
         obs["source"], obs["exhaust"] = float(y[CL.Y_PS]), float(y[CL.Y_PE])
         angle = {n: float(d.qpos[leg_qpos[j]]) for j, n in enumerate(cm.joint_names)}
         vel = {n: float(d.qvel[leg_dof[j]]) for j, n in enumerate(cm.joint_names)}

@@ -27,7 +27,8 @@ import math
 import numpy as np
 from frogsim._jit import jit, jit_alloc, jit_inner, jit_step
 
-from frogsim.circuit.layout import muscle_count, physical_size
+from frogsim.circuit.layout import (flows_size, muscle_count, physical_size, pump_entry, valve_muscles, valve_size,
+                                   work_size)
 from frogsim.circuit.rhs import rhs
 from frogsim.control.sampled import (CS_PUMP, apply_due, next_due_time, next_sample_time, sample_controllers,
                                     start_controllers)
@@ -242,10 +243,12 @@ def ds_size(ny):
 def _scratch_size(ny):
     """Entries of advance's scratch space for a state of ny entries: ROWS vectors (the driver's
     and the method's, :mod:`frogsim.engine.methods.spec`), a scratch ny x ny matrix, the previous
-    valve states (2n) and the right-hand side's aux (2n + 1) and work (4n) vectors, n the muscles
-    of a state of ny entries (:func:`frogsim.circuit.layout.muscle_count`)."""
+    valve states and the right-hand side's aux and work vectors (:mod:`frogsim.circuit.layout`:
+    :func:`~frogsim.circuit.layout.valve_size`, :func:`~frogsim.circuit.layout.flows_size`,
+    :func:`~frogsim.circuit.layout.work_size`), n the muscles of a state of ny entries
+    (:func:`frogsim.circuit.layout.muscle_count`)."""
     n = muscle_count(ny)
-    return ROWS * ny + ny * ny + 2 * n + 6 * n + 1
+    return ROWS * ny + ny * ny + valve_size(n) + flows_size(n) + work_size(n)
 
 
 @jit_step
@@ -313,7 +316,7 @@ def _accept(laws, mp, cs, t, t_new, h, y, f, yn, fn, dense, ys, u, u_prev, pump_
     ny = y.size
     nu = u.size
     n_out = out_t.size
-    n = nu // 2
+    n = valve_muscles(nu)
     status = STATUS_OK
     h_try = h
     # -- the controllers' samples inside the step, read from the continuous extension. A
@@ -336,7 +339,7 @@ def _accept(laws, mp, cs, t, t_new, h, y, f, yn, fn, dense, ys, u, u_prev, pump_
         _dense(y, rc1, rc2, rc3, rc4, th, out_y[out_i])
         for j in range(nu):
             out_u[out_i, j] = u_prev[j]
-        out_u[out_i, nu] = pump_prev
+        out_u[out_i, pump_entry(n)] = pump_prev
         out_i += 1
     for j in range(ny):
         y[j] = yn[j]
@@ -452,8 +455,10 @@ def advance(t_end, y, u, ds, cs, model, commands, solver, out, stats):
     kvec = ds[D_SIZE + ny * ny:D_SIZE + ny * ny + ny]
     o = ROWS * ny + ny * ny
     u_prev = scratch[o:o + nu]
-    aux = scratch[o + nu:o + nu + 2 * n + 1]
-    work = scratch[o + nu + 2 * n + 1:o + nu + 6 * n + 1]
+    o += nu
+    aux = scratch[o:o + flows_size(n)]
+    o += flows_size(n)
+    work = scratch[o:o + work_size(n)]
     t = ds[D_T]
     h = ds[D_H]
     err_old = ds[D_ERR]
@@ -572,7 +577,7 @@ def begin(y0, t0, u0, mp, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
     nu = u0.size
     n_out = out_t.size
     out_y = np.empty((n_out, ny))
-    out_u = np.empty((n_out, nu + 1))
+    out_u = np.empty((n_out, flows_size(valve_muscles(nu))))
     stats = np.zeros(STATS_SIZE, dtype=np.int64)
     y = y0.copy()
     u = u0.copy()
@@ -584,7 +589,7 @@ def begin(y0, t0, u0, mp, laws, sched_t, sched_u, ctrl_dt, out_t, h0):
             out_y[out_i, j] = y[j]
         for j in range(nu):
             out_u[out_i, j] = u[j]
-        out_u[out_i, nu] = cs[CS_PUMP]
+        out_u[out_i, pump_entry(valve_muscles(nu))] = cs[CS_PUMP]
         out_i += 1
     ds[D_OUT] = out_i
     return out_y, out_u, y, u, ds, cs, stats, commands
@@ -616,8 +621,8 @@ def run_schedule(y0, u0, t0, t_end, model, commands, solver, out_t, h0, pause_ev
     Returns (out_y, out_u, y_end, stats, status, t_reached, cs, u, ds).
     """
     sched_t, sched_u, laws, ctrl_dt = commands
-    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, model[1], laws, sched_t, sched_u, ctrl_dt,
-                                                        out_t, h0)
+    g, mp, mot_t, mot_L, mot_d, mot_n = model
+    out_y, out_u, y, u, ds, cs, stats, commands = begin(y0, t0, u0, mp, laws, sched_t, sched_u, ctrl_dt, out_t, h0)
     ds[D_PAUSE] = pause_every
     status = advance(t_end, y, u, ds, cs, model, commands, solver, (out_t, out_y, out_u), stats)
     status = finished_status(status, ds, out_t.size)

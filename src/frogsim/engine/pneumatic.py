@@ -23,8 +23,8 @@ from frogsim.circuit.model import PneumaticModel, build_model
 from frogsim.physics.muscle import muscle_volume
 from frogsim.scenario.core import Scenario
 from frogsim.control.table import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM, L_SIZE
-from frogsim.control.sampled import (B_SENSED, CS_BLOCK, CS_SAMPLE, CS_SIZE, KIND_EXTERNAL, KIND_PUMP_BAND,
-                                     command_from_python, next_control_time)
+from frogsim.control.sampled import (B_SENSED, CS_SAMPLE, KIND_EXTERNAL, KIND_PUMP_BAND, command_from_python,
+                                     law_block, next_control_time)
 from frogsim.engine.integrator import (D_OUT, D_PAUSE, D_T, EPS, STATUS_NONPHYSICAL, STATUS_OK, STATUS_PAUSED,
                                        STATUS_ROWS_UNWRITTEN, STATUS_TEXT, advance, begin,
                                        solver_group)
@@ -270,11 +270,10 @@ def run_python_controller(model: PneumaticModel, fn, h0: float = 1e-4, *,
     circuit = model.rhs_model
     solver = solver_group(sc.solver, atol)
     out = (model.out_t, out_y, out_u)
-    block = cs[CS_BLOCK]
 
     def decide():
         t_k = cs[CS_SAMPLE] * dt
-        obs = {n: float(cs[int(CS_SIZE + c * block) + B_SENSED]) for n, c in rows.items()}
+        obs = {n: float(cs[law_block(cs, c) + B_SENSED]) for n, c in rows.items()}
         obs["source"], obs["exhaust"] = float(y[L.Y_PS]), float(y[L.Y_PE])
         obs["state"] = y.copy()
         command_from_python(laws, rows, cs, fn(t_k, obs), t_k, u, ds[D_T])

@@ -41,7 +41,7 @@ class Result(RunResult):
         return self.model.laws
 
     def _charge_valve(self, muscle: str) -> np.ndarray:
-        return self.u[:, 2 * self.index(muscle)]
+        return self.u[:, L.charge_valve(self.index(muscle))]
 
     # -- basic series -------------------------------------------------------------------------
     @property
@@ -110,18 +110,19 @@ class Result(RunResult):
         m = self.model
         n = self.n
         nt = self.t.size
-        flows = np.empty((nt, 2 * n + 1))
+        flows = np.empty((nt, L.flows_size(n)))
         V = np.empty((nt, n))
         Lm = np.empty((nt, n))
         dydt = np.empty(self.y.shape[1])
-        work = np.zeros(4 * n + 1)
+        work = np.zeros(L.work_size(n))
         args = (m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n)
+        valves, pump = L.valve_slice(n), L.pump_entry(n)
         for k in range(nt):
-            u = np.ascontiguousarray(self.u[k, :2 * n])
-            rhs(float(self.t[k]), np.ascontiguousarray(self.y[k]), u, float(self.u[k, 2 * n]),
+            u = np.ascontiguousarray(self.u[k, valves])
+            rhs(float(self.t[k]), np.ascontiguousarray(self.y[k]), u, float(self.u[k, pump]),
                 *args, dydt, flows[k], work)
-            V[k] = work[n:2 * n]
-            Lm[k] = work[3 * n:4 * n]
+            V[k] = work[L.work_slice(L.WORK_V, n)]
+            Lm[k] = work[L.work_slice(L.WORK_L, n)]
         return flows, V, Lm
 
     @property
@@ -179,16 +180,16 @@ class Result(RunResult):
 
     def charge_flow(self, muscle: str) -> np.ndarray:
         """Mass flow through the muscle's charge valve [kg/s] (negative: back to the source)."""
-        return self._diagnostics[0][:, 2 * self.index(muscle)]
+        return self._diagnostics[0][:, L.charge_valve(self.index(muscle))]
 
     def discharge_flow(self, muscle: str) -> np.ndarray:
         """Mass flow through the muscle's discharge valve [kg/s]."""
-        return self._diagnostics[0][:, 2 * self.index(muscle) + 1]
+        return self._diagnostics[0][:, L.vent_valve(self.index(muscle))]
 
     @property
     def pump_flow(self) -> np.ndarray:
         """Pump mass flow [kg/s]."""
-        return self._diagnostics[0][:, 2 * self.n]
+        return self._diagnostics[0][:, L.pump_entry(self.n)]
 
     # -- derived figures -------------------------------------------------------------------------
     def rise(self, muscle: str, fraction: float = 0.9, stroke: int = 0) -> RiseTimes:
@@ -277,7 +278,7 @@ class Result(RunResult):
                 put(f"{who}_pressure_Pa_abs", p, "Pa (absolute)")
                 put(f"{who}_temperature_K", self.temperature(who), "K")
                 put(f"{who}_mass_kg", self.y[:, L.Y_MS if who == "source" else L.Y_ME], "kg")
-        put("pump_on", self.u[:, 2 * self.n], "1 = running")
+        put("pump_on", self.u[:, L.pump_entry(self.n)], "1 = running")
         if disp:
             put("pump_flow_L_per_min_std", self.pump_flow / rho * 6e4, "L/min (standard)")
         else:
@@ -302,8 +303,8 @@ class Result(RunResult):
                 put(f"{m}_charge_flow_kg_per_s", self.charge_flow(m), "kg/s")
                 put(f"{m}_discharge_flow_kg_per_s", self.discharge_flow(m), "kg/s")
                 put(f"{m}_charged_mass_kg", self.charged_mass(m), "kg")
-            put(f"{m}_charge_valve", self.u[:, 2 * i], "1 = open")
-            put(f"{m}_discharge_valve", self.u[:, 2 * i + 1], "1 = open")
+            put(f"{m}_charge_valve", self.u[:, L.charge_valve(i)], "1 = open")
+            put(f"{m}_discharge_valve", self.u[:, L.vent_valve(i)], "1 = open")
         df = pd.DataFrame(cols)
         df.attrs["units"] = unit_of
         return df

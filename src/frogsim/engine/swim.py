@@ -64,7 +64,7 @@ class SwimResult(RunResult):
         return self.model.arrays["laws"]
 
     def _charge_valve(self, muscle: str) -> np.ndarray:
-        return self.valves[:, 2 * self.index(muscle)]
+        return self.valves[:, CL.charge_valve(self.index(muscle))]
 
     @cached_property
     def switchings(self) -> dict:
@@ -75,9 +75,9 @@ class SwimResult(RunResult):
     def _clipped_samples(self, muscle: str) -> int:
         """Controller samples at which the joint-angle law of ``muscle``'s row clipped its pressure
         targets to [atmosphere, source]."""
-        from frogsim.control.sampled import B_CLIPS, CS_BLOCK, CS_SIZE
+        from frogsim.control.sampled import B_CLIPS, law_block
         cs = self.model.arrays["cs"]
-        b = int(CS_SIZE + self._rows_by_muscle()[muscle] * cs[CS_BLOCK])
+        b = law_block(cs, self._rows_by_muscle()[muscle])
         return int(cs[b + B_CLIPS])
 
     # -- basic series ---------------------------------------------------------------------------
@@ -387,8 +387,8 @@ class SwimResult(RunResult):
                 cols[f"{name}_pressure_Pa_abs"] = self.pressures[:, i]
                 cols[f"{name}_length_m"] = self.lengths[:, i]
             cols[f"{name}_tension_N"] = self.tensions[:, i]
-            cols[f"{name}_charge_valve"] = self.valves[:, 2 * i]
-            cols[f"{name}_discharge_valve"] = self.valves[:, 2 * i + 1]
+            cols[f"{name}_charge_valve"] = self.valves[:, CL.charge_valve(i)]
+            cols[f"{name}_discharge_valve"] = self.valves[:, CL.vent_valve(i)]
         for p, side in enumerate(("left", "right")):
             key = f"palm_{side}_opening_percent" if disp else f"palm_{side}_opening"
             cols[key] = self.palm_opening[:, p] * (100.0 if disp else 1.0)

@@ -12,6 +12,8 @@ the physics a model's build calls from Python) on the other process while the dr
 """
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 from numba import typeof
 
@@ -19,6 +21,7 @@ from frogsim.circuit import layout as L
 from frogsim.circuit.rhs import _hermite, common_piece, manifold_pressure, muscle_volume_state, rhs
 from frogsim.engine import integrator as I
 from frogsim.engine import methods
+from frogsim.engine.methods.spec import R_OWN
 from frogsim.engine.measures import _rises, _windows
 from frogsim.physics.air import choked_mass_flux_factor, critical_pressure_ratio
 from frogsim.physics.flow import main_pipe_branch_limit, tube_sonic_conductance
@@ -34,7 +37,8 @@ def _method_parts() -> list:
         if m.warm is not None:
             parts = m.warm(a)
         elif hasattr(m.step, "compile") and not m.step.targetoptions.get("inline") == "always":
-            parts = [("step", ("rhs",), f"the {m.name} step", [(m.step, tuple(a[k] for k in _STEP_ARGS))])]
+            calls = [(m.step, tuple(a[k] for k in _step_args(m.step)))]
+            parts = [("step", ("rhs",), f"the {m.name} step", calls)]
         else:
             parts = []
         for name, needs, what, calls in parts:
@@ -43,9 +47,10 @@ def _method_parts() -> list:
     return out
 
 
-#: the names of a method's step's arguments (frogsim.engine.methods.spec), in order
-_STEP_ARGS = ("t", "h", "t_new", "y", "f", "yn", "fn", "u", "pump_on", "model", "atol", "rtol", "par", "ds", "own",
-              "rc", "mat", "kmat", "kvec", "aux", "work", "stats")
+def _step_args(step) -> tuple:
+    """The names of a method's step's arguments, in order, read off its compiled function's Python
+    signature (the one written in the method's module; frogsim.engine.methods.spec)."""
+    return tuple(inspect.signature(getattr(step, "py_func", step)).parameters)
 
 
 def _parts() -> tuple[dict, dict]:
@@ -71,22 +76,26 @@ def _one_muscle():
     """Arguments of the types the driver passes, for a one-muscle circuit (values irrelevant)."""
     n = 1
     ny = L.state_size(n)
-    a = {"ny": ny, "y": np.ones(ny), "f": np.zeros(ny), "u": np.zeros(2 * n), "aux": np.zeros(2 * n + 1),
-         "work": np.zeros(4 * n), "atol": np.ones(ny), "stats": np.zeros(I.STATS_SIZE, np.int64),
-         "model": (np.ones(L.G_SIZE), np.zeros((n, L.M_SIZE)), np.zeros((n, 1)), np.ones((n, 1)),
-                   np.zeros((n, 1)), np.ones(n, np.int64)),
-         # an open-loop run's commands: (sched_t, sched_u, laws, ctrl_dt), laws the pump's row
-         # (frogsim.control.sampled.sampled_laws)
-         "commands": (np.zeros(0), np.zeros((0, 2 * n)), np.zeros(1), 1e-3),
+    a = {"ny": ny, "y": np.ones(ny), "f": np.zeros(ny), "u": np.zeros(L.valve_size(n)),
+         "aux": np.zeros(L.flows_size(n)), "work": np.zeros(L.work_size(n)), "atol": np.ones(ny),
+         "stats": np.zeros(I.STATS_SIZE, np.int64),
+         "g": np.ones(L.G_SIZE), "mp": np.zeros((n, L.M_SIZE)), "mot_t": np.zeros((n, 1)), "mot_L": np.ones((n, 1)),
+         "mot_d": np.zeros((n, 1)), "mot_n": np.ones(n, np.int64),
+         # an open-loop run's commands, laws the pump's row (frogsim.control.sampled.sampled_laws)
+         "sched_t": np.zeros(0), "sched_u": np.zeros((0, L.valve_size(n))), "laws": np.zeros(1), "ctrl_dt": 1e-3,
+         "out_t": np.zeros(1), "out_y": np.zeros((1, ny)), "out_u": np.zeros((1, L.flows_size(n))),
          "ds": np.zeros(1), "cs": np.zeros(1)}
+    # the driver's groups, in their orders (frogsim.circuit.layout)
+    a["model"] = tuple(a[k] for k in L.MODEL_GROUP)
+    a["commands"] = tuple(a[k] for k in L.COMMANDS_GROUP)
+    a["out"] = tuple(a[k] for k in L.OUT_GROUP)
     a["dense"] = tuple(np.zeros(ny) for _ in range(4))
     a["vec"] = np.zeros((I.ROWS, ny))                          # the driver's scratch vectors
     a["par"] = methods.parameter_block(methods.METHODS[methods.DEFAULT].settings())
     # the rest of a method's step's arguments (frogsim.engine.methods.spec)
     a.update(t=0.0, h=1e-3, t_new=1e-3, yn=a["f"], fn=a["f"], pump_on=0.0, rtol=1e-7, mat=np.zeros((ny, ny)),
-             own=tuple(a["vec"][k] for k in range(8, I.ROWS)), rc=a["dense"], kmat=np.zeros((ny, ny)),
+             own=tuple(a["vec"][k] for k in range(R_OWN, I.ROWS)), rc=a["dense"], kmat=np.zeros((ny, ny)),
              kvec=np.zeros(ny))
-    a["out"] = (np.zeros(1), np.zeros((1, ny)), np.zeros((1, 2 * n + 1)))
     return a
 
 
@@ -109,18 +118,19 @@ def warm_up(part: str) -> None:
     a = _one_muscle()
     y, f, u, aux, work, atol, stats, model = (a[k] for k in ("y", "f", "u", "aux", "work", "atol", "stats",
                                                               "model"))
+    g, mp, mot_t, mot_L, mot_d, mot_n = (a[k] for k in L.MODEL_GROUP)
     if part == "flow":
-        _compile(manifold_pressure, 1e5, 293.0, y, u, model[0], model[1], 1, work)
+        _compile(manifold_pressure, 1e5, 293.0, y, u, g, mp, 1, work)
     elif part == "volume":
-        _compile(muscle_volume_state, 0.0, 0, *model[1:])
-        _compile(common_piece, 0.0, model[1], model[2], model[5])
-        _compile(_hermite, 0.0, 0, 0, 1, model[2], model[3], model[4])
+        _compile(muscle_volume_state, 0.0, 0, mp, mot_t, mot_L, mot_d, mot_n)
+        _compile(common_piece, 0.0, mp, mot_t, mot_n)
+        _compile(_hermite, 0.0, 0, 0, 1, mot_t, mot_L, mot_d)
     elif part == "rhs":
         _compile(rhs, 0.0, y, u, 0.0, *model, f, aux, work)
     elif part == "accept":
-        _compile(I._accept, a["commands"][2], model[1], a["cs"], 0.0, 1e-3, 1e-3, y, f, f, f, a["dense"], f, u, u,
+        _compile(I._accept, a["laws"], mp, a["cs"], 0.0, 1e-3, 1e-3, y, f, f, f, a["dense"], f, u, u,
                  0.0, a["out"], 0, stats)
-        _compile(I._needs_dense, a["commands"][2], a["cs"], 1e-3, a["out"][0], 0)
+        _compile(I._needs_dense, a["laws"], a["cs"], 1e-3, a["out_t"], 0)
         _compile(I._dense, y, *a["dense"], 0.5, f)
     elif part in _METHOD_CALLS:
         for function, arguments in _METHOD_CALLS[part]:
@@ -129,8 +139,7 @@ def warm_up(part: str) -> None:
         _compile(I.advance, 1.0, y, u, a["ds"], a["cs"], model, a["commands"], (1e-6, atol, 1e-3, a["par"]), a["out"],
                  stats)
     elif part == "start":
-        c = a["commands"]
-        _compile(I.begin, y, 0.0, u, model[1], c[2], c[0], c[1], c[3], a["out"][0], 1e-4)
+        _compile(I.begin, y, 0.0, u, mp, a["laws"], a["sched_t"], a["sched_u"], a["ctrl_dt"], a["out_t"], 1e-4)
     elif part == "measures":
         t, p = np.zeros(11), np.zeros((1, 11))
         _compile(_rises, t, p, p, p, np.zeros(1), 0.9)

@@ -30,6 +30,14 @@ from frogsim.errors import SimulationError
 
 #: action value -> (charge valve, discharge valve), 1 open
 ACTIONS = {0: (0.0, 1.0), 1: (0.0, 0.0), 2: (1.0, 0.0)}
+
+
+def valve_vector(actions) -> np.ndarray:
+    """The valve vector (:mod:`frogsim.circuit.layout`) of one action per muscle (keys of ACTIONS)."""
+    u = np.empty(L.valve_size(len(actions)))
+    for i, x in enumerate(actions):
+        u[L.charge_valve(i)], u[L.vent_valve(i)] = ACTIONS[int(x)]
+    return u
 ACTION_NAMES = ("vent", "hold", "charge")
 EPS = 1e-12
 
@@ -58,7 +66,7 @@ class PneumaticPlant:
         self.h0 = h0
         self.n = self.model.n
         m = self.model
-        self.dead = np.array([sc.valves.charge.dead_time, sc.valves.discharge.dead_time] * self.n)
+        self.dead = L.per_valve(self.n, sc.valves.charge.dead_time, sc.valves.discharge.dead_time)
         self.circuit = (m.g, m.mp, m.mot_t, m.mot_L, m.mot_d, m.mot_n)
         self.solver = solver_group(sc.solver, m.atol)
         ny = m.y0.size
@@ -84,14 +92,15 @@ class PneumaticPlant:
         """Back to the scenario's initial state at t = 0 with every valve shut; returns the first
         observation. ``seed`` seeds the sensor noise."""
         m = self.model
-        nu = 2 * self.n
+        nu = L.valve_size(self.n)
         empty_t, empty_u = np.zeros(0), np.zeros((0, nu))
         # the pump's band only: the valves are the agent's (a scenario's closed-loop controllers
         # are not run here)
-        _, _, y, u, ds, cs, stats, commands = begin(m.y0, 0.0, np.zeros(nu), m.mp, sampled_laws(m.g), empty_t,
-                                                    empty_u, self.ctrl_dt, np.zeros(0), self.h0)
+        laws = sampled_laws(m.g)
+        _, _, y, u, ds, cs, stats, _ = begin(m.y0, 0.0, np.zeros(nu), m.mp, laws, empty_t, empty_u, self.ctrl_dt,
+                                             np.zeros(0), self.h0)
         self.y, self.u, self.ds, self.cs, self.stats = y, u, ds, cs, stats
-        self.laws = commands[2]
+        self.laws = laws
         self.k = 0
         self.u_cmd = np.zeros(nu)
         self.u_due = np.zeros(nu)
@@ -106,7 +115,7 @@ class PneumaticPlant:
         if a.size != self.n or not all(int(x) == x and int(x) in ACTIONS for x in a):
             raise ValueError(f"action {a.tolist()}: expected {self.n} values in 0 (vent), 1 (hold), "
                              "2 (charge)")
-        return np.array([v for x in a for v in ACTIONS[int(x)]], float)
+        return valve_vector(a)
 
     def step(self, action) -> np.ndarray:
         """Issue the action at the present sample, advance one control period, return the

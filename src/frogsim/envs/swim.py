@@ -38,7 +38,7 @@ from gymnasium import spaces
 from frogsim._words import count
 from frogsim.circuit import layout as CL
 from frogsim.envs import checks
-from frogsim.envs.plant import ACTIONS
+from frogsim.envs.plant import valve_vector
 from frogsim.errors import ScenarioError, SimulationError
 
 BAR = 1e5
@@ -121,7 +121,7 @@ class SwimEnv(gym.Env):
         """One action period (module docstring); ResetNeeded once the episode has ended."""
         self.episode.check_step()
         a = checks.action(self.action_space, action, ACTION_MEANING)
-        u = np.array([v for x in a[:-1] for v in ACTIONS[int(x)]], float)
+        u = valve_vector(a[:-1])
         try:
             switches = self.stepper.step(u, float(a[-1]))
         except SimulationError as exc:

@@ -395,15 +395,14 @@ class Shadow:
         clipped pressure targets, B_CLIPS) into the run's controller memory ``cs`` (whose rows of
         these laws are the same rows, run from outside), so that the run's metrics report them
         as the compiled run does."""
-        from frogsim.control.sampled import B_CLIPS, CS_BLOCK, CS_SIZE
+        from frogsim.control.sampled import B_CLIPS, law_block
         if self.cs is None:
             return
         for c in self.rows.values():
-            cs[int(CS_SIZE + c * cs[CS_BLOCK]) + B_CLIPS] = self.cs[int(CS_SIZE + c * self.cs[CS_BLOCK]) + B_CLIPS]
+            cs[law_block(cs, c) + B_CLIPS] = self.cs[law_block(self.cs, c) + B_CLIPS]
 
     def modes(self, k: int, y, qpos=None, qvel=None) -> np.ndarray:
-        from frogsim.control.sampled import (B_MODE, CS_BLOCK, CS_SIZE, observe_joints, sample_controllers,
-                                             start_controllers)
+        from frogsim.control.sampled import B_MODE, law_block, observe_joints, sample_controllers, start_controllers
         t = k * self.dt
         if self.rows:
             y = np.asarray(y, float)
@@ -412,7 +411,7 @@ class Shadow:
                 self.cs = start_controllers(self.laws, self.mp, 0.0, y, self.u, self.dt)
                 # where each muscle's mode is: its law's B_MODE slot, or its program
                 self.law_of = [j for j, m in enumerate(self.muscles) if m in self.rows]
-                self.mode_at = np.array([int(CS_SIZE + self.rows[m] * self.cs[CS_BLOCK]) + B_MODE
+                self.mode_at = np.array([law_block(self.cs, self.rows[m]) + B_MODE
                                          for m in self.muscles if m in self.rows], np.int64)
             else:
                 if self.joints is not None:

@@ -137,6 +137,7 @@ def plot_run(result, path: str) -> None:
         a.plot(result.t, (p - patm) / 1e5, color=c, label=label)
     # each closed-loop controller's setpoint, dashed in its muscle's colour (PWM without one: none)
     from frogsim.engine.run_result import label_and_setpoint
+    from frogsim.circuit import layout as L
     for name in result._law_rows():
         ctl = result.model.scenario.controllers[name]
         kind, sp = label_and_setpoint(ctl, result.python_law, result.t, lambda name=name: result.setpoint(name))
@@ -147,8 +148,8 @@ def plot_run(result, path: str) -> None:
     a.set_title(f"Scenario {result.model.scenario.name!r}")
     a.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))     # outside: hides no curve
     for i, (name, c) in enumerate(zip(result.names, colors)):
-        b.step(result.t, result.u[:, 2 * i] * 0.8 + i, where="post", color=c)
-        b.step(result.t, -result.u[:, 2 * i + 1] * 0.4 + i, where="post", color=c, ls=":")
+        b.step(result.t, result.u[:, L.charge_valve(i)] * 0.8 + i, where="post", color=c)
+        b.step(result.t, -result.u[:, L.vent_valve(i)] * 0.4 + i, where="post", color=c, ls=":")
     b.set_yticks(range(n), result.names, fontsize=7)
     b.set_xlabel("time [s]")
     b.set_title("valves: step up = charge open, dotted down = discharge open", fontsize=9)

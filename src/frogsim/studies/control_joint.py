@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 
 from frogsim._plotting import figure, legend_in, save
+from frogsim.circuit import layout as CL
 from frogsim.engine.swim import swim
 from frogsim.robot.scenario import load_robot_scenario
 from frogsim.scenario.load import merged_raw
@@ -97,10 +98,10 @@ def control_joint() -> StudyData:
                 SETPOINT: np.degrees(r.setpoint("hip")), ANGLE: th,
                 EXTENSOR_PRESSURE: (r.pressures[:, i_ext] - patm) / BAR,
                 FLEXOR_PRESSURE: (r.pressures[:, i_flex] - patm) / BAR,
-                header("extensor charge valve", "1 = open"): r.valves[:, 2 * i_ext],
-                header("extensor discharge valve", "1 = open"): r.valves[:, 2 * i_ext + 1],
-                header("flexor charge valve", "1 = open"): r.valves[:, 2 * i_flex],
-                header("flexor discharge valve", "1 = open"): r.valves[:, 2 * i_flex + 1]}))
+                header("extensor charge valve", "1 = open"): r.valves[:, CL.charge_valve(i_ext)],
+                header("extensor discharge valve", "1 = open"): r.valves[:, CL.vent_valve(i_ext)],
+                header("flexor charge valve", "1 = open"): r.valves[:, CL.charge_valve(i_flex)],
+                header("flexor discharge valve", "1 = open"): r.valves[:, CL.vent_valve(i_flex)]}))
     lo, hi = (f"{v:g}_bar" for v in LEVELS_BAR)
 
     def cmp(exp, k):

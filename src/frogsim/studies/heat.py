@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from frogsim._plotting import figure, save
+from frogsim.circuit import layout as L
 from frogsim.engine.pneumatic import simulate
 from frogsim.scenario.load import load_scenario, read_toml, scenario_path
 from frogsim.scenario.tables import header
@@ -61,7 +62,7 @@ def _frame(experiment: str, model: str, r, muscle: str) -> pd.DataFrame:
     i = r.index(muscle)
     return pd.DataFrame({"experiment": experiment, "mode": model, TIME: r.t,
                          PRESSURE: (r.muscle_pressure(muscle) - patm) / BAR, TEMPERATURE: r.temperature(muscle),
-                         CHARGE_VALVE: r.u[:, 2 * i], DISCHARGE_VALVE: r.u[:, 2 * i + 1]})
+                         CHARGE_VALVE: r.u[:, L.charge_valve(i)], DISCHARGE_VALVE: r.u[:, L.vent_valve(i)]})
 
 
 @register("heat", "Wall heat transfer against the adiabatic paper model: paper cycle, 6 bar hold, bang-bang "

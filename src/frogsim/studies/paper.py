@@ -10,6 +10,7 @@ import functools
 import numpy as np
 import pandas as pd
 
+from frogsim.circuit import layout as L
 from frogsim.circuit.model import branch_limit_standard
 from frogsim.engine.measures import format_rise
 from frogsim.engine.pneumatic import simulate
@@ -95,8 +96,8 @@ def fig13() -> StudyData:
         HIP_PRESSURE: gauge_bar(r, r.muscle_pressure(HIP)),
         HIP_VOLUME: r.volumes[:, r.index(HIP)] * 1e6,
         HIP_CHARGE_FLOW: r.charge_flow(HIP) / r.reference_density / L_PER_MIN,
-        header("hip charge valve", "1 = open"): r.u[:, 2 * r.index(HIP)],
-        header("hip discharge valve", "1 = open"): r.u[:, 2 * r.index(HIP) + 1],
+        header("hip charge valve", "1 = open"): r.u[:, L.charge_valve(r.index(HIP))],
+        header("hip discharge valve", "1 = open"): r.u[:, L.vent_valve(r.index(HIP))],
         EXHAUST_PRESSURE: gauge_bar(r, r.exhaust_pressure),
     })
     return StudyData(table, {"hip_cycle": {

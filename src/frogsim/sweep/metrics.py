@@ -59,7 +59,7 @@ class Chunk:
         return self.state(L.pressure_index(i))
 
     def charge_valve(self, i):
-        return self.valve(2 * i)
+        return self.valve(L.charge_valve(i))
 
 
 @dataclass(frozen=True)
@@ -92,7 +92,7 @@ def kept_columns(metrics: list[str], n: int, i: int) -> tuple[list, list]:
     for m in metrics:
         cols = METRICS[m].columns
         if cols is None:
-            return list(range(L.state_size(n))), list(range(2 * n + 1))
+            return list(range(L.state_size(n))), list(range(L.flows_size(n)))
         y, u = cols(n, i)
         ys.update(y)
         us.update(u)
@@ -100,7 +100,7 @@ def kept_columns(metrics: list[str], n: int, i: int) -> tuple[list, list]:
 
 
 def _rise_cols(n, i):
-    return (L.pressure_index(i), L.Y_PS), (2 * i,)
+    return (L.pressure_index(i), L.Y_PS), (L.charge_valve(i),)
 
 
 def _rise(c: Chunk, i: int):
@@ -125,13 +125,13 @@ def _rise_reached(c: Chunk, i: int):
 
 
 @register_metric("final_pressure", "bar (gauge)", "muscle pressure when the first pressurise phase ends",
-                 lambda n, i: ((L.pressure_index(i),), (2 * i,)))
+                 lambda n, i: ((L.pressure_index(i),), (L.charge_valve(i),)))
 def _final_pressure(c: Chunk, i: int):
     return (value_at_close(c.t, c.pressure(i), c.charge_valve(i), c.t_open[:, i]) - c.patm) / BAR
 
 
 @register_metric("aeration_volume", "L (standard)", "air charged into the muscle in its first pressurise phase",
-                 lambda n, i: ((L.charged_index(i, n),), (2 * i,)))
+                 lambda n, i: ((L.charged_index(i, n),), (L.charge_valve(i),)))
 def _aeration(c: Chunk, i: int):
     q = c.state(L.charged_index(i, c.n))
     return charged_in_phase(c.t, q, c.charge_valve(i), c.t_open[:, i]) / c.rho_ref * 1e3
@@ -241,9 +241,9 @@ STATES: dict[str, State] = {
                           lambda r, m: r.charged_mass(m)),
     "vented_mass": State("kg", "mass that left the muscle through its discharge valve since t = 0",
                          lambda r, m: r.vented_mass(m)),
-    "charge_valve": State("1", "charge valve state (1 = open)", lambda r, m: r.u[:, 2 * r.index(m)]),
+    "charge_valve": State("1", "charge valve state (1 = open)", lambda r, m: r.u[:, L.charge_valve(r.index(m))]),
     "discharge_valve": State("1", "discharge valve state (1 = open)",
-                             lambda r, m: r.u[:, 2 * r.index(m) + 1]),
+                             lambda r, m: r.u[:, L.vent_valve(r.index(m))]),
     "source_pressure": State("Pa", "source chamber pressure (absolute)", lambda r, m: r.source_pressure),
     "source_temperature": State("K", "source chamber temperature", lambda r, m: r.temperature("source")),
     "source_mass": State("kg", "air mass in the source chamber", lambda r, m: r.y[:, L.Y_MS]),
@@ -251,5 +251,5 @@ STATES: dict[str, State] = {
     "exhaust_mass": State("kg", "air mass in the exhaust chamber", lambda r, m: r.y[:, L.Y_ME]),
     "pumped_mass": State("kg", "mass the pump moved from exhaust to source since t = 0",
                          lambda r, m: r.pumped_mass),
-    "pump_on": State("1", "pump running (1) or not (0)", lambda r, m: r.u[:, 2 * r.n]),
+    "pump_on": State("1", "pump running (1) or not (0)", lambda r, m: r.u[:, L.pump_entry(r.n)]),
 }

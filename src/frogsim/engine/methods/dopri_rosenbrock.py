@@ -24,7 +24,7 @@ import math
 from dataclasses import dataclass
 
 from frogsim._jit import jit_inner, jit_step
-from frogsim.circuit.layout import physical_size
+from frogsim.circuit.layout import muscle_count, physical_size
 from frogsim.circuit.rhs import rhs
 from frogsim.engine.methods.spec import D_M0, IntegrationMethod, StepControl
 from frogsim.engine.stepsize import EXPO, order_next, pi_next, propose_adaptive, shrink
@@ -306,7 +306,7 @@ def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, own,
     if ds[D_STIFF] > 0.5:
         fresh = ds[D_JAC_AGE] < 0 or ds[D_JAC_AGE] >= JAC_EVERY
         wk = (mat, own[6], own[7], own[8], own[9], own[10], own[11], own[12], own[13], kmat, kvec)
-        err = _rosenbrock_step(t, h, t_new, y, f, u, pump_on, model, atol, rtol, physical_size(model[1].shape[0]),
+        err = _rosenbrock_step(t, h, t_new, y, f, u, pump_on, model, atol, rtol, physical_size(muscle_count(y.size)),
                                wk, fresh, yn, fn, rc[0], rc[1], rc[2], rc[3], aux, work, stats)
         ds[D_JAC_AGE] = 1.0 if fresh else ds[D_JAC_AGE] + 1.0
         if not err <= 1.0:
