@@ -240,3 +240,29 @@ def test_a_burst_beyond_the_slots_is_counted_and_marked_not_guessed(swim_board):
     assert 0 < ok.sum() < len(idx)
     got = tab.iloc[:, 1:].to_numpy()[idx][ok].astype(int)
     assert np.array_equal(got, pins[:ks[-1] + 1][ok])
+
+
+@pytest.mark.slow
+def test_swim_board_in_sil_writes_every_command_it_issued(swim_board, tmp_path):
+    """`frogsim sil swim-board` (one gait cycle, the plant in the loop): commands.csv without a gap,
+    from sample 0 to the last record's, whose command at each record's sample is that record's
+    valve bits in serial.csv (read from the records' own field, not from the events)."""
+    from frogsim.cli import main
+    out = tmp_path / "sil"
+    assert main(["sil", "swim-board", "--cycles", "1", "--firmware", str(swim_board), "--out", str(out),
+                 "--no-animation", "--quiet"]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["sil"]["overruns"] == 0 and summary["sil"]["log_records"]["dropped"] == 0
+    cmd = pd.read_csv(out / "commands.csv")
+    serial = pd.read_csv(out / "serial.csv")
+    assert not cmd.isna().any().any()
+    ks = np.rint(cmd["time [s]"].to_numpy() * 1000).astype(int)
+    rec_k = np.rint(serial["time [s]"].to_numpy() * 1000).astype(int)
+    assert ks[0] == 0 and ks[-1] == rec_k[-1] == 1980
+    idx = np.searchsorted(ks, rec_k, side="right") - 1
+    for col in cmd.columns[1:]:
+        m = col.split(" command ")[0]
+        bits = serial[f"{m} charge valve [1 = open]"].to_numpy() - serial[f"{m} discharge valve [1 = open]"].to_numpy()
+        assert np.array_equal(cmd[col].to_numpy()[idx], bits), m
+    # far more switchings than the records' snapshots see
+    assert len(cmd) > 5 * len(serial)
