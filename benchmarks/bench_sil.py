@@ -21,8 +21,10 @@ the model; the best counts), the earlier robot once, split into the emulated AVR
 
 Targets for swim-board (printed with PASS/FAIL): SIL at least 2x real time on one core; mean
 interrupt load at most 60 %, worst at most 85 %, chip awake at most 90 %, 0 overruns, 0 dropped
-log records, 0 mismatched samples, each joint's tracking RMS within 10 % of the compiled float
-run's.
+log records, 0 valve events lost (its log's format 4: every valve command in the log), 0
+mismatched samples, each joint's tracking RMS within 10 % of the compiled float run's. Printed
+too: the valve events the log carried, the most in one record against its slots, and the
+switchings read back from them.
 """
 from __future__ import annotations
 
@@ -73,10 +75,10 @@ def run(rs, rounds: int):
         print(f"  {rs.name}: {rounds} runs of {rs.duration:g} s: "
               + ", ".join(f"{w:.2f} s wall ({rs.duration / w:.2f} x)" for w in walls)
               + " (the first loads the compiled code's caches and builds the model: start-up included)")
-    return plan, built, best, result
+    return plan, built, best, result, rec
 
 
-def report(name, rs, plan, built, wall, r) -> dict:
+def report(name, rs, plan, built, wall, r, rec) -> dict:
     s = r.sil
     speed = rs.duration / wall
     load = s["cpu_load_percent"]
@@ -94,7 +96,24 @@ def report(name, rs, plan, built, wall, r) -> dict:
           f"skipped {s['samples_skipped']}, log records {lr['received']}/{lr['made']} (dropped {lr['dropped']}, "
           f"unsent {lr['unsent']}), mismatched {s['mismatched_samples']}, response max "
           f"{s['response_us']['max']:.0f} us")
-    return {"speed": speed, **s}
+    from frogsim.export.serial_log import commands, parse_log
+    log = parse_log(r.serial, rec)
+    out = {"speed": speed, **s, "events_lost": None}
+    if rec.get("event_slots"):
+        n_ch = len(rec["channels"])
+        per = [row[1 + n_ch + 4] for row in log.records]
+        out["events_lost"] = log.events_lost
+        print(f"  valve events (format 4): {sum(per)} in {len(per)} records, at most {max(per)} in one of "
+              f"{rec['event_slots']} slots, {log.events_lost} lost in {log.records_with_lost} records")
+        if not log.events_lost:
+            k, modes = commands(log, rec, last_sample=s["samples"] - 1)
+            print(f"  commands of samples {k[0]}..{k[-1]} from the log: {int((modes[1:] != modes[:-1]).sum())} "
+                  "switchings")
+    elif rec.get("history_samples"):
+        print(f"  valve histories of {rec['history_samples']} samples (format 3)")
+    else:
+        print("  no valve commands in the log (format 3 without histories)")
+    return out
 
 
 def main() -> int:
@@ -112,7 +131,7 @@ def main() -> int:
         s = report("swim-board", board, *res)
         floats = dataclasses.replace(board, pneumatic=dataclasses.replace(board.pneumatic, firmware=None))
         r_float = frogsim.swim(floats).control_metrics()
-        r_sil = res[-1].result.control_metrics()
+        r_sil = res[3].result.control_metrics()
         worst = 0.0
         for name, entry in r_float.items():
             if name == "robot" or "tracking_error_rms_deg" not in entry:
@@ -132,6 +151,7 @@ def main() -> int:
               ("awake", s["awake_percent"] <= 90.0, f"{s['awake_percent']:.1f} % (<= 90 %)"),
               ("overruns", s["overruns"] == 0, str(s["overruns"])),
               ("dropped records", s["log_records"]["dropped"] == 0, str(s["log_records"]["dropped"])),
+              ("valve events lost", not s["events_lost"], str(s["events_lost"])),
               ("mismatched samples", s["mismatched_samples"] == 0, str(s["mismatched_samples"])),
               ("tracking against float", worst <= 1.10, f"worst joint {worst:.2f} x the compiled float RMS (<= 1.10)")]
     for name, ok, text in checks:

@@ -200,7 +200,7 @@ BAD_PLANS = {
     "log_every zero": (_set(0, "log_every"), "log_every"),
     "plan_sha256 short": (_set("abc", "plan_sha256"), "plan_sha256"),
     "name not a C identifier": (_set("1x", "name"), "name"),
-    "format 4": (_set(4, "format"), "format"),
+    "format 5": (_set(5, "format"), "format"),
     "not a table": (lambda r: [r], "not a JSON table"),
 }
 

@@ -376,10 +376,10 @@ def test_a_time_that_is_not_finite_and_positive_is_refused(flag, value, fw, tmp_
 
 def test_a_firmware_json_of_an_unknown_format_is_refused(tmp_path, capsys):
     (tmp_path / "fw").mkdir()
-    (tmp_path / "fw" / "firmware.json").write_text(json.dumps(REC | {"format": 4}))
+    (tmp_path / "fw" / "firmware.json").write_text(json.dumps(REC | {"format": 5}))
     code = main(["log", "--port", "p", "--firmware", str(tmp_path / "fw"), "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and len(err) == 1 and "export it again" in err[0] and "format = 4" in err[0]
+    assert code == 2 and len(err) == 1 and "export it again" in err[0] and "format = 5" in err[0]
     assert not (tmp_path / "o").exists()
 
 

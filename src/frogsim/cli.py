@@ -416,7 +416,8 @@ def _firmware_fit(args, plan, sc, export):
         n_enc = sum(1 for ch in plan.channels if getattr(ch, "pins", ()))
         line = log_line_bytes(len(plan.channels), len(plan.muscles), command_sample(sc.duration, plan.rate),
                               plan.adc.bits, n_encoders=n_enc,
-                              log_every=plan.log_every if sketch.history_samples(plan) else 10 ** 9)
+                              log_every=plan.log_every if sketch.history_samples(plan) or sketch.event_slots(plan)
+                              else 10 ** 9, events=sketch.event_slots(plan))
         return fitting.check_fit(fitting.estimate(plan, line), plan, args.allow_overrun), None
     from frogsim.export.emulator import check_tools
     from frogsim.export.sil import interrupt_timing
@@ -617,6 +618,8 @@ def _carries_commands(rec: dict | None) -> bool:
     """Whether a firmware's log can carry every valve command (format 3, a history as long as
     log_every): commands.csv is then written beside serial.csv."""
     from frogsim.export.serial_log import HISTORY_MAX
+    if bool(rec) and rec.get("format", 0) == 4:
+        return True
     return bool(rec) and rec.get("format", 0) >= 3 and int(rec["log_every"]) <= HISTORY_MAX and \
         rec.get("history_samples", 1) > 0
 
@@ -624,12 +627,15 @@ def _carries_commands(rec: dict | None) -> bool:
 def _write_commands(out, log, rec, last_sample=None) -> None:
     """commands.csv (every valve command of the log, :func:`frogsim.export.serial_log.commands_table`),
     or a warning saying why the log does not carry them all."""
-    from frogsim.export.serial_log import COMMANDS_CSV, commands_missing, write_commands_csv
+    from frogsim.export.serial_log import COMMANDS_CSV, commands_gap, commands_missing, write_commands_csv
     why = commands_missing(log, rec)
     if why:
         _warn(f"{COMMANDS_CSV} not written: {why}")
         return
     write_commands_csv(out / COMMANDS_CSV, log, rec, last_sample)
+    gap = commands_gap(log, rec, last_sample)
+    if gap:
+        _warn(f"{COMMANDS_CSV} has gaps (empty cells, a fit refuses to replay it): {gap}")
 
 
 def cmd_log(args) -> int:

@@ -55,6 +55,10 @@ VALVE_CYCLES = 16
 #: a record (log format 3); measured: the interrupt's worst case of tests/firmware/every-kind.toml
 #: (five muscles) grew by 507 cycles with the histories, hold-3bar's (one muscle) by 54
 HISTORY_CYCLES = 100
+#: per muscle: its command compared with the sample before's and, where it switched, stored as a
+#: valve event (log format 4) at the worst sample, every muscle switching: measured on swim-board's
+#: firmware (12 muscles), sample 0 (every muscle leaving hold) grew by 490 cycles with the events
+EVENT_CYCLES = 40
 #: loop()'s decimal formatting: about nine subtractions of a power of ten a digit
 FORMAT_CYCLES_PER_DIGIT = 90
 #: HardwareSerial's data-register-empty interrupt, one a byte sent
@@ -118,8 +122,8 @@ def estimate(plan, line_bytes: int) -> dict:
         t = max(t + n_analog * ADC_INTERRUPT_CYCLES, chain)
         if t >= worst:
             worst, worst_laws = t, total
-    from frogsim.export.sketch import history_samples
-    history = HISTORY_CYCLES if history_samples(plan) else 0
+    from frogsim.export.sketch import event_slots, history_samples
+    history = HISTORY_CYCLES if history_samples(plan) else (EVENT_CYCLES if event_slots(plan) else 0)
     interrupt = RUNTIME_CYCLES + worst + (VALVE_CYCLES + history) * len(plan.muscles)
     log_rate = plan.rate / plan.log_every
     log_cycles_per_s = log_rate * line_bytes * (FORMAT_CYCLES_PER_DIGIT + UART_CYCLES_PER_BYTE)

@@ -16,8 +16,12 @@ counters (uint16, saturating at 65535), and each muscle's valve history: its com
 samples k - i, i = 0 .. H - 1 (H = log_every up to 16, firmware.json's ``history_samples``; above
 16 H = 0 and the records have no history fields) in
 bits 2i, 2i + 1 (1 charge, 2 vent, 0 hold), so that the log carries every command the board issued
-although it is written every log_every samples (:func:`commands`). Format 2 (the same without the
-histories) is still read. Format 1 (the older firmware: ``k,counts,valvebits,
+although it is written every log_every samples (:func:`commands`). Format 4 (where the histories do
+not fit: ``format=4`` in the header) ends each record in ``events,lost,event_1,...,event_events``
+instead: the switchings since the last record, each 64 i + 4 j + c (muscle j's command became c at
+sample k - i), at most firmware.json's ``event_slots``, and ``lost`` those that found the slots
+full; a record with lost events is a gap in the commands (:func:`commands_gap`), marked in
+commands.csv by empty cells. Format 2 (the same without the histories) is still read. Format 1 (the older firmware: ``k,counts,valvebits,
 overruns``, a header without log_every, format and plan, drops told in ``# dropped N`` lines) is
 still read.
 
@@ -63,8 +67,10 @@ K_MAX = 2**32 - 1           # the firmware's sample index is uint32
 ANALOG_MAX = 1023           # the ATmega2560's ADC has 10 bits: no analog count is larger
 MAX_LINE = 1024             # [bytes] a line longer than this is garbage (a record is far shorter)
 EXAMPLES = 5                # discarded lines kept as examples
-FORMATS = (1, 2, 3)
+FORMATS = (1, 2, 3, 4)
+EVENTS_FORMAT = 4           # records carry valve events (the switchings) instead of histories
 HISTORY_MAX = 16            # the samples a uint32 history holds (two bits each)
+EVENTS_LOG_EVERY_MAX = 1024 # an event's offset within its record: bits 6..15 of a uint16
 
 # why a line was discarded (the summary's "discarded" keys)
 REASONS = {
@@ -85,6 +91,11 @@ REASONS = {
     "faultbits_out_of_range": "fault bits >= 2**channels",
     "history_out_of_range": "a valve history >= 4**history_samples, or with both valves of a sample open",
     "history_disagrees": "a valve history whose newest sample is not the record's valve bits",
+    "event_out_of_range": "a valve event of a sample outside the record's window (or before sample 0), of a "
+                          "muscle beyond the last, or with both valves open; more events than event_slots",
+    "events_out_of_order": "valve events not in the order the board issues them (older samples first, then by muscle)",
+    "events_disagree": "a muscle's last valve event that is not its valve bits, two events of a muscle that change "
+                       "nothing, or events lost while slots were free",
     "counter_out_of_range": f"an overrun or dropped counter above {COUNTER_MAX}",
     "k_off_grid": "k not a multiple of log_every",
     "k_not_increasing": "k not above the last record's",
@@ -122,6 +133,9 @@ class Log:
     overruns_last: int | None = None
     dropped_first: int | None = None
     missing_from_k_gaps: int = 0
+    events_lost: int = 0                     # format 4: valve events that found a record's slots full ...
+    records_with_lost: int = 0               # ... in so many records ...
+    first_lost: tuple | None = None          # ... the first of them: (k, events lost in it)
     fault_samples: int = 0
     faults_per_channel: list = field(default_factory=list)
     bytes_read: int = 0
@@ -131,6 +145,7 @@ class Log:
     idle_timeout_hit: bool = False
     _prev: tuple | None = field(default=None, repr=False)      # (k, overruns, dropped) of the last record
     _dropped1: int = field(default=0, repr=False)              # format 1: the last '# dropped N'
+    _prev_valves: int = field(default=0, repr=False)           # the last record's valve bits
     _spec: object = field(default=None, repr=False)
 
 
@@ -149,10 +164,14 @@ class _Spec:
     muscles: int
     log_every: int | None  # None: a format-1 header alone does not say it
     history: int = 0       # samples each record's valve history holds (format 3)
+    events: int = 0        # the valve events a record holds at most (format 4)
+    events_known: bool = True   # False: a plan from a header alone (event_slots unknown: up to 255)
 
     @property
     def width(self) -> int:
-        return 1 + len(self.ranges) + (4 if self.format >= 2 else 2) + (self.muscles if self.history else 0)
+        """The fields of a record (format 4: before its events)."""
+        return 1 + len(self.ranges) + (4 if self.format >= 2 else 2) + (self.muscles if self.history else 0) + \
+            (2 if self.events else 0)
 
 
 def _positive_int(value) -> bool:
@@ -208,12 +227,24 @@ def spec_of(plan: dict) -> _Spec:
             raise ScenarioError(f"firmware.json channels[{i}].count_range", r, "[lo, hi]: whole numbers, 0 <= lo <= hi")
         ranges.append(tuple(r))
     history = 0
-    if fmt >= 3:
+    if fmt == 3:
         history = plan.get("history_samples", every if every <= HISTORY_MAX else 0)
         if not (_whole(history) and history in ((0, every) if every <= HISTORY_MAX else (0,))):
             raise ScenarioError("firmware.json history_samples", history,
                                 f"0, or log_every ({every}) when it is {HISTORY_MAX} at most")
-    return _Spec(int(fmt), tuple(ranges), len(muscles), every, history)
+    events = 0
+    if fmt == EVENTS_FORMAT:
+        events = plan.get("event_slots", 255)
+        if not (_whole(events) and 1 <= events <= 255):
+            raise ScenarioError("firmware.json event_slots", events, "the valve events a record holds: 1..255")
+        if plan.get("history_samples", 0) != 0:
+            raise ScenarioError("firmware.json history_samples", plan.get("history_samples"),
+                                "0: a log of valve events (format 4) carries no histories")
+        if every > EVENTS_LOG_EVERY_MAX:
+            raise ScenarioError("firmware.json log_every", every,
+                                f"{EVENTS_LOG_EVERY_MAX} at most in a log of valve events (format 4): an event "
+                                "says its sample in 10 bits")
+    return _Spec(int(fmt), tuple(ranges), len(muscles), every, history, events, "event_slots" in plan)
 
 
 # -- the header ----------------------------------------------------------------------------------------
@@ -320,6 +351,8 @@ def _header_line(log: Log, rec: dict | None, line: str) -> None:
         log._prev = None
         log.overruns_first = log.overruns_last = log.dropped_first = None
         log.missing_from_k_gaps = log.fault_samples = log._dropped1 = 0
+        log.events_lost = log.records_with_lost = 0
+        log.first_lost = None
         log.faults_per_channel = []
     log.header = line
     log.format = h["format"]
@@ -331,7 +364,11 @@ def _header_line(log: Log, rec: dict | None, line: str) -> None:
 def _record(log: Log, spec: _Spec, line: str) -> str | None:
     """Check a record line against ``spec`` and keep it; the reason it fails, else None."""
     parts = line.split(",")
-    if len(parts) != spec.width:
+    if spec.events:
+        if len(parts) < spec.width or not _DIGITS.match(parts[spec.width - 2]) or \
+                len(parts) != spec.width + int(parts[spec.width - 2]):
+            return "field_count"
+    elif len(parts) != spec.width:
         return "field_count"
     if not all(_DIGITS.match(p) for p in parts):
         return "not_a_number"
@@ -356,6 +393,10 @@ def _record(log: Log, spec: _Spec, line: str) -> str | None:
                     return "history_out_of_range"
                 if h & 3 != (valves >> (2 * j)) & 3:
                     return "history_disagrees"
+        if spec.events:
+            why = _check_events(spec, k, valves, v[spec.width - 2], v[spec.width - 1], v[spec.width:])
+            if why:
+                return why
     else:
         faults, overruns, dropped = 0, v[2 + n_ch], log._dropped1
     if overruns > COUNTER_MAX or dropped > COUNTER_MAX:
@@ -368,18 +409,51 @@ def _record(log: Log, spec: _Spec, line: str) -> str | None:
             return "k_not_increasing"
         if overruns < po or dropped < pd:
             return "counter_decreased"
+        if spec.events and k - pk == spec.log_every and not v[spec.width - 1]:
+            moved = {(e >> 2) & 15 for e in v[spec.width:]}   # a muscle without an event kept its valves
+            if any((valves >> (2 * j)) & 3 != (log._prev_valves >> (2 * j)) & 3
+                   for j in range(spec.muscles) if j not in moved):
+                return "events_disagree"
         if spec.log_every:
             log.missing_from_k_gaps += (k - pk) // spec.log_every - 1
     else:
         log.overruns_first, log.dropped_first = overruns, dropped
         log.faults_per_channel = [0] * n_ch
     log._prev = (k, overruns, dropped)
+    log._prev_valves = valves
     log.overruns_last, log.dropped = overruns, dropped
     if faults:
         log.fault_samples += 1
         for i in range(n_ch):
             log.faults_per_channel[i] += (faults >> i) & 1
+    if spec.events and v[spec.width - 1]:
+        lost = v[spec.width - 1]
+        log.events_lost += lost
+        log.records_with_lost += 1
+        if log.first_lost is None:
+            log.first_lost = (k, lost)
     log.records.append(tuple(v))
+    return None
+
+
+def _check_events(spec: _Spec, k: int, valves: int, n: int, lost: int, events: list) -> str | None:
+    """The reason a record's valve events fail (:data:`REASONS`), else None."""
+    if n > spec.events or lost > COUNTER_MAX:
+        return "event_out_of_range" if n > spec.events else "counter_out_of_range"
+    last, prev = {}, None
+    for e in events:
+        i, j, c = e >> 6, (e >> 2) & 15, e & 3
+        if i >= spec.log_every or i > k or j >= spec.muscles or c == 3:
+            return "event_out_of_range"
+        if prev is not None and (-i, j) <= prev:
+            return "events_out_of_order"
+        if last.get(j) == c:
+            return "events_disagree"
+        prev, last[j] = (-i, j), c
+    if lost and n < spec.events and spec.events_known:
+        return "events_disagree"
+    if not lost and any(c != (valves >> (2 * j)) & 3 for j, c in last.items()):
+        return "events_disagree"
     return None
 
 
@@ -521,16 +595,21 @@ COMMANDS_CSV = "commands.csv"
 
 def commands_missing(log: Log, rec: dict) -> str | None:
     """Why ``log`` does not carry every valve command between its first and last record (None if it
-    does): a format without valve histories, histories shorter than log_every, records missing."""
+    does): a format without valve histories or events, histories shorter than log_every, records
+    missing. Commands lost in a record whose event slots were full are a gap, not a reason here
+    (:func:`commands_gap`): commands.csv marks them."""
     every = rec.get("log_every")
-    if (log.format or rec.get("format")) != 3 or (rec.get("format") or 3) < 3:
-        return (f"the log is format {log.format or rec.get('format')}: its records carry the valve bits of "
-                "every log_every-th sample only (format 3 carries each muscle's history; export and flash the "
-                "firmware again)")
-    if (rec.get("history_samples") == 0 and every is not None and every <= HISTORY_MAX):
+    fmt = log.format or rec.get("format")
+    if fmt == EVENTS_FORMAT and (rec.get("format") or EVENTS_FORMAT) == EVENTS_FORMAT:
+        pass
+    elif fmt != 3 or (rec.get("format") or 3) < 3:
+        return (f"the log is format {fmt}: its records carry the valve bits of "
+                "every log_every-th sample only (format 3 carries each muscle's history, 4 its switchings; "
+                "export and flash the firmware again)")
+    elif (rec.get("history_samples") == 0 and every is not None and every <= HISTORY_MAX):
         return ("the firmware logs no valve histories: its baud rate cannot carry the longer lines at this log "
                 "rate (raise firmware.baud)")
-    if every is None or every > HISTORY_MAX:
+    elif every is None or every > HISTORY_MAX:
         return (f"a record every {every} samples: the firmware logs valve histories for a record every "
                 f"{HISTORY_MAX} samples at most (a log rate of at least the controller rate / {HISTORY_MAX} "
                 "carries every command)")
@@ -542,43 +621,91 @@ def commands_missing(log: Log, rec: dict) -> str | None:
     return None
 
 
-def commands(log: Log, rec: dict, last_sample: int | None = None):
-    """Every valve command the board issued from the log's first covered sample to its last record's
-    (``last_sample`` at most): (samples k [int array], modes [k, muscle]: 1 charge, 0 hold, -1
-    vent), from the records' valve histories (:data:`REASONS` checked them). ScenarioError naming
-    the log if it does not carry them all (:func:`commands_missing`)."""
+def commands_gap(log: Log, rec: dict, last_sample: int | None = None) -> str | None:
+    """The first record (up to ``last_sample``) whose valve events did not all fit its slots
+    (format 4), said in words with how many there are in all; None if every command was logged."""
+    if log.first_lost is None or (last_sample is not None and log.first_lost[0] > last_sample):
+        return None
+    k, n = log.first_lost
+    every, rate = int(rec["log_every"]), float(rec["rate_hz"])
+    slots = rec.get("event_slots")
+    return (f"the record at k = {k} (t = {k / rate:g} s) lost {n} valve command(s) that found its "
+            f"{slots if slots is not None else 'event'} slots full: the commands of samples {max(0, k - every + 1)}.."
+            f"{k - 1} are unknown ({log.events_lost} lost in {log.records_with_lost} record(s) in all)")
+
+
+def _commands(log: Log, rec: dict, last_sample: int | None = None):
+    """(samples k, modes [k, muscle], known [k]: False where a record's events were lost): the
+    commands of every sample from the first record's (format 3: its history's first) to the last
+    record's. ScenarioError if the log does not carry them (:func:`commands_missing`)."""
     why = commands_missing(log, rec)
     if why:
         raise ScenarioError("the serial log's valve commands", UNKNOWN_TEXT, why)
     every = int(rec["log_every"])
     n_ch, n_m = len(rec["channels"]), len(rec["muscles"])
     rows = [r for r in log.records if last_sample is None or r[0] <= last_sample]
+    if not rows:
+        raise ScenarioError("the serial log's valve commands", UNKNOWN_TEXT, f"no record up to sample {last_sample}")
+    of_bits = np.array([0, 1, -1, 0], dtype=np.int8)
+    if (log.format or rec.get("format")) == EVENTS_FORMAT:
+        k0, k1 = rows[0][0], rows[-1][0]
+        modes = np.zeros((k1 - k0 + 1, n_m), dtype=np.int8)
+        known = np.ones(k1 - k0 + 1, dtype=bool)
+        base = 1 + n_ch + 4
+        modes[0] = [of_bits[(rows[0][1 + n_ch] >> (2 * j)) & 3] for j in range(n_m)]
+        for prev, r in zip(rows, rows[1:]):
+            kp, k = prev[0], r[0]
+            cur, pos = modes[kp - k0].copy(), kp + 1
+            for e in r[base + 2:]:
+                s = k - (e >> 6)
+                modes[pos - k0:s - k0] = cur
+                cur[(e >> 2) & 15] = of_bits[e & 3]
+                pos = s
+            modes[pos - k0:k - k0 + 1] = cur
+            if r[base + 1]:                      # lost events: the window is unknown, its last sample not
+                known[kp + 1 - k0:k - k0] = False
+                modes[k - k0] = [of_bits[(r[1 + n_ch] >> (2 * j)) & 3] for j in range(n_m)]
+        return np.arange(k0, k1 + 1), modes, known
     k0 = max(0, rows[0][0] - every + 1)
     k1 = rows[-1][0]
     modes = np.zeros((k1 - k0 + 1, n_m), dtype=np.int8)
-    of_bits = np.array([0, 1, -1, 0], dtype=np.int8)
     for r in rows:
         k = r[0]
         for j, h in enumerate(r[5 + n_ch:5 + n_ch + n_m]):
             for i in range(min(every, k - k0 + 1)):
                 modes[k - i - k0, j] = of_bits[(h >> (2 * i)) & 3]
-    return np.arange(k0, k1 + 1), modes
+    return np.arange(k0, k1 + 1), modes, np.ones(k1 - k0 + 1, dtype=bool)
+
+
+def commands(log: Log, rec: dict, last_sample: int | None = None):
+    """Every valve command the board issued from the log's first covered sample to its last record's
+    (``last_sample`` at most): (samples k [int array], modes [k, muscle]: 1 charge, 0 hold, -1
+    vent), from the records' valve histories (format 3) or events (format 4; :data:`REASONS`
+    checked them). ScenarioError naming the log if it does not carry them all
+    (:func:`commands_missing`) or naming the first gap (:func:`commands_gap`)."""
+    k, modes, known = _commands(log, rec, last_sample)
+    if not known.all():
+        raise ScenarioError("the serial log's valve commands", UNKNOWN_TEXT, commands_gap(log, rec, last_sample))
+    return k, modes
 
 
 def commands_table(log: Log, rec: dict, last_sample: int | None = None):
     """The commands (:func:`commands`) as a DataFrame: ``time [s]`` (k / rate) and a column
     ``<muscle> command [1 = charge, 0 = hold, -1 = vent]`` per muscle, one row at the first sample,
     at each sample where a command changes and at the last sample (a command holds until the next
-    row)."""
+    row). Where a record's events were lost (:func:`commands_gap`) a row at the gap's first sample
+    has every command empty: unknown until the next row (the record's own sample)."""
     import pandas as pd
     from frogsim.scenario.tables import header
-    k, modes = commands(log, rec, last_sample)
+    k, modes, known = _commands(log, rec, last_sample)
     change = np.ones(len(k), dtype=bool)
-    change[1:] = np.any(modes[1:] != modes[:-1], axis=1)
+    change[1:] = (np.any(modes[1:] != modes[:-1], axis=1) & known[1:]) | (known[1:] != known[:-1])
     change[-1] = True
     data = {header("time", "s"): k[change] / float(rec["rate_hz"])}
     for j, m in enumerate(rec["muscles"]):
-        data[header(f"{m} command", COMMAND_UNIT)] = modes[change, j].astype(int)
+        col = pd.array(modes[change, j].astype(int), dtype="Int64")
+        col[~known[change]] = pd.NA
+        data[header(f"{m} command", COMMAND_UNIT)] = col
     return pd.DataFrame(data)
 
 
@@ -714,6 +841,9 @@ def log_summary(log: Log, plan: dict) -> dict:
         "faults": {"samples": log.fault_samples,
                    "per_channel": {ch["signal"]: (log.faults_per_channel[i] if log.faults_per_channel else 0)
                                    for i, ch in enumerate(plan["channels"])}},
+        "valve_events": None if (log.format or plan.get("format")) != EVENTS_FORMAT else
+        {"slots": plan.get("event_slots"), "lost": log.events_lost, "records_with_lost": log.records_with_lost,
+         "first_lost_k": None if log.first_lost is None else log.first_lost[0]},
         "idle_timeout": {"seconds": log.idle_timeout, "hit": log.idle_timeout_hit},
         "stopped_by": log.stopped_by or None,
         "bytes_read": log.bytes_read,

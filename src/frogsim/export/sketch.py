@@ -36,7 +36,9 @@ The runtime. Timer1 in CTC mode (WGM12) with the smallest prescaler whose compar
    samples copies (k, counts, valve bits, fault bits, the overrun and dropped counters, each
    muscle's history of the last log_every samples; none when log_every is above 16, a history
    that could not carry every command, or when the baud rate cannot carry the longer lines:
-   :func:`history_samples`) into a ring of records; a record that
+   :func:`history_samples`; where the histories do not fit, log format 4: each muscle whose
+   command changed is stored as an event 64 i + 4 j + c in the record being filled, up to
+   :func:`event_slots` a record, the rest counted as lost) into a ring of records; a record that
    finds the ring full is counted in the dropped counter, which the next record carries;
 7. unmasks its interrupt (interrupts off), counts an overrun when Timer1's compare flag OCF1A is
    already set again (the next period began before this one's work ended; the flag is cleared
@@ -48,7 +50,8 @@ its discharge valve; history_j muscle j's commands since the last record, so tha
 every valve command the board issued although it is written at a tenth of the control rate;
 decimal digits by subtraction, no division) and writes them to Serial, then sleeps (idle mode:
 timers and the serial port keep running) until the next interrupt. The first line sent is
-``# frogsim NAME rate=... channels=... muscles=... log_every=... format=3 plan=...``. Timer0's
+``# frogsim NAME rate=... channels=... muscles=... log_every=... format=3 plan=...`` (format=4 with
+valve events: the records end in ``events,lost,event_1,...`` instead of the histories). Timer0's
 overflow interrupt (Arduino's millis) is switched off so that it never delays the control
 interrupt; the sketch uses neither millis nor delay.
 
@@ -70,7 +73,8 @@ from frogsim.errors import FrogsimError, ScenarioError, shown_value
 from frogsim.export import board
 
 LOG_FORMAT = "k,count_0,...,count_n-1,valvebits,faultbits,overruns,dropped,history_0,...,history_m-1"
-LOG_FORMAT_VERSION = 3       # firmware.json "format" and the header's format=
+LOG_FORMAT_VERSION = 3       # firmware.json "format" and the header's format= (4: valve events)
+LOG_FORMAT_EVENTS = "k,count_0,...,count_n-1,valvebits,faultbits,overruns,dropped,events,lost,event_1,...,event_events"
 #: the most samples a record's valve history holds: two bits a sample in a uint32
 HISTORY_MAX = 16
 RING_RECORDS = 16           # log records queued between the interrupt and loop()
@@ -99,6 +103,55 @@ def history_samples(plan) -> int:
         return 0
     line = log_line_bytes(n_ch, n_m, 2 ** 32 - 1, bits, n_encoders=n_enc, log_every=every)
     return every if line * rate / every <= baud / 10.0 else 0
+
+
+#: the most valve events a record holds (its slots in each of the ring's records: 2 bytes each)
+EVENTS_MAX = 48
+#: the longest record window an event's offset can say: bits 6..15 of a uint16
+EVENTS_LOG_EVERY_MAX = 1024
+#: the log format of a firmware whose records carry valve events instead of histories
+EVENTS_FORMAT = 4
+#: an event's most digits in a line's fields "events,lost" (the lost counter is a saturating uint16)
+LOST_MAX = 65535
+
+
+def event_value(offset: int, muscle: int, mode: int) -> int:
+    """A valve event as the log writes it: 64 x offset + 4 x muscle + code (code 1 charge, 2 vent, 0
+    hold; offset i: the event is at sample k - i of the record at k; muscle: its index, below 16)."""
+    return 64 * int(offset) + 4 * int(muscle) + {1: 1, -1: 2, 0: 0}[int(mode)]
+
+
+def event_slots(plan) -> int:
+    """The valve events a record holds (format 4): 0 where the record carries histories
+    (:func:`history_samples`), where log_every is above :data:`EVENTS_LOG_EVERY_MAX`, or where the
+    baud rate cannot carry a line with one event; else as many as the baud rate carries in a line
+    at its longest (every event at its most digits, the k of 10 digits), :data:`EVENTS_MAX` at most.
+    A switching that finds the slots full is counted in the record's ``lost`` field, never dropped
+    unsaid. ``plan``: a FirmwarePlan or firmware.json's record."""
+    from frogsim.scenario.firmware import log_line_bytes
+    if history_samples(plan):
+        return 0
+    if isinstance(plan, dict):
+        every, rate, baud = int(plan["log_every"]), float(plan["rate_hz"]), int(plan["baud"])
+        n_ch, n_m, bits = len(plan["channels"]), len(plan["muscles"]), int(plan["adc"]["bits"])
+        n_enc = sum(1 for ch in plan["channels"] if "analog_input" not in ch)
+    else:
+        every, rate, baud = int(plan.log_every), float(plan.rate), int(plan.baud)
+        n_ch, n_m, bits = len(plan.channels), len(plan.muscles), int(plan.adc.bits)
+        n_enc = sum(1 for ch in plan.channels if getattr(ch, "pins", ()))
+    if every > EVENTS_LOG_EVERY_MAX or n_m == 0:
+        return 0
+    budget = baud / 10.0 * every / rate          # [bytes] the line may take between two records
+    for slots in range(EVENTS_MAX, 0, -1):
+        if log_line_bytes(n_ch, n_m, 2 ** 32 - 1, bits, n_encoders=n_enc, log_every=every,
+                          events=slots) <= budget:
+            return slots
+    return 0
+
+
+def log_format(plan) -> int:
+    """The plan's log format: 4 where its records carry valve events, else 3."""
+    return EVENTS_FORMAT if event_slots(plan) else LOG_FORMAT_VERSION
 
 
 def history_mask(samples: int) -> int:
@@ -154,7 +207,7 @@ def plan_record(plan) -> dict:
     edited since, has another)."""
     adc = plan.adc
     rec = {
-        "format": LOG_FORMAT_VERSION,
+        "format": log_format(plan),
         "name": plan.name,
         "f_cpu_hz": board.F_CPU,
         "rate_hz": float(plan.rate),
@@ -174,6 +227,12 @@ def plan_record(plan) -> dict:
         "valve_history": "history_j: muscles[j]'s command at sample k - i in bits 2i, 2i+1 (1 charge, 2 vent, "
                          "0 hold), i = 0 .. history_samples - 1",
     }
+    if event_slots(plan):
+        rec["log_line"] = LOG_FORMAT_EVENTS
+        rec["event_slots"] = event_slots(plan)
+        rec["valve_events"] = ("events: the switchings since the last record (at most event_slots), lost: those "
+                               "that found the slots full; each event 64 i + 4 j + c: muscles[j]'s command "
+                               "became c (1 charge, 2 vent, 0 hold) at sample k - i; oldest first")
     digest = hashlib.sha256(json.dumps(rec, sort_keys=True).encode() + plan.c_source.encode()).hexdigest()
     rec["plan_sha256"] = digest
     return rec
@@ -230,6 +289,13 @@ def board_header(plan) -> str:
         f"#define FS_HISTORY {1 if history_samples(plan) else 0}  /* valve histories in the records */",
         f"#define FS_HISTORY_MASK 0x{history_mask(history_samples(plan)):X}UL  /* two bits a sample, the last "
         f"{history_samples(plan)} samples */",
+        f"#define FS_EVENTS {event_slots(plan)}  /* valve events a record holds (0: none logged) */",
+        "/* muscle j's command changed: an event 64 i + 4 j + c (c: 1 charge, 2 vent, 0 hold; -1 & 3 = 3, less",
+        "   3 >> 1: 2) into the record being filled (n its events so far, e = 64 i), or counted as lost */",
+        "#define FS_EVENT_OF(j) if (fs_modes[j] != fs_last[j]) { int8_t m_ = fs_modes[j]; fs_last[j] = m_; "
+        "if (n < FS_EVENTS) { uint8_t c_ = (uint8_t)m_ & 3u; fs_ev[n++] = (uint16_t)(e + 4u * (j)) | "
+        "(uint8_t)(c_ - (c_ >> 1)); } else if (fs_lost != 0xFFFFu) fs_lost++; }",
+        "#define FS_LOG_EVENTS " + " ".join(f"FS_EVENT_OF({j})" for j in range(len(plan.muscles))),
         f"#define FS_RING {RING_RECORDS}",
         "",
         f"/* busy pin D{busy.number} = P{busy.port}{busy.bit} */",
@@ -375,6 +441,11 @@ struct fs_record {{
 #if FS_HISTORY
     uint32_t history[FS_MUSCLES > 0 ? FS_MUSCLES : 1];
 #endif
+#if FS_EVENTS
+    uint8_t events;                           /* the switchings since the last record ... */
+    uint16_t lost;                            /* ... and those that found event[] full (saturates) */
+    uint16_t event[FS_EVENTS];                /* 64 i + 4 j + c: muscle j's command became c at sample k - i */
+#endif
 }};
 
 /* not static, C names: software in the loop reads them from the emulated RAM by symbol */
@@ -388,6 +459,13 @@ volatile uint8_t fs_head = 0, fs_tail = 0;  /* the record ring: the ISR writes a
 static int8_t fs_modes[FS_MUSCLES];
 #if FS_HISTORY
 static uint32_t fs_history[FS_MUSCLES > 0 ? FS_MUSCLES : 1];  /* each muscle's commands, 2 bits a sample */
+#endif
+#if FS_EVENTS
+static int8_t fs_last[FS_MUSCLES];          /* each muscle's command at the sample before (0: every valve shut) */
+static uint16_t fs_at = 0;                  /* 64 i: this sample is sample k - i of the record it goes into */
+static uint8_t fs_nev = 0;                  /* the events of the record being filled ... */
+static uint16_t fs_lost = 0;                /* ... and those that found its slots full (saturates) */
+static uint16_t *fs_ev;                     /* its slots: ring slot head's (loop() reads only those before it) */
 #endif
 static uint32_t fs_log_count = 0;
 static struct fs_record fs_ring[FS_RING];
@@ -444,6 +522,14 @@ ISR(TIMER1_COMPA_vect) {{
     for (uint8_t j = 0; j < FS_MUSCLES; j++)  /* 1 charge, 2 vent, 0 hold: the newest in the low bits */
         fs_history[j] = (fs_history[j] << 2) | (fs_modes[j] > 0 ? 1u : (fs_modes[j] < 0 ? 2u : 0u));
 #endif
+#if FS_EVENTS
+    {{                                        /* each switching into the record being filled: 64 i + 4 j + c */
+        uint8_t n = fs_nev;
+        uint16_t e = fs_at;
+        FS_LOG_EVENTS                         /* unrolled, one muscle after the other (frogsim_board.h) */
+        fs_nev = n;
+    }}
+#endif
     if (fs_log_count == 0) {{
         uint8_t next = (uint8_t)((fs_head + 1) % FS_RING);
         if (next == fs_tail) {{
@@ -464,10 +550,22 @@ ISR(TIMER1_COMPA_vect) {{
 #if FS_HISTORY
             for (uint8_t j = 0; j < FS_MUSCLES; j++) r->history[j] = fs_history[j] & FS_HISTORY_MASK;
 #endif
+#if FS_EVENTS
+            r->events = fs_nev;
+            r->lost = fs_lost;
+#endif
             fs_head = next;
         }}
+#if FS_EVENTS
+        fs_ev = fs_ring[fs_head].event;       /* the next record's events start empty (a dropped record's */
+        fs_nev = 0;                           /* go with it: the gap in k says so) */
+        fs_lost = 0;
+#endif
     }}
     if (++fs_log_count >= FS_LOG_EVERY) fs_log_count = 0;
+#if FS_EVENTS
+    fs_at = fs_at ? (uint16_t)(fs_at - 64u) : (uint16_t)((FS_LOG_EVERY - 1) << 6);
+#endif
     cli();
     TIMSK1 |= (1 << OCIE1A);
     fs_k = k + 1;
@@ -492,7 +590,24 @@ static uint8_t fs_format(char *out, uint32_t x) {{
     return n;
 }}
 
-static char fs_line[16 + 11 * (FS_CHANNELS + 5 + (FS_HISTORY ? FS_MUSCLES : 0))];
+#if FS_EVENTS
+/* the same for a 16-bit event, in 16-bit arithmetic from 10^4 down: a line of events formats in
+ * a third of the cycles fs_format would take */
+static const uint16_t fs_pow10_16[5] = {{10000u, 1000u, 100u, 10u, 1u}};
+
+static uint8_t fs_format16(char *out, uint16_t x) {{
+    uint8_t n = 0, started = 0;
+    for (uint8_t i = 0; i < 5; i++) {{
+        char d = '0';
+        uint16_t p = fs_pow10_16[i];
+        while (x >= p) {{ x -= p; d++; }}
+        if (d != '0' || started || i == 4) {{ out[n++] = d; started = 1; }}
+    }}
+    return n;
+}}
+#endif
+
+static char fs_line[16 + 11 * (FS_CHANNELS + 5 + (FS_HISTORY ? FS_MUSCLES : 0)) + (FS_EVENTS ? 12 + 6 * FS_EVENTS : 0)];
 
 void setup() {{
     TIMSK0 = 0;                               /* no millis() interrupt: nothing delays the control ISR */
@@ -507,6 +622,9 @@ void setup() {{
     FS_BUSY_DDR |= (1 << FS_BUSY_BIT);
     fs_valve_pins_output();
     for (uint8_t j = 0; j < FS_MUSCLES; j++) fs_modes[j] = 0;
+#if FS_EVENTS
+    fs_ev = fs_ring[0].event;                 /* sample 0's events go into the first record */
+#endif
     fs_write_valves(fs_modes);                /* every valve shut */
     fs_encoders_setup();
     ADCSRA = (1 << ADEN) | (1 << ADIE) | FS_ADC_ADPS;   /* the conversion-complete interrupt on */
@@ -530,7 +648,7 @@ void loop() {{
     while (fs_tail != fs_head) {{
         struct fs_record r = fs_ring[fs_tail];  /* a copy: the ISR may refill the slot afterwards */
         fs_tail = (uint8_t)((fs_tail + 1) % FS_RING);
-        uint8_t n = fs_format(fs_line, r.k);
+        uint16_t n = fs_format(fs_line, r.k);     /* a line of events may pass 255 bytes */
         for (uint8_t i = 0; i < FS_CHANNELS; i++) {{
             fs_line[n++] = ',';
             n += fs_format(fs_line + n, r.adc[i]);
@@ -547,6 +665,16 @@ void loop() {{
         for (uint8_t j = 0; j < FS_MUSCLES; j++) {{
             fs_line[n++] = ',';
             n += fs_format(fs_line + n, r.history[j]);
+        }}
+#endif
+#if FS_EVENTS
+        fs_line[n++] = ',';
+        n += fs_format(fs_line + n, r.events);
+        fs_line[n++] = ',';
+        n += fs_format(fs_line + n, r.lost);
+        for (uint8_t i = 0; i < r.events; i++) {{
+            fs_line[n++] = ',';
+            n += fs_format16(fs_line + n, r.event[i]);
         }}
 #endif
         fs_line[n++] = '\n';
@@ -720,7 +848,7 @@ def write_sketch(plan, out: Path, scenario_name: str = "", export: dict | None =
         "ino": INO.format(name=plan.name, scenario=scenario_name or plan.name, rate=float(plan.rate),
                           n_ch=len(plan.channels), n_m=len(plan.muscles), baud=int(plan.baud),
                           log_every=int(plan.log_every), channels=channels,
-                          muscles=";".join(plan.muscles), log_format=LOG_FORMAT_VERSION,
+                          muscles=";".join(plan.muscles), log_format=log_format(plan),
                           plan=record["plan_sha256"][:12]),
         "board_header": board_header(plan),
         "laws_header": plan.c_source,
@@ -741,8 +869,8 @@ def write_sketch(plan, out: Path, scenario_name: str = "", export: dict | None =
 
 
 #: the formats of firmware.json this frogsim reads: 2 (a board flashed before the valve history,
-#: whose log is still read) and this runtime's
-PLAN_FORMATS = (2, LOG_FORMAT_VERSION)
+#: whose log is still read) and this runtime's two (3: valve histories or none, 4: valve events)
+PLAN_FORMATS = (2, LOG_FORMAT_VERSION, EVENTS_FORMAT)
 
 
 def _whole(v) -> bool:
@@ -829,6 +957,11 @@ def validate_plan_record(rec, folder) -> None:
         if not (_whole(hs) and hs == history_samples(rec)):
             bad("history_samples", f"= {shown_value(hs)} must be log_every up to {HISTORY_MAX} where the baud "
                                    f"rate carries the histories, else 0: {history_samples(rec)}")
+        slots = event_slots(rec)
+        if rec["format"] == EVENTS_FORMAT and not (_whole(rec.get("event_slots")) and rec["event_slots"] == slots
+                                                   and slots > 0):
+            bad("event_slots", f"= {shown_value(rec.get('event_slots'))} must be the events a line carries at this "
+                               f"baud rate and log rate: {slots}")
     for k, ch in enumerate(rec["channels"]):
         check(ch, CHANNEL_KEYS, f"channels[{k}].")
         if ch.get("analog_input") is not None:

@@ -66,6 +66,10 @@ def read_commands(path, scenario) -> dict:
             raise ScenarioError(f"{where}: {col}", "(column)", f"must be '<muscle> command [{COMMAND_UNIT}]' "
                                                                f"for a muscle of the scenario ({', '.join(scenario.muscles)})")
         v = df[col].to_numpy(dtype=float)
+        if np.any(np.isnan(v)):
+            raise ScenarioError(f"{where}: {col}", f"(empty from {float(t[np.argmax(np.isnan(v))]):g} s)",
+                                "the board's log lost valve commands there (more switchings than a record's "
+                                "event slots): a replay needs every command; log at a higher rate or baud rate")
         if not np.all(np.isin(v, (-1.0, 0.0, 1.0))):
             bad = v[~np.isin(v, (-1.0, 0.0, 1.0))][0]
             raise ScenarioError(f"{where}: {col}", f"{bad!r}", "must be -1 (vent), 0 (hold) or 1 (charge)")

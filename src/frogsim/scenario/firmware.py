@@ -317,16 +317,22 @@ def firmware_layout(sc) -> Layout:
 
 
 def log_line_bytes(n_signals: int, n_muscles: int, samples: int, bits: int = 10, n_encoders: int = 0,
-                   log_every: int = 1) -> int:
+                   log_every: int = 1, events: int = 0) -> int:
     """The longest serial log line [bytes]: "k,count_0,...,count_n-1,valvebits,faultbits,overruns,
     dropped,history_0,...,history_m-1\\n" (each history at most 4^log_every - 1; none above 16) with k at most ``samples``, each ADC count at most 2^bits - 1 and each of the
     ``n_encoders`` encoder counts (among the n_signals) at most 65535, valvebits at most
-    4^n_muscles - 1, faultbits at most 2^n_signals - 1, the two counters at most 65535."""
+    4^n_muscles - 1, faultbits at most 2^n_signals - 1, the two counters at most 65535. With
+    ``events`` (format 4's event slots, no histories) the line ends instead in "events,lost,
+    event_1,...": every slot full, each event at most 64 (log_every - 1) + 4 (n_muscles - 1) + 2,
+    lost at most 65535."""
     digits = len(str(max(samples, 0)))
     counts = (n_signals - n_encoders) * len(str(2 ** bits - 1)) + n_encoders * 5
     valves = len(str(4 ** n_muscles - 1))
     faults = len(str(2 ** n_signals - 1))
     history = n_muscles * (len(str(4 ** int(log_every) - 1)) + 1) if int(log_every) <= 16 else 0
+    if events:
+        history = 1 + len(str(int(events))) + 1 + OVERRUN_DIGITS + \
+            int(events) * (1 + len(str(64 * (int(log_every) - 1) + 4 * (n_muscles - 1) + 2)))
     return digits + counts + valves + faults + 2 * OVERRUN_DIGITS + (n_signals + 4) + 1 + history
 
 
