@@ -146,7 +146,7 @@ class Registry:
         try:
             return self.by_code[float(code)]
         except KeyError:
-            raise KeyError(f"{self.family}: no member has code {code!r} (codes: "
+            raise KeyError(f"{self.family}: code {float(code)!r} is no {self.member}'s (codes: "
                            + ", ".join(f"{c:g} {getattr(m.settings, self.name_attr)}"
                                        for c, m in sorted(self.by_code.items())) + ")") from None
 
