@@ -47,6 +47,8 @@ import numpy as np
 from frogsim._jit import jit, jit_alloc, jit_step
 from frogsim._registry import dispatch
 from frogsim.circuit.layout import M_VALVE, pressure_index
+from frogsim.circuit.sensors import sensor_count, sensor_value
+from frogsim.circuit.sensors.spec import line_value
 from frogsim.circuit.valves import valve_openings
 from frogsim.control import kinds
 from frogsim.control.signals import (  # noqa: F401  (the memory layout and signals, re-exported)
@@ -56,7 +58,7 @@ from frogsim.control.signals import (  # noqa: F401  (the memory layout and sign
     MODE_HOLD, MODE_VENT, TOL, B_FAULT_A, B_FAULT_P, B_FW0, FW_MEM, adc_count, fw_fault, pump_band, sense,
     sense_joint, sensor_noise, setpoint)
 from frogsim.control.table import (  # noqa: F401  (the table's layout, re-exported)
-    KIND_EXTERNAL, KIND_PUMP_BAND, L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0,
+    KIND_EXTERNAL, KIND_PUMP_BAND, L_AADC_CODE, L_ADC_CODE, L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0,
     L_ADC_V0, L_ADC_VREF, L_DEAD_C, L_DEAD_D, L_FAULT_AHI, L_FAULT_ALO, L_FAULT_MODE, L_FAULT_N, L_FAULT_PHI,
     L_FAULT_PLO, L_FW, L_HIGH, L_INJ_A_AT, L_INJ_A_COUNT, L_INJ_P_AT, L_INJ_P_COUNT, L_INPUT, L_JOINT1, L_KIND,
     L_LOW, L_MUSCLE, L_PATM, L_SIZE, laws_table)
@@ -289,11 +291,9 @@ def sample_controllers(laws, mp, t, y, u, cs):
     return changed
 
 
-@jit
-def count_value(v0, kv, q0, full, vref, count):
-    """The reading [Pa gauge or rad] in the middle of an ADC count (the inverse of
-    :func:`frogsim.control.signals.adc_count` at count + 1/2)."""
-    return q0 + ((count + 0.5) * vref / full - v0) / kv
+#: the reading [Pa gauge or rad] in the middle of an ADC count (the inverse of
+#: :func:`frogsim.control.signals.adc_count` at count + 1/2; the sensor family's shared arithmetic)
+count_value = line_value
 
 
 @jit
@@ -308,17 +308,24 @@ def firmware_mode(laws, c, cs, b, y, k, ts):
     patm = laws[c, L_PATM]
     full = laws[c, L_ADC_FULL]
     vref = laws[c, L_ADC_VREF]
-    cp = adc_count(laws[c, L_ADC_V0], laws[c, L_ADC_K], laws[c, L_ADC_Q0], full, vref, y[pressure_index(i)] - patm)
+    # the sensors' integer form and the reading a count stands for: each channel's sensor type
+    # (frogsim.circuit.sensors), by its code
+    pcode = laws[c, L_ADC_CODE]
+    cp = sensor_count(pcode, laws[c, L_ADC_V0], laws[c, L_ADC_K], laws[c, L_ADC_Q0], full, vref,
+                      y[pressure_index(i)] - patm)
     if ts >= laws[c, L_INJ_P_AT]:                      # a fault put into the plant: the wire's count
         cp = int(laws[c, L_INJ_P_COUNT])
-    cs[b + B_SENSED] = patm + count_value(laws[c, L_ADC_V0], laws[c, L_ADC_K], laws[c, L_ADC_Q0], full, vref, cp)
+    cs[b + B_SENSED] = patm + sensor_value(pcode, laws[c, L_ADC_V0], laws[c, L_ADC_K], laws[c, L_ADC_Q0], full, vref,
+                                           cp)
     ca = 0
     if laws[c, L_JOINT1] > 0.0:
         afull = laws[c, L_AADC_FULL]
-        ca = adc_count(laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], afull, vref, cs[b + B_ANGLE])
+        acode = laws[c, L_AADC_CODE]
+        ca = sensor_count(acode, laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], afull, vref,
+                          cs[b + B_ANGLE])
         if ts >= laws[c, L_INJ_A_AT]:
             ca = int(laws[c, L_INJ_A_COUNT])
-        cs[b + B_A_SENSED] = count_value(laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], afull, vref,
+        cs[b + B_A_SENSED] = sensor_value(acode, laws[c, L_AADC_V0], laws[c, L_AADC_K], laws[c, L_AADC_Q0], afull, vref,
                                          ca)
     sp, _ = setpoint(laws, c, ts)
     cs[b + B_SP] = sp
