@@ -342,3 +342,29 @@ def test_the_actuator_types_are_reached_through_their_registry(tmp_path):
     target = copy / "engine" / "coupled_kernel.py"
     target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.circuit.actuators import mckibben\n")
     assert actuator_imports(copy) == ["frogsim.engine.coupled_kernel imports frogsim.circuit.actuators.mckibben"]
+
+
+def sensor_imports(root: Path = PACKAGE) -> list[str]:
+    """Imports of a sensor type's module from outside circuit/sensors/ (none is allowed: the
+    firmware rows, the plan and the model's sample reach the sensors through their registry)."""
+    folder = root / "circuit" / "sensors"
+    found = {p.stem for p in folder.glob("*.py")} - {"__init__", "spec"}
+    bad = []
+    for mod, deps in imports(root).items():
+        if mod.startswith("frogsim.circuit.sensors"):
+            continue
+        for dep in deps:
+            parts = dep.split(".")
+            if parts[:3] == ["frogsim", "circuit", "sensors"] and len(parts) > 3 and parts[3] in found:
+                bad.append(f"{mod} imports {dep}")
+    return sorted(bad)
+
+
+def test_the_sensor_types_are_reached_through_their_registry(tmp_path):
+    assert _layer("frogsim.circuit.sensors.encoder") == "circuit"
+    assert sensor_imports() == []
+    copy = tmp_path / "frogsim"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    target = copy / "control" / "fixed.py"
+    target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.circuit.sensors import encoder\n")
+    assert sensor_imports(copy) == ["frogsim.control.fixed imports frogsim.circuit.sensors.encoder"]
