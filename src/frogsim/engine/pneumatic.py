@@ -68,9 +68,11 @@ def check_volumes(model: PneumaticModel) -> None:
         fixed = mp[i, L.M_FIXEDV]
         if fixed > 0.0:
             continue
-        dead = mp[i, L.M_DEAD]
-        for k in range(int(mot_n[i])):
-            v = actuators.volume(mp, i, float(mot_L[i, k])) + dead
+        nk = int(mot_n[i])
+        vols = np.empty(nk)
+        actuators.knot_volumes(mp, i, mot_L, nk, vols)
+        for k in range(nk):
+            v = float(vols[k])
             if not (math.isfinite(v) and v > 0.0):
                 raise SimulationError(f"scenario {model.scenario.name!r}: non-physical state at "
                                       f"t = {mot_t[i, k]:.6g} s: {name} volume = {v:.4g} m^3 "

@@ -140,6 +140,7 @@ def warm_up(part: str) -> None:
         _compile(braid_parameters, 0.15, 0.02, 0.5)
         for at in actuators.TYPES.values():         # a model's start volumes (frogsim.circuit.actuators)
             _compile(actuators.for_python(at.volume), a["model"][1], 0, 0.15)
+        _compile(actuators.knot_volumes, a["model"][1], 0, a["model"][3], 1, np.zeros(1))
         _compile(critical_pressure_ratio, 1.4)
         _compile(choked_mass_flux_factor, 287.0, 1.4)
         _compile(main_pipe_branch_limit, 0.004, 10.0, 1, 1)

@@ -26,7 +26,7 @@ import numpy as np
 from frogsim._jit import jit, jit_inner
 from frogsim._registry import Registry, dispatch, membership
 from frogsim.circuit.actuators.spec import FORCE_PARAMS, ActuatorType
-from frogsim.circuit.layout import ACTUATOR_PARAMS, M_ACT, M_AP, M_SIZE
+from frogsim.circuit.layout import ACTUATOR_PARAMS, M_ACT, M_AP, M_DEAD, M_SIZE
 from frogsim.scenario import actuators as settings_registry
 from frogsim.scenario.actuators import ActuatorSettings
 
@@ -141,3 +141,13 @@ actuator_wall_area = dispatch([(a.code, a.wall_area) for a in _ORDER], "mp, i, L
 #: ``actuator_force(code, mp, i, p_gauge, L, law, at)``: the tension [N]
 actuator_force = dispatch([(a.code, a.force) for a in _ORDER], "mp, i, p_gauge, L, law, at",
                           unknown="actuator_force: " + _UNKNOWN)
+
+
+@jit
+def knot_volumes(mp, i, mot_L, nk, out):
+    """Muscle i's total volume [m^3] (actuator volume plus dead volume) at each of its first nk
+    knot lengths mot_L[i, :nk], into out[:nk]: one compiled call per muscle for the engines' check
+    that every prescribed volume is positive (an unknown code raises)."""
+    for k in range(nk):
+        V, _ = actuator_volume(mp[i, M_ACT], mp, i, mot_L[i, k])
+        out[k] = V + mp[i, M_DEAD]
