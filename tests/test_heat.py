@@ -159,7 +159,8 @@ def test_first_law_of_each_volume_closes_over_a_run():
     T_m, T_s, T_e = res.temperature("m0"), res.temperature("source"), res.temperature("exhaust")
     p_m = res.muscle_pressure("m0")
     Lm = res.lengths[:, 0]
-    b0, nt = mp[0, L.M_B0], mp[0, L.M_N]
+    from frogsim.circuit.actuators import mckibben
+    b0, nt = mp[0, L.M_AP + mckibben.P_B0], mp[0, L.M_AP + mckibben.P_N]
     D = np.sqrt(b0 ** 2 - Lm ** 2) / (nt * math.pi)              # braid diameter at length L
     V = np.array([muscle_volume_state(float(tk), 0, mp, res.model.mot_t, res.model.mot_L,
                                       res.model.mot_d, res.model.mot_n) for tk in t])

@@ -164,8 +164,9 @@ def static_tensions(rs, r, i):
     mp = build_model(rs.pneumatic).mp[i]
     bl = (law.force_scale, law.strain_scale, law.stiffness, law.stretch_stiffness, law.stretch_quadratic)
     patm = r.atmospheric_pressure
-    return np.array([muscle_force(MODEL_DMSP20, float(p) - patm, float(L), mp[CL.M_L0], mp[CL.M_B0],
-                                  mp[CL.M_N], *bl)
+    from frogsim.circuit.actuators.mckibben import P_B0, P_N
+    return np.array([muscle_force(MODEL_DMSP20, float(p) - patm, float(L), mp[CL.M_L0], mp[CL.M_AP + P_B0],
+                                  mp[CL.M_AP + P_N], *bl)
                      for p, L in zip(r.pressures[:, i], r.lengths[:, i])]), mp[CL.M_L0]
 
 
@@ -299,8 +300,9 @@ def test_pneumatic_result_tensions_off_are_the_static_law_and_on_lag_the_motion(
     mp = r.model.mp
     bl = (law.force_scale, law.strain_scale, law.stiffness, law.stretch_stiffness, law.stretch_quadratic)
     i = 0
-    expect = [muscle_force(MODEL_DMSP20, float(p) - patm, float(L), mp[i, CL.M_L0], mp[i, CL.M_B0], mp[i, CL.M_N],
-                           *bl) for p, L in zip(r.muscle_pressure(r.names[i]), r.lengths[:, i])]
+    from frogsim.circuit.actuators.mckibben import P_B0, P_N
+    expect = [muscle_force(MODEL_DMSP20, float(p) - patm, float(L), mp[i, CL.M_L0], mp[i, CL.M_AP + P_B0],
+                           mp[i, CL.M_AP + P_N], *bl) for p, L in zip(r.muscle_pressure(r.names[i]), r.lengths[:, i])]
     assert np.array_equal(np.array(expect), T[:, i])
     on = dataclasses.replace(law, hysteresis="maxwell-slip", slip_per_pressure=C_SLIP, slip_strain=S_SLIP)
     T_on = r.tensions(on)

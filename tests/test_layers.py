@@ -17,7 +17,7 @@ PACKAGE = Path(__file__).resolve().parent.parent / "src" / "frogsim"
 
 #: lowest first; a module may import its own layer and those before it
 LAYERS = (
-    ("errors", "_jit", "_parallel", "_plotting", "_files", "_budget", "_words"),
+    ("errors", "_jit", "_registry", "_parallel", "_plotting", "_files", "_budget", "_words"),
     ("physics",),
     ("components",),
     ("scenario",),
@@ -303,3 +303,68 @@ def test_the_integration_methods_are_reached_through_their_registry(tmp_path):
     method.write_text(method.read_text() + "\n\ndef _planted():\n    from frogsim.engine import integrator\n")
     assert method_imports(copy) == ["frogsim.engine.integrator imports frogsim.engine.methods.rk4",
                                     "frogsim.engine.methods.rk4 imports frogsim.engine.integrator"]
+
+
+#: modules outside circuit/actuators/ that import an actuator type's module by name: none; the
+#: right-hand side, the coupled kernel, the results and the studies reach the actuator types through
+#: their registry (frogsim.circuit.actuators), so that a new actuator type is one new module
+ACTUATOR_IMPORTS: dict = {}
+
+
+def actuator_imports(root: Path = PACKAGE) -> list[str]:
+    """Imports of an actuator type's module from outside circuit/actuators/ that ACTUATOR_IMPORTS
+    does not list."""
+    folder = root / "circuit" / "actuators"
+    found = {p.stem for p in folder.glob("*.py")} - {"__init__", "spec"}
+    bad = []
+    for mod, deps in imports(root).items():
+        if mod.startswith("frogsim.circuit.actuators"):
+            continue
+        for dep in deps:
+            parts = dep.split(".")
+            if parts[:3] == ["frogsim", "circuit", "actuators"] and len(parts) > 3 and parts[3] in found \
+                    and parts[3] not in ACTUATOR_IMPORTS.get(mod, ()):
+                bad.append(f"{mod} imports {dep}")
+    return sorted(bad)
+
+
+def test_the_actuator_types_are_reached_through_their_registry(tmp_path):
+    """The actuator family (circuit/actuators/, layer 4) is read through its registry only: no
+    module outside it names the McKibben module or calls Eq. (5)'s volume directly in the
+    engines; a planted import of the McKibben module from the coupled kernel is caught."""
+    assert _layer("frogsim.circuit.actuators.mckibben") == "circuit"
+    assert actuator_imports() == []
+    for engine in ("circuit/rhs.py", "engine/coupled_kernel.py", "engine/coupled.py", "engine/pneumatic.py"):
+        text = (PACKAGE / engine).read_text()
+        assert "muscle_volume(" not in text and "muscle_force(" not in text, engine
+    copy = tmp_path / "frogsim"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    target = copy / "engine" / "coupled_kernel.py"
+    target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.circuit.actuators import mckibben\n")
+    assert actuator_imports(copy) == ["frogsim.engine.coupled_kernel imports frogsim.circuit.actuators.mckibben"]
+
+
+def sensor_imports(root: Path = PACKAGE) -> list[str]:
+    """Imports of a sensor type's module from outside circuit/sensors/ (none is allowed: the
+    firmware rows, the plan and the model's sample reach the sensors through their registry)."""
+    folder = root / "circuit" / "sensors"
+    found = {p.stem for p in folder.glob("*.py")} - {"__init__", "spec"}
+    bad = []
+    for mod, deps in imports(root).items():
+        if mod.startswith("frogsim.circuit.sensors"):
+            continue
+        for dep in deps:
+            parts = dep.split(".")
+            if parts[:3] == ["frogsim", "circuit", "sensors"] and len(parts) > 3 and parts[3] in found:
+                bad.append(f"{mod} imports {dep}")
+    return sorted(bad)
+
+
+def test_the_sensor_types_are_reached_through_their_registry(tmp_path):
+    assert _layer("frogsim.circuit.sensors.encoder") == "circuit"
+    assert sensor_imports() == []
+    copy = tmp_path / "frogsim"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    target = copy / "control" / "fixed.py"
+    target.write_text(target.read_text() + "\n\ndef _planted():\n    from frogsim.circuit.sensors import encoder\n")
+    assert sensor_imports(copy) == ["frogsim.control.fixed imports frogsim.circuit.sensors.encoder"]

@@ -247,7 +247,7 @@ def test_the_registry_refuses_a_duplicate_or_undeclared_method(tmp_path, case):
     assert last.startswith("ImportError: integration methods: "), done.stderr[-2000:]
     # the modules are imported in the order of their file names: added.py before rk4.py
     if case == "code":
-        assert "code 2.0 of frogsim.engine.methods.rk4 (method 'rk4') is already taken by " \
+        assert "CODE 2.0 of frogsim.engine.methods.rk4 (method 'rk4') is already taken by " \
                "frogsim.engine.methods.added (method 'euler')" in last, last
     elif case == "name":
         assert "method name 'rk4' of frogsim.engine.methods.rk4 is already taken by " \

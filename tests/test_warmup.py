@@ -43,8 +43,10 @@ def test_step_pieces_are_referenced_by_compiled_code_only():
     appear inside compiled functions, and in the warm-up (which compiles them without a call),
     nowhere else (a call from Python would raise at run time); the assignment that defines one
     (control/sampled.py's dispatch, made by a function at import) is not a use, nor is handing
-    one to the registry in an integration method's declaration (``METHOD = IntegrationMethod(...)``,
-    whose parts only the driver's compiled dispatch calls) or in the method's ``warm`` (its parts of
+    one to the registry in an integration method's, an actuator type's or a sensor type's
+    declaration (``METHOD = IntegrationMethod(...)``, ``ACTUATOR = ActuatorType(...)``,
+    ``SENSOR = SensorType(...)``, whose compiled parts only the families' compiled dispatch calls,
+    or :func:`frogsim.circuit.actuators.for_python` compiles again for Python) or in the method's ``warm`` (its parts of
     the warm-up, which compiles them without a call)."""
     import ast
     import importlib
@@ -70,7 +72,8 @@ def test_step_pieces_are_referenced_by_compiled_code_only():
         for node in tree.body:
             if isinstance(node, (ast.Import, ast.ImportFrom)):
                 continue
-            if isinstance(node, ast.Assign) and [getattr(t, "id", None) for t in node.targets] == ["METHOD"]:
+            if isinstance(node, ast.Assign) and [getattr(t, "id", None) for t in node.targets] in (
+                    ["METHOD"], ["ACTUATOR"], ["SENSOR"]):
                 continue
             if info.name.startswith("frogsim.engine.methods.") and isinstance(node, ast.FunctionDef) \
                     and node.name == "warm":

@@ -29,8 +29,8 @@ from numba.core.registry import CPUDispatcher
 from frogsim._files import user_cache_folder
 
 _PACKAGE = Path(__file__).resolve().parent
-# robot/water.py: its table layout (E_*, P_*) is compiled into the coupled engine as constants
-_COMPILED_SOURCES = ("_jit.py", "physics", "circuit", "control", "engine", "robot/water.py")
+# _registry.py: it writes the families' compiled dispatch; robot/water.py: its table layout (E_*, P_*) is compiled into the coupled engine as constants
+_COMPILED_SOURCES = ("_jit.py", "_registry.py", "physics", "circuit", "control", "engine", "robot/water.py")
 
 
 def _source_hash() -> str:

@@ -76,14 +76,15 @@ SUPPLY_PAPER = 1
 SUPPLY_PHYSICAL = 2
 
 # per-muscle parameter matrix mp[i, :]
-M_B0 = 0        # braid thread length [m]
-M_N = 1         # braid turns [-]
-M_DEAD = 2      # dead volume of fittings and branch tube [m^3]
-M_FIXEDV = 3    # fixed total volume [m^3], or <= 0 when the volume follows the length
-M_L0 = 4        # rest length [m]
-M_H = 5         # heat transfer coefficient air-wall [W/(m^2 K)] (0: adiabatic)
-M_VALVE = 6     # the muscle's valve type: its CODE in the valve family (frogsim.circuit.valves)
-M_VP = 7        # the valve type's parameter block: VALVE_PARAMS columns from here, each type's own
+M_ACT = 0       # the muscle's actuator type: its CODE in the actuator family (frogsim.circuit.actuators)
+M_AP = 1        # the actuator type's parameter block: ACTUATOR_PARAMS columns from here, each type's own
+ACTUATOR_PARAMS = 4
+M_DEAD = M_AP + ACTUATOR_PARAMS     # dead volume of fittings and branch tube [m^3]
+M_FIXEDV = M_DEAD + 1   # fixed total volume [m^3], or <= 0 when the volume follows the length
+M_L0 = M_DEAD + 2       # rest length [m]
+M_H = M_DEAD + 3        # heat transfer coefficient air-wall [W/(m^2 K)] (0: adiabatic)
+M_VALVE = M_DEAD + 4    # the muscle's valve type: its CODE in the valve family (frogsim.circuit.valves)
+M_VP = M_DEAD + 5       # the valve type's parameter block: VALVE_PARAMS columns from here, each type's own
 VALVE_PARAMS = 12
 M_SIZE = M_VP + VALVE_PARAMS
 

@@ -9,6 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from frogsim.circuit import layout as L
+from frogsim.circuit import actuators
 from frogsim.circuit.valves import write_block
 from frogsim.scenario import kinds
 from frogsim.scenario.core import Scenario
@@ -17,7 +18,6 @@ from frogsim.scenario.schema import VALVE_STATES
 from frogsim.scenario.view import Settings
 from frogsim.physics.air import critical_pressure_ratio
 from frogsim.physics.flow import main_pipe_branch_limit, tube_sonic_conductance
-from frogsim.physics.muscle import braid_parameters, muscle_volume
 
 
 def build_schedule(programs: list, rate: float, charge_dead: float, discharge_dead: float):
@@ -328,13 +328,14 @@ def _globals_part(air, source, exhaust, pump, supply, valves) -> np.ndarray:
 
 @functools.lru_cache(maxsize=_CACHE)
 def _muscle_part(valves, types: tuple) -> np.ndarray:
-    """The per-muscle parameter matrix mp: braid, dead volume, rest length, the wall's heat transfer
-    coefficient, and the valve's code and parameter block, written by its valve type
-    (:func:`frogsim.circuit.valves.write_block`; the fixed-volume column comes with the motions)."""
+    """The per-muscle parameter matrix mp: the actuator's code and parameter block, written by its
+    actuator type (:func:`frogsim.circuit.actuators.write_block`), dead volume, rest length, the
+    wall's heat transfer coefficient, and the valve's code and parameter block, written by its valve
+    type (:func:`frogsim.circuit.valves.write_block`; the fixed-volume column comes with the motions)."""
     mp = np.zeros((len(types), L.M_SIZE))
     for i, mt in enumerate(types):
-        b0, nt = braid_parameters(mt.nominal_length, mt.inner_diameter, mt.braid_angle)
-        mp[i, L.M_B0], mp[i, L.M_N], mp[i, L.M_DEAD] = b0, nt, mt.dead_volume
+        actuators.write_block(mp[i], mt)
+        mp[i, L.M_DEAD] = mt.dead_volume
         write_block(mp[i], valves)
         mp[i, L.M_L0] = mt.nominal_length
         mp[i, L.M_H] = mt.heat_transfer_coefficient
@@ -361,8 +362,7 @@ def _motion_part(muscles: tuple, rate: float, charge_dead: float, discharge_dead
         if mk.fixed_volume > 0:
             volumes.append(mk.fixed_volume)
         else:
-            b0, nt = braid_parameters(mt.nominal_length, mt.inner_diameter, mt.braid_angle)
-            volumes.append(muscle_volume(mk.L[0], b0, nt) + mt.dead_volume)
+            volumes.append(actuators.settings_volume(mt, mk.L[0]) + mt.dead_volume)
     breaks = tuple(float(t) for mk in knots if mk.fixed_volume <= 0 for t in mk.t)
     sched_t, sched_u, u0, opens = _schedule_part(tuple((name, m.program) for name, m, _ in muscles), rate,
                                                  charge_dead, discharge_dead, breaks)

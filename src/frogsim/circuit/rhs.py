@@ -27,18 +27,18 @@ import numpy as np
 from frogsim._jit import jit, jit_inner, jit_step
 
 from frogsim.circuit import valves as valve_types
+from frogsim.circuit.actuators import actuator_volume, actuator_wall_area, checked_volume, known_actuator
 from frogsim.circuit.valves import valve_flows
 from frogsim.circuit.layout import (
     G_A_E, G_A_S, G_BRANCH_LIMIT, G_H_E, G_H_S, G_HEAT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF,
-    G_SUPPLY_MODE, G_TAMB, G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_B0, M_DEAD, M_FIXEDV, M_H, M_N,
+    G_SUPPLY_MODE, G_TAMB, G_TREF, G_TUBE_B, G_TUBE_C, G_TUBE_RLAM, G_VE, G_VS, M_ACT, M_DEAD, M_FIXEDV, M_H,
     M_VALVE, SUPPLY_PAPER, SUPPLY_PHYSICAL, WORK_DV, WORK_L, WORK_T, WORK_V, Y_ME, Y_MS, Y_PE, Y_PS,
     charge_valve, charged_index, mass_index, pressure_index, pump_entry, pump_index, vent_valve, vented_index,
     work_index,
 )
 from frogsim.physics.flow import iso6358_mass_flow, pump_mass_flow
 from frogsim.physics.gas import pressure_rate
-from frogsim.physics.heat import heat_pressure_rate, muscle_wall_area, wall_heat_flow
-from frogsim.physics.muscle import muscle_volume, muscle_volume_slope
+from frogsim.physics.heat import heat_pressure_rate, wall_heat_flow
 
 
 @jit
@@ -110,7 +110,9 @@ def common_piece(t, mp, mot_t, mot_n):
 
     The coupled engine gives all muscles paths with the same knot times, so one search serves
     them all, and the volume loop of :func:`rhs` then reads every muscle's path at the same
-    column (a loop the compiler vectorizes; with a search per muscle it cannot).
+    column (a loop the compiler vectorizes; with a search per muscle it cannot). Each muscle's
+    actuator code is checked against the registry here (:mod:`frogsim.circuit.actuators`), so that
+    loop dispatches without a refusal; an unknown code takes the other loop, which refuses it.
     """
     n = mp.shape[0]
     if n == 0 or mot_n[0] < 2 or not (t > mot_t[0, 0] and t < mot_t[0, mot_n[0] - 1]):
@@ -127,21 +129,21 @@ def common_piece(t, mp, mot_t, mot_n):
         nk = mot_n[i]
         # knots sorted: t_lo <= t < t_lo+1 inside (t_0, t_last) makes lo the one answer
         if not (mp[i, M_FIXEDV] <= 0.0 and lo + 1 < nk and t > mot_t[i, 0] and t < mot_t[i, nk - 1]
-                and mot_t[i, lo] <= t and t < mot_t[i, lo + 1]):
+                and mot_t[i, lo] <= t and t < mot_t[i, lo + 1] and known_actuator(mp[i, M_ACT])):
             return -1
     return lo
 
 
 @jit
 def muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n):
-    """Total volume V [m^3] (Eq. (5) plus dead volume, or the fixed volume), dV/dt [m^3/s] and the
-    length L [m] (a muscle of fixed volume: its one knot's length, the rest length)."""
+    """Total volume V [m^3] (the actuator type's volume, Eq. (5) for the McKibben muscle, plus dead
+    volume, or the fixed volume), dV/dt [m^3/s] and the length L [m] (a muscle of fixed volume: its
+    one knot's length, the rest length)."""
     if mp[i, M_FIXEDV] > 0.0:
         return mp[i, M_FIXEDV], 0.0, mot_L[i, 0]
     L, dL = motion_length(t, i, mot_t, mot_L, mot_d, mot_n)
-    b0 = mp[i, M_B0]
-    nt = mp[i, M_N]
-    return muscle_volume(L, b0, nt) + mp[i, M_DEAD], muscle_volume_slope(L, b0, nt) * dL, L
+    V, dVdL = actuator_volume(mp[i, M_ACT], mp, i, L)
+    return V + mp[i, M_DEAD], dVdL * dL, L
 
 
 @jit_step
@@ -330,11 +332,10 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
         # the same numbers as the loop below (motion_length's piece, muscle_volume_state's sums)
         for i in range(n):
             L, dL = _hermite(t, i, lo, lo + 1, mot_t, mot_L, mot_d)
-            b0 = mp[i, M_B0]
-            nt = mp[i, M_N]
-            V = muscle_volume(L, b0, nt) + mp[i, M_DEAD]
+            Va, dVdL = checked_volume(mp[i, M_ACT], mp, i, L)
+            V = Va + mp[i, M_DEAD]
             work[work_index(WORK_V, i, n)] = V
-            work[work_index(WORK_DV, i, n)] = muscle_volume_slope(L, b0, nt) * dL
+            work[work_index(WORK_DV, i, n)] = dVdL * dL
             work[work_index(WORK_L, i, n)] = L
             work[work_index(WORK_T, i, n)] = y[pressure_index(i)] * V / (y[mass_index(i)] * R)
     else:
@@ -365,11 +366,11 @@ def rhs(t, y, u, pump_on, g, mp, mot_t, mot_L, mot_d, mot_n, dydt, aux, work):
     dydt[pump_index(n)] = m_pump
     if g[G_HEAT] > 0.0:
         # the walls' heat, (k - 1) Q / V on each volume's pressure rate (Eq. (**)); Q = h A (T_wall - T)
-        # with a muscle's A the braid cylinder's mantle at its length (work's WORK_L block; a muscle of fixed
+        # with a muscle's A its actuator type's wall at its length (work's WORK_L block; a muscle of fixed
         # volume keeps its one knot's length, the rest length); h = 0 gives Q = 0
         T_wall = g[G_TAMB]
         for i in range(n):
-            Q = wall_heat_flow(mp[i, M_H], muscle_wall_area(work[work_index(WORK_L, i, n)], mp[i, M_B0], mp[i, M_N]),
+            Q = wall_heat_flow(mp[i, M_H], actuator_wall_area(mp[i, M_ACT], mp, i, work[work_index(WORK_L, i, n)]),
                                T_wall, work[work_index(WORK_T, i, n)])
             dydt[pressure_index(i)] += heat_pressure_rate(Q, work[work_index(WORK_V, i, n)], k)
         dydt[Y_PS] += heat_pressure_rate(wall_heat_flow(g[G_H_S], g[G_A_S], T_wall, T_s), V_s, k)

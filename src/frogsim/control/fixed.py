@@ -45,15 +45,16 @@ import math
 
 import numpy as np
 
+from frogsim.circuit import sensors
 from frogsim.components import atmega2560 as chip
 from frogsim.control.signals import FW_SINE, SINE_BITS, SINE_N, SINE_ONE, SN_SIZE, setpoint
 from frogsim.control.table import (L_FAULT_AHI, L_FAULT_ALO, L_FAULT_MODE, L_FAULT_N, L_FAULT_PHI,
                                    L_FAULT_PLO, L_INJ_A_AT, L_INJ_A_COUNT, L_INJ_P_AT, L_INJ_P_COUNT, L_JOINT1,
                                    L_MUSCLE)
-from frogsim.control.table import (L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0,
+from frogsim.control.table import (L_AADC_CODE, L_ADC_CODE, L_AADC_FULL, L_AADC_K, L_AADC_Q0, L_AADC_V0, L_ADC_FULL, L_ADC_K, L_ADC_Q0,
                                    L_ADC_V0, L_ADC_VREF, L_FW, L_SP_A, L_SP_B, L_SP_C, L_SP_D, L_SP_KIND,
                                    SP_CONSTANT, SP_SINE)
-from frogsim.scenario.firmware import ENCODER_ZERO, sensed_signals
+from frogsim.scenario.firmware import sensed_signals
 
 Q4 = 16                 # sixteenths of a count
 Q16 = 65536             # gains
@@ -75,20 +76,20 @@ def sample_times(sc, n: int) -> np.ndarray:
 
 
 def pressure_volts(fw) -> tuple:
-    """(v0 [V], k [V/Pa], q0 [Pa gauge]): the transducer's line V = v0 + k (p - q0)."""
-    t = fw.transducer
-    return (t.low_voltage, (t.high_voltage - t.low_voltage) / (t.high_pressure_gauge - t.low_pressure_gauge),
-            t.low_pressure_gauge)
+    """(v0 [V], k [V/Pa], q0 [Pa gauge]): the transducer's line V = v0 + k (p - q0) (its sensor
+    type's, :mod:`frogsim.circuit.sensors`)."""
+    return sensors.line(fw.transducer, fw.vref, 2**ADC_BITS)[0]
 
 
 def angle_volts(fw) -> tuple:
-    """(v0 [V], k [V/rad], q0 [rad]): the angle sensor's line."""
-    a = fw.angle_sensor
-    return a.low_voltage, (a.high_voltage - a.low_voltage) / (a.high_angle - a.low_angle), a.low_angle
+    """(v0 [V], k [V/rad], q0 [rad]): the angle sensor's line (its sensor type's)."""
+    return sensors.line(fw.angle_sensor, fw.vref, 2**ADC_BITS)[0]
 
 
-#: an encoder count's range: the firmware's uint16 counter
-ENCODER_FULL = 65536
+def angle_sensor(fw):
+    """The settings of the sensor the firmware reads joint angles with: the quadrature encoders
+    (``angle_encoder``) when given, else the potentiometer (``angle_sensor``)."""
+    return fw.angle_encoder if fw.angle_encoder is not None else fw.angle_sensor
 
 
 def angle_line(sc) -> tuple:
@@ -99,11 +100,8 @@ def angle_line(sc) -> tuple:
     count = floor(angle cpr / 2 pi) + 32768 on the 16-bit counter (v0 = 0, q0 the angle of count 0,
     k cpr / (2 pi) V_REF / full)."""
     fw = sc.firmware
-    enc = fw.angle_encoder
-    if enc is None:
-        return angle_volts(fw), adc_full(sc)
-    cpr = float(enc.counts_per_revolution)
-    return (0.0, cpr / (2.0 * math.pi) * fw.vref / ENCODER_FULL, -ENCODER_ZERO * 2.0 * math.pi / cpr), ENCODER_FULL
+    s = angle_sensor(fw)
+    return sensors.line(s, fw.vref, adc_full(sc) if fw.angle_encoder is None else 2**ADC_BITS)
 
 
 def real_count(line: tuple, fw, q, full: int = 2**ADC_BITS):
@@ -130,6 +128,8 @@ def adc_columns(row: np.ndarray, sc) -> None:
     (row[L_AADC_V0], row[L_AADC_K], row[L_AADC_Q0]), row[L_AADC_FULL] = angle_line(sc)
     row[L_ADC_FULL] = adc_full(sc)
     row[L_ADC_VREF] = fw.vref
+    row[L_ADC_CODE] = sensors.of(fw.transducer).code
+    row[L_AADC_CODE] = sensors.of(angle_sensor(fw)).code
 
 
 def with_block(row: np.ndarray, P, T) -> np.ndarray:
@@ -212,13 +212,8 @@ def fault_limits(sc) -> dict:
     range cannot be crossed. Encoder angles have none (None): their counts are not a voltage."""
     fw = sc.firmware
     full = adc_full(sc)
-
-    def limits(sensor):
-        lo = math.floor((sensor.low_voltage - sensor.fault_margin) * full / fw.vref)
-        hi = math.floor((sensor.high_voltage + sensor.fault_margin) * full / fw.vref)
-        return max(lo, 0), min(hi, full - 1)
-    return {"pressure": limits(fw.transducer),
-            "angle": None if fw.angle_encoder is not None else limits(fw.angle_sensor)}
+    return {"pressure": sensors.faults(fw.transducer, fw.vref, full),
+            "angle": sensors.faults(angle_sensor(fw), fw.vref, full)}
 
 
 def injected_fault(sc, signal: str):

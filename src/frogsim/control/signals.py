@@ -14,6 +14,7 @@ import numpy as np
 
 from numba.extending import register_jitable
 
+from frogsim.circuit.sensors.spec import line_count
 from frogsim._jit import jit, jit_step
 from frogsim.control.table import (L_A_BITS, L_A_FS, L_A_LAG, L_A_NOISE, L_A_SEED, L_BITS, L_FS, L_LAG,
                                    L_NOISE, L_PATM, L_SEED, L_SP0, L_SP_A, L_SP_B, L_SP_C, L_SP_D,
@@ -242,14 +243,10 @@ def sense_joint(laws, c, cs, b, k, dt):
     return th, w
 
 
-@jit
-def adc_count(v0, k, q0, full, vref, q):
-    """The ATmega2560's count of a sensor reading quantity q (a gauge pressure [Pa] or an angle
-    [rad]): the sensor's voltage V = v0 + k (q - q0) [V], then the datasheet's single-ended
-    conversion ADC = V full / V_REF (full = 2^bits), truncated and clipped to 0..full - 1
-    (:func:`frogsim.components.atmega2560.adc_count` for one voltage)."""
-    x = math.floor((v0 + k * (q - q0)) * full / vref)
-    return int(min(max(x, 0.0), full - 1.0))
+#: the ATmega2560's count of a linear sensor's reading (the sensor family's shared arithmetic,
+#: :func:`frogsim.circuit.sensors.spec.line_count`; the model's sample reaches it through the family's
+#: dispatch, :func:`frogsim.circuit.sensors.sensor_count`)
+adc_count = line_count
 
 
 @jit

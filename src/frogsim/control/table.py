@@ -116,7 +116,9 @@ L_INJ_A_COUNT = 63
 # L_A_EVERY samples (0 or 1: every sample), first at sample L_A_PHASE; between runs its targets hold
 L_A_EVERY = 64
 L_A_PHASE = 65
-L_SIZE = 66
+L_ADC_CODE = 66   # the pressure sensor's type: its CODE in the sensor family (frogsim.circuit.sensors)
+L_AADC_CODE = 67  # the angle sensor's type (a potentiometer's or an encoder's CODE)
+L_SIZE = 68
 L_SP0 = L_SIZE   # knots (t_j, p_j) from here on; the firmware block after them
 
 

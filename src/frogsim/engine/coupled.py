@@ -28,7 +28,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from frogsim.circuit import actuators
 from frogsim.circuit import layout as CL
+from frogsim.circuit.actuators.spec import FORCE_PARAMS
 from frogsim.circuit.model import build_model, schedule_from_events
 from frogsim.control.sampled import sampled_laws
 from frogsim.engine.coupled_kernel import (CIRCUIT, GROUP_CLASSES, KERNEL_GROUPS, MuJoCo, apply_added_mass,
@@ -38,7 +40,7 @@ from frogsim.engine.coupled_loop import mujoco_c, run_steps
 from frogsim.engine.coupled_layout import (  # noqa: F401
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
     R_EXERGY, R_HULL, R_PE, R_POSITION, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME,
-    R_V, R_VELOCITY, R_X, R_YAW, S_BLADDER, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_METHOD, S_RHO, S_RTOL, S_SIZE,
+    R_V, R_VELOCITY, R_X, R_YAW, S_CTRL_DT, S_DT, S_G, S_LAW, S_MAXSTEP, S_METHOD, S_RHO, S_RTOL, S_SIZE,
     STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_SIZE, STOP_UPPER, S_TRUNK, S_VMAX, S_WMAX,
     T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_PALM_TARGET, T_PEAK, T_PEAK_TIME, T_SIZE, U_ACT, U_FITTINGS, U_SIZE,
     U_TENDON, V_SIZE, record_columns)
@@ -46,7 +48,6 @@ from frogsim.engine import methods
 from frogsim.engine.integrator import D_F_VALID, D_SI, STATS_SIZE, STATUS_TEXT, start
 from frogsim.engine.methods.spec import PAR_SIZE
 from frogsim.errors import SimulationError
-from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL
 from frogsim.robot import import_mujoco
 from frogsim.robot.water import E_BODY, P_SIZE, hydro_tables
 from frogsim.scenario.methods import default_settings as default_method_settings
@@ -80,11 +81,10 @@ class CoupledModel:
     def set_muscle_pressure(self, name: str, pressure_abs: float) -> None:
         """Start a muscle at a given absolute pressure [Pa] (before :func:`run_coupled`), with its
         air at ambient temperature in its present volume."""
-        from frogsim.physics.muscle import muscle_volume
         i = self.muscle_names.index(name)
         y, g, mp, mu = (self.arrays[k] for k in ("y", "g", "mp", "mu"))
         L = self.mjd.ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
-        V = muscle_volume(L, mp[i, CL.M_B0], mp[i, CL.M_N]) + mp[i, CL.M_DEAD]
+        V = actuators.volume(mp, i, L) + mp[i, CL.M_DEAD]
         y[CL.mass_index(i)] = pressure_abs * V / (g[CL.G_R] * g[CL.G_TAMB])
         y[CL.pressure_index(i)] = pressure_abs
         self.arrays["ds"][D_F_VALID] = 0.0          # the state changed: dy/dt is evaluated again
@@ -151,18 +151,19 @@ def _assemble(name, rs, xml, m, d, pm, circuit, mu, tables, palms_cmd, sc, joint
                         rec_every=rec_every, columns=cols)
 
 
-def _constants(dt, rho, gravity, trunk, ctrl_rate=1000.0, rtol=1e-7, max_step=1e-3, law=None, method=None):
+def _constants(dt, rho, gravity, trunk, ctrl_rate=1000.0, rtol=1e-7, max_step=1e-3, law=None, method=None,
+               types=()):
     """The kernel's constants sc[:] (columns S_* of :mod:`frogsim.engine.coupled_layout`);
-    ``method`` the integration method's settings (None: the default method's)."""
+    ``method`` the integration method's settings (None: the default method's); ``law`` the force
+    law ([muscle_force]) of the muscles of settings ``types``, its block written by their actuator
+    type (:func:`frogsim.circuit.actuators.force_block`)."""
     sc = np.zeros(S_SIZE)
     sc[S_METHOD:S_METHOD + PAR_SIZE] = methods.parameter_block(method if method is not None
                                                                else default_method_settings())
     sc[S_DT], sc[S_RHO], sc[S_G] = dt, rho, gravity
     sc[S_CTRL_DT], sc[S_RTOL], sc[S_MAXSTEP] = 1.0 / ctrl_rate, rtol, max_step
     if law is not None:
-        sc[S_LAW] = MODEL_DMSP20 if law.model == "dmsp20" else MODEL_IDEAL
-        sc[S_BLADDER:S_BLADDER + 5] = (law.force_scale, law.strain_scale, law.stiffness,
-                                       law.stretch_stiffness, law.stretch_quadratic)
+        sc[S_LAW:S_LAW + FORCE_PARAMS] = actuators.force_block(types, law)
     sc[S_TRUNK] = trunk
     sc[S_VMAX] = BODY_SPEED_LIMIT
     sc[S_WMAX] = JOINT_SPEED_LIMIT
@@ -195,7 +196,6 @@ def build_coupled(rs) -> CoupledModel:
     mujoco = import_mujoco()
 
     from frogsim.control.gait import palm_commands
-    from frogsim.physics.muscle import muscle_volume
     from frogsim.robot.mjcf import build_mjcf
 
     xml = build_mjcf(rs)
@@ -213,13 +213,14 @@ def build_coupled(rs) -> CoupledModel:
     sc = _constants(rs.options.timestep, rs.medium_density, rs.robot.water.gravity,
                     oid(mujoco.mjtObj.mjOBJ_BODY, "body"), rs.pneumatic.controller.rate,
                     rs.pneumatic.solver.rtol, rs.pneumatic.solver.max_step, rs.robot.muscle_force,
-                    rs.pneumatic.solver.method)
+                    rs.pneumatic.solver.method,
+                    tuple(rs.pneumatic.muscle_types[rs.pneumatic.muscles[n].type] for n in names))
     # the muscles' air at ambient temperature in their actual initial volumes
     y = pm.y0.copy()
     contraction = np.zeros(len(names))
     for i in range(len(names)):
         L = d.ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
-        V = muscle_volume(L, pm.mp[i, CL.M_B0], pm.mp[i, CL.M_N]) + pm.mp[i, CL.M_DEAD]
+        V = actuators.volume(pm.mp, i, L) + pm.mp[i, CL.M_DEAD]
         y[CL.mass_index(i)] = y[CL.pressure_index(i)] * V / (pm.g[CL.G_R] * pm.g[CL.G_TAMB])
         contraction[i] = 1.0 - L / pm.mp[i, CL.M_L0]
     circuit = (pm.g, pm.mp, y, pm.u0.copy(), pm.sched_t, pm.sched_u, pm.atol)

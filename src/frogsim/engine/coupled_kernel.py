@@ -7,7 +7,8 @@ Each MuJoCo step of length dt (``robot.timestep``) runs
 and the kernel does, with the state at the start of the step:
 
 1. muscle tensions from the muscle pressures at t and the tendon lengths MuJoCo reports
-   (:func:`frogsim.physics.muscle_force.muscle_force`; with hysteresis on, less the slip
+   (the actuator type's force, :mod:`frogsim.circuit.actuators`: for the McKibben muscle
+   :func:`frogsim.physics.muscle_force.muscle_force`; with hysteresis on, less the slip
    elements' force, :func:`frogsim.physics.muscle_force.hysteretic_tension`, which slides their
    anchors: the memory is updated once per MuJoCo step, exactly, as the model is rate independent),
    written as actuator controls; the joints' end stops (:mod:`frogsim.physics.stop`), as joint
@@ -73,11 +74,12 @@ import numpy as np
 
 from frogsim._jit import jit
 from frogsim.circuit import layout as CL
+from frogsim.circuit.actuators import actuator_force
 from frogsim.control.sampled import CS_PUMP, observe_joints
 from frogsim.engine.coupled_layout import (
     FAIL_BODY_SPEED, FAIL_JOINT_SPEED, FAIL_PNEUMATIC, FAIL_QPOS, FAIL_QVEL, R_AIR, R_CHARGED,
     R_EXERGY, R_HULL, R_PE, R_PS, R_PUMP_ON, R_PUMPED, R_THRUST, R_THRUST_AM, R_TIME, R_V,
-    R_X, R_YAW, STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_UPPER, S_BLADDER, S_CTRL_DT, S_DT,
+    R_X, R_YAW, STOP_C, STOP_DAMPING, STOP_K, STOP_LOWER, STOP_UPPER, S_CTRL_DT, S_DT,
     S_G, S_LAW, S_MAXSTEP, S_METHOD, S_RHO, S_RTOL, S_TRUNK, S_VMAX, S_WMAX, T_EXERGY, T_FAIL, T_FAIL_ARG, T_FAIL_VAL, T_FIRST, T_LAST_HEADING, T_LAST_HULL,
     T_LAST_THRUST, T_LAST_THRUST_AM, T_PALM_CMD, T_PALM_TARGET, T_PEAK, T_PEAK_TIME, U_ACT,
     U_FITTINGS, U_TENDON, V_MA, V_VEL, rec_angle, rec_charged, rec_length, rec_omega, rec_palm,
@@ -87,7 +89,7 @@ from frogsim.engine.methods.spec import PAR_SIZE
 from frogsim.physics.hydro import (added_mass_rate_force, buoyancy, cross, fan_added_mass,
                                    isotropic_added_mass, kirchhoff_velocity_force, munk_moment,
                                    strip_drag_wrench)
-from frogsim.physics.muscle_force import hysteretic_tension, muscle_force
+from frogsim.physics.muscle_force import hysteretic_tension
 from frogsim.physics.stop import pad_spring_and_damping
 from frogsim.robot.water import (E_BODY, E_C0, E_FAN, E_HEAVE, E_I0, E_IA, E_LIMB, E_M0, E_MA,
                                  E_VOL, E_XA, E_XB, P_PHI_FOLD, P_PHI_OPEN, P_RATE)
@@ -263,13 +265,11 @@ def step_kernel(k, stepping, row, records, water, body, muscles, pneumatics, muj
         return FAIL_BODY_SPEED
     # -- 1. muscle tensions from the pressures at t ------------------------------------------------
     patm = g[CL.G_PATM]
-    law = int(sc[S_LAW])
     elements = anchors.shape[1]
     for i in range(n):
         L = ten_length[int(mu[i, U_TENDON])] - mu[i, U_FITTINGS]
-        tension[i] = muscle_force(law, y[CL.pressure_index(i)] - patm, L, mp[i, CL.M_L0],
-                                  mp[i, CL.M_B0], mp[i, CL.M_N], sc[S_BLADDER], sc[S_BLADDER + 1],
-                                  sc[S_BLADDER + 2], sc[S_BLADDER + 3], sc[S_BLADDER + 4])
+        # the muscle's actuator type's force (frogsim.circuit.actuators), its force law at sc[S_LAW:]
+        tension[i] = actuator_force(mp[i, CL.M_ACT], mp, i, y[CL.pressure_index(i)] - patm, L, sc, S_LAW)
         if elements > 0:
             tension[i] = hysteretic_tension(tension[i], y[CL.pressure_index(i)] - patm,
                                             1.0 - L / mp[i, CL.M_L0], anchors[i], slip_k, slip_f)

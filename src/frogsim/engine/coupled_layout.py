@@ -44,8 +44,8 @@ S_G = 2          # gravity [m/s^2]
 S_CTRL_DT = 3    # controller period [s]
 S_RTOL = 4       # pneumatic relative tolerance
 S_MAXSTEP = 5    # pneumatic largest step [s]
-S_LAW = 6        # muscle force model (MODEL_*)
-S_BLADDER = 7    # bladder constants A, eps_c, k, a, b (5)
+S_LAW = 6        # the muscles' force-law block (FORCE_PARAMS = 6 entries, written by their actuator type,
+                 # frogsim.circuit.actuators.force_block; the McKibben muscle's: its model, then A, eps_c, k, a, b)
 S_TRUNK = 12     # MuJoCo body id of the hull
 S_VMAX = 13      # hull speed limit [m/s]
 S_WMAX = 14      # joint speed limit [rad/s]

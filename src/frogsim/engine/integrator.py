@@ -25,7 +25,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from frogsim._jit import jit, jit_alloc, jit_inner, jit_step
+from frogsim._jit import jit, jit_alloc, jit_step
+from frogsim._registry import dispatch
 
 from frogsim.circuit.layout import (flows_size, muscle_count, physical_size, pump_entry, valve_muscles, valve_size,
                                    work_size)
@@ -66,169 +67,24 @@ STATS_SIZE = 4   # stats[:]: accepted steps, rejected steps, rhs evaluations, ac
 assert D_M0 == D_PAUSE + 1 and D_M0 + D_M_COUNT == D_F_VALID     # the method's columns between the driver's
 
 
-# --- the methods' dispatch, assembled from the registry (frogsim.engine.methods) --------------------------
-def _step_chain(entries):
-    """``trial(code, ...) -> (err, a1, a2, dense_ready)``: the step of the method whose code is
-    ``code`` (:mod:`frogsim.engine.methods.spec`), one compiled branch per method, each a closure
-    that tries its code and hands on to the next; the last raises ValueError for a code that is
-    not its own."""
-    def last(code, fn):
-        @jit_inner
-        def branch(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
-                   work, stats):
-            if c != code:
-                raise ValueError("advance: the solver's parameter block names an integration method code that no "
-                                 "method declares (frogsim.engine.methods)")
-            return fn(t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux, work,
-                      stats)
-        return branch
-
-    def link(code, fn, rest):
-        @jit_inner
-        def branch(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
-                   work, stats):
-            if c == code:
-                return fn(t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
-                          work, stats)
-            return rest(c, t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux,
-                        work, stats)
-        return branch
-
-    out = last(entries[-1].code, entries[-1].step)
-    for m in reversed(entries[:-1]):
-        out = link(m.code, m.step, out)
-    return out
-
-
-def _dense_chain(entries):
-    """``dense_of(code, h, y, yn, f, fn, own, rc1, rc2, rc3, rc4)``: the method's continuous
-    extension of its last step (the last branch takes any code: the step's dispatch refused
-    an unknown one already)."""
-    def last(fn):
-        @jit_inner
-        def branch(c, h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4):
-            fn(h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4)
-        return branch
-
-    def link(code, fn, rest):
-        @jit_inner
-        def branch(c, h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4):
-            if c == code:
-                fn(h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4)
-            else:
-                rest(c, h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4)
-        return branch
-
-    out = last(entries[-1].dense)
-    for m in reversed(entries[:-1]):
-        out = link(m.code, m.dense, out)
-    return out
-
-
-def _propose_chain(entries):
-    """``propose(code, par, t, t_seg, h, max_step) -> (h, h_try, t_new, last)``: the method's
-    step-size control's next trial step (as :func:`_dense_chain`, the last branch any code's)."""
-    def last(fn):
-        @jit_inner
-        def branch(c, par, t, t_seg, h, max_step):
-            return fn(par, t, t_seg, h, max_step)
-        return branch
-
-    def link(code, fn, rest):
-        @jit_inner
-        def branch(c, par, t, t_seg, h, max_step):
-            if c == code:
-                return fn(par, t, t_seg, h, max_step)
-            return rest(c, par, t, t_seg, h, max_step)
-        return branch
-
-    out = last(entries[-1].control.propose)
-    for m in reversed(entries[:-1]):
-        out = link(m.code, m.control.propose, out)
-    return out
-
-
-def _accepted_chain(entries):
-    """``accepted(code, ds, par, h, err, err_old, a1, a2, refresh, stats) -> (h_next, err_old)``:
-    the method's step-size control after an accepted step."""
-    def last(fn):
-        @jit_inner
-        def branch(c, ds, par, h, err, err_old, a1, a2, refresh, stats):
-            return fn(ds, par, h, err, err_old, a1, a2, refresh, stats)
-        return branch
-
-    def link(code, fn, rest):
-        @jit_inner
-        def branch(c, ds, par, h, err, err_old, a1, a2, refresh, stats):
-            if c == code:
-                return fn(ds, par, h, err, err_old, a1, a2, refresh, stats)
-            return rest(c, ds, par, h, err, err_old, a1, a2, refresh, stats)
-        return branch
-
-    out = last(entries[-1].control.accepted)
-    for m in reversed(entries[:-1]):
-        out = link(m.code, m.control.accepted, out)
-    return out
-
-
-def _rejected_chain(entries):
-    """``rejected(code, ds, par, h, err) -> h``: the method's step-size control after a rejected
-    or non-finite step."""
-    def last(fn):
-        @jit_inner
-        def branch(c, ds, par, h, err):
-            return fn(ds, par, h, err)
-        return branch
-
-    def link(code, fn, rest):
-        @jit_inner
-        def branch(c, ds, par, h, err):
-            if c == code:
-                return fn(ds, par, h, err)
-            return rest(c, ds, par, h, err)
-        return branch
-
-    out = last(entries[-1].control.rejected)
-    for m in reversed(entries[:-1]):
-        out = link(m.code, m.control.rejected, out)
-    return out
-
-
-def _restart_chain(entries):
-    """``restart(code, ds)``: the method's ``restart`` after the commands changed at a piece's end
-    (nothing for a method without one)."""
-    @jit_inner
-    def none(c, ds):
-        return
-
-    def link(code, fn, rest):
-        @jit_inner
-        def branch(c, ds):
-            if c == code:
-                fn(ds)
-            else:
-                rest(c, ds)
-        return branch
-
-    out = none
-    for m in reversed(entries):
-        if m.restart is not None:
-            out = link(m.code, m.restart, out)
-    return out
-
-
+# --- the methods' dispatch, generated from the registry (frogsim.engine.methods, frogsim._registry.dispatch) --
 _METHODS = methods.ordered()
-#: one trial step of the run's method (its error estimate, its continuous extension made or not)
-trial = _step_chain(_METHODS)
+_STEP_ARGS = ("t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux, "
+              "work, stats")
+#: one trial step of the run's method (its error estimate, its continuous extension made or not); the
+#: one dispatch that refuses a code no method declares (the others' last branch takes any code)
+trial = dispatch([(m.code, m.step) for m in _METHODS], _STEP_ARGS,
+                 unknown="advance: the solver's parameter block names an integration method code that no method "
+                         "declares (frogsim.engine.methods)")
 #: the continuous extension of the run's method's last step
-dense_of = _dense_chain(_METHODS)
+dense_of = dispatch([(m.code, m.dense) for m in _METHODS], "h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4", returns=False)
 #: the run's method's step-size control: the next trial step, after an accepted, after a rejected step
-propose = _propose_chain(_METHODS)
-accepted = _accepted_chain(_METHODS)
-rejected = _rejected_chain(_METHODS)
-#: the run's method's restart after a command change at a piece's end
-restart = _restart_chain(_METHODS)
-
+propose = dispatch([(m.code, m.control.propose) for m in _METHODS], "par, t, t_seg, h, max_step")
+accepted = dispatch([(m.code, m.control.accepted) for m in _METHODS], "ds, par, h, err, err_old, a1, a2, refresh, stats")
+rejected = dispatch([(m.code, m.control.rejected) for m in _METHODS], "ds, par, h, err")
+#: the run's method's restart after a command change at a piece's end (nothing for a method without one)
+restart = dispatch([(m.code, m.restart) for m in _METHODS if m.restart is not None], "ds", returns=False,
+                   optional=True)
 
 @jit_step
 def ds_size(ny):

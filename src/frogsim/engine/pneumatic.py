@@ -18,9 +18,9 @@ import time
 
 import numpy as np
 
+from frogsim.circuit import actuators
 from frogsim.circuit import layout as L
 from frogsim.circuit.model import PneumaticModel, build_model
-from frogsim.physics.muscle import muscle_volume
 from frogsim.scenario.core import Scenario
 from frogsim.control.table import L_DEAD_C, L_DEAD_D, L_KIND, L_MUSCLE, L_PATM, L_SIZE
 from frogsim.control.sampled import (B_SENSED, CS_SAMPLE, KIND_EXTERNAL, KIND_PUMP_BAND, command_from_python,
@@ -68,9 +68,11 @@ def check_volumes(model: PneumaticModel) -> None:
         fixed = mp[i, L.M_FIXEDV]
         if fixed > 0.0:
             continue
-        b0, n, dead = mp[i, L.M_B0], mp[i, L.M_N], mp[i, L.M_DEAD]
-        for k in range(int(mot_n[i])):
-            v = muscle_volume(float(mot_L[i, k]), float(b0), float(n)) + dead
+        nk = int(mot_n[i])
+        vols = np.empty(nk)
+        actuators.knot_volumes(mp, i, mot_L, nk, vols)
+        for k in range(nk):
+            v = float(vols[k])
             if not (math.isfinite(v) and v > 0.0):
                 raise SimulationError(f"scenario {model.scenario.name!r}: non-physical state at "
                                       f"t = {mot_t[i, k]:.6g} s: {name} volume = {v:.4g} m^3 "

@@ -151,10 +151,11 @@ class Result(RunResult):
         from frogsim.circuit.rhs import length_turning_times, motion_length
         from frogsim.physics.hysteresis import element_table, maxwell_slip_force
         from frogsim.robot.params import parameter_set_law
-        from frogsim.physics.muscle_force import MODEL_DMSP20, MODEL_IDEAL, hysteretic_tension, muscle_force
+        from frogsim.circuit import actuators
+        from frogsim.physics.muscle_force import hysteretic_tension
         law = law if law is not None else parameter_set_law(self.model.scenario)
-        code = MODEL_DMSP20 if law.model == "dmsp20" else MODEL_IDEAL
-        bl = (law.force_scale, law.strain_scale, law.stiffness, law.stretch_stiffness, law.stretch_quadratic)
+        sc = self.model.scenario
+        block = np.array(actuators.force_block([sc.muscle_types[sc.muscles[m].type] for m in self.names], law))
         mp = self.model.mp
         patm = self.atmospheric_pressure
         out = np.empty((self.t.size, self.n))
@@ -168,7 +169,7 @@ class Result(RunResult):
             anchors = None if elements is None else np.full(elements[0].size, 1.0 - Lm[0] / L0)
             turns = None if elements is None else length_turning_times(i, *motion)
             for k in range(self.t.size):
-                f = muscle_force(code, float(p[k]), float(Lm[k]), L0, mp[i, L.M_B0], mp[i, L.M_N], *bl)
+                f = actuators.force(mp, i, float(p[k]), float(Lm[k]), block)
                 if anchors is not None:
                     if k > 0:
                         for tt in turns[(turns > self.t[k - 1]) & (turns < self.t[k])]:

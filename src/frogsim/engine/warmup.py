@@ -17,6 +17,7 @@ import inspect
 import numpy as np
 from numba import typeof
 
+from frogsim.circuit import actuators
 from frogsim.circuit import layout as L
 from frogsim.circuit.rhs import _hermite, common_piece, manifold_pressure, muscle_volume_state, rhs
 from frogsim.engine import integrator as I
@@ -146,6 +147,9 @@ def warm_up(part: str) -> None:
         _compile(_windows, t, p, np.zeros(1))
     elif part == "model":
         _compile(braid_parameters, 0.15, 0.02, 0.5)
+        for at in actuators.TYPES.values():         # a model's start volumes (frogsim.circuit.actuators)
+            _compile(actuators.for_python(at.volume), a["model"][1], 0, 0.15)
+        _compile(actuators.knot_volumes, a["model"][1], 0, a["model"][3], 1, np.zeros(1))
         _compile(critical_pressure_ratio, 1.4)
         _compile(choked_mass_flux_factor, 287.0, 1.4)
         _compile(main_pipe_branch_limit, 0.004, 10.0, 1, 1)

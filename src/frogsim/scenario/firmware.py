@@ -32,13 +32,14 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 from frogsim.components import atmega2560 as chip
 from frogsim.errors import ScenarioError
 from frogsim.scenario.fields import build, choice, integer, quantity, unwrap
 from frogsim.scenario.motion import command_sample
 from frogsim.scenario.schema import BAR, GAUGE_MAX, GAUGE_MIN, AngleSetpoint
+from frogsim.scenario.sensors import SensorSettings
 
 FIRST_VALVE_PIN = 22          # the Mega's double header D22..D53: valve pins by default
 LAST_VALVE_PIN = 53
@@ -52,10 +53,13 @@ _C_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,31}")
 
 
 @dataclass(frozen=True)
-class Transducer:
+class Transducer(SensorSettings):
     """A pressure transducer with a voltage output linear in gauge pressure: low_voltage at
     low_pressure_gauge, high_voltage at high_pressure_gauge (outside the range the voltage goes on
-    along the line, and the ADC clips it to 0..V_REF)."""
+    along the line, and the ADC clips it to 0..V_REF). Sensor type "transducer"
+    (:mod:`frogsim.circuit.sensors.transducer`)."""
+    TYPE: ClassVar[str] = "transducer"
+    QUANTITY: ClassVar[str] = "pressure"
     low_voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=0.5)
     high_voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=4.5)
     low_pressure_gauge: float = quantity("pressure", ge=GAUGE_MIN, le=GAUGE_MAX, display="bar", default=0.0)
@@ -70,9 +74,12 @@ class Transducer:
 
 
 @dataclass(frozen=True)
-class AnglePotentiometer:
+class AnglePotentiometer(SensorSettings):
     """An analog angle sensor (a potentiometer on the joint, with its amplifier): low_voltage at
-    low_angle, high_voltage at high_angle, linear between."""
+    low_angle, high_voltage at high_angle, linear between. Sensor type "potentiometer"
+    (:mod:`frogsim.circuit.sensors.potentiometer`)."""
+    TYPE: ClassVar[str] = "potentiometer"
+    QUANTITY: ClassVar[str] = "angle"
     low_voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=0.5)
     high_voltage: float = quantity("voltage", ge=0.0, le=chip.VREF_MAX, display="V", default=4.5)
     low_angle: float = quantity("angle", ge=-math.pi, le=math.pi, display="deg", default=-math.pi / 2)
@@ -87,7 +94,7 @@ class AnglePotentiometer:
 
 
 @dataclass(frozen=True)
-class AngleEncoder:
+class AngleEncoder(SensorSettings):
     """Incremental quadrature encoders on the joints instead of potentiometers: channel A on one of
     the Mega's external-interrupt pins (INT0..INT5: D21, D20, D19, D18, D2, D3), channel B on any
     digital pin. The firmware counts every edge of A (both directions: "x2" decoding, B giving
@@ -95,7 +102,10 @@ class AngleEncoder:
     the joint (twice the encoder's lines per revolution, times any gear between joint and
     encoder). The count at the joint's zero angle (the flexed stop, the robot's start pose:
     power the board up with the legs there) is 32768, the middle of the uint16 counter:
-    count = floor(angle counts_per_revolution / 2 pi) + 32768."""
+    count = floor(angle counts_per_revolution / 2 pi) + 32768. Sensor type "encoder"
+    (:mod:`frogsim.circuit.sensors.encoder`)."""
+    TYPE: ClassVar[str] = "encoder"
+    QUANTITY: ClassVar[str] = "angle"
     counts_per_revolution: int = integer(ge=16, le=32768, default=2000,
                                          doc="counts per turn of the joint: 2 x the encoder's lines (x2 decoding)")
 

@@ -23,6 +23,7 @@ from frogsim.scenario.schema import (
 )
 from frogsim.scenario.firmware import Firmware
 from frogsim.scenario.kinds import ControllerSettings
+from frogsim.scenario.actuators import from_raw as actuator_settings
 from frogsim.scenario.valves import from_raw as valve_settings, type_of as valve_type_of
 from frogsim.errors import MISSING, ScenarioError, Shown
 
@@ -292,7 +293,8 @@ def scenario_from_raw(raw: dict, base_dir: str = ".", *, duration: float | None 
     types_raw = raw.get("muscle_types", {})
     if not isinstance(types_raw, dict) or not types_raw:
         raise ScenarioError("muscle_types", types_raw, "expected at least one muscle type")
-    muscle_types = {tname: build(MuscleType, traw, f"muscle_types.{tname}") for tname, traw in types_raw.items()}
+    # each muscle type's settings class is its actuator type's (frogsim.scenario.actuators)
+    muscle_types = {tname: actuator_settings(traw, f"muscle_types.{tname}") for tname, traw in types_raw.items()}
     programs_raw = raw.get("programs", {})
     if not isinstance(programs_raw, dict):
         raise ScenarioError("programs", programs_raw, "expected a table of named programs")

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from frogsim.errors import ScenarioError
-from frogsim.physics.muscle import braid_parameters, crank_muscle_length, muscle_volume
+from frogsim.physics.muscle import crank_muscle_length
 
 if TYPE_CHECKING:   # annotations only
     from frogsim.scenario.core import Scenario
@@ -145,9 +145,8 @@ def muscle_knots(mname, m, mt, rate, file_key, base_dir) -> MotionKnots:
         knots = MotionKnots(np.zeros(1), np.array([L0 * (1.0 - eps)]), np.zeros(1))
     elif kind == "volume_constant":
         eps = mt.stroke_contraction if m.motion.contraction is None else m.motion.contraction
-        b0, n = braid_parameters(L0, mt.inner_diameter, mt.braid_angle)
-        v_rest = muscle_volume(L0, b0, n)
-        v_max = max(muscle_volume(L0 * (1.0 - e), b0, n) for e in np.linspace(0.0, eps, 201))
+        v_rest = mt.volume(L0)          # the muscle type's actuator volume (frogsim.scenario.actuators)
+        v_max = max(mt.volume(L0 * (1.0 - e)) for e in np.linspace(0.0, eps, 201))
         v = v_rest + m.motion.fraction * (v_max - v_rest) + mt.dead_volume
         knots = MotionKnots(np.zeros(1), np.array([L0]), np.zeros(1), fixed_volume=v)
     elif kind == "table":

@@ -15,6 +15,7 @@ from frogsim.scenario.fields import (build, choice, flag, integer, parse_field, 
                                      unwrap)
 from frogsim.errors import MISSING, ScenarioError, Shown
 from frogsim.scenario.files import read_text
+from frogsim.scenario.actuators import ActuatorSettings
 from frogsim.scenario.valves import ValveSettings
 from frogsim.scenario.methods import MethodSettings, default_settings
 from frogsim.components.atmega2560 import conversion_time
@@ -146,8 +147,11 @@ class Supply:
 
 
 @dataclass(frozen=True)
-class MuscleType:
-    """A McKibben muscle model (FESTO DMSP-20 of a given length) and its crank mounting."""
+class MuscleType(ActuatorSettings):
+    """A McKibben muscle model (FESTO DMSP-20 of a given length) and its crank mounting: the
+    settings of actuator type "mckibben" (:mod:`frogsim.circuit.actuators.mckibben`), the
+    default of a ``[muscle_types.NAME]`` table (:mod:`frogsim.scenario.actuators`)."""
+    TYPE: ClassVar[str] = "mckibben"
     nominal_length: float = quantity("length", gt=0, le=2.0, display="mm")
     inner_diameter: float = quantity("length", gt=0, le=0.2, display="mm")
     braid_angle: float = quantity("angle", gt=0.0, lt=MAX_BRAID_ANGLE, display="deg")
@@ -162,6 +166,11 @@ class MuscleType:
                                                 display="W/(m^2*K)", default=0.0,
                                                 doc="air to the braided wall (Q = h A (T_wall - T), A the "
                                                     "braid cylinder's mantle as it contracts); 0: adiabatic")
+
+    def volume(self, L: float) -> float:
+        """Eq. (5) at length L [m^3] (the same numbers as the type's compiled volume)."""
+        b0, n = braid_parameters(self.nominal_length, self.inner_diameter, self.braid_angle)
+        return muscle_volume(L, b0, n)
 
     def check(self, path: str) -> None:
         if self.stroke_contraction > self.max_contraction:

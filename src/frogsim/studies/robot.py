@@ -46,12 +46,12 @@ def leg_in_air() -> StudyData:
     from frogsim.circuit import layout as CL
     from frogsim.engine.pneumatic import simulate
     from frogsim.engine.swim import swim
-    from frogsim.physics.muscle import muscle_volume
+    from frogsim.circuit import actuators
     r = swim("leg-in-air")
     t = r.t
     i = r.muscle_names.index("hip_left")
     mp = r.model.pneumatic.mp
-    V = np.array([muscle_volume(L, mp[i, CL.M_B0], mp[i, CL.M_N]) for L in r.lengths[:, i]]) + mp[i, CL.M_DEAD]
+    V = np.array([actuators.volume(mp, i, L) for L in r.lengths[:, i]]) + mp[i, CL.M_DEAD]
     prescribed = simulate("paper-cycle")
     table = pd.DataFrame({TIME: t})
     for j in ("hip", "knee", "ankle"):

@@ -1,0 +1,165 @@
+"""The sensor family: the firmware's sensors (pressure transducer, joint potentiometer, quadrature
+encoder) one module each, found through their registry; their counts are the ADC's and the
+encoder counter's closed forms; an unknown sensor code is an error; a new sensor type is one new
+module, nothing else edited."""
+from __future__ import annotations
+
+import json
+import math
+import shutil
+
+import numpy as np
+import pytest
+from numba import njit
+
+from frogsim.circuit.sensors import sensor_count
+from tests.test_controller_kinds import PACKAGE, _run_copy
+
+
+def test_the_registry_holds_the_shipped_sensors_with_unique_codes():
+    from frogsim.circuit import sensors
+    from frogsim.scenario import sensors as loader
+    from frogsim.scenario.firmware import AngleEncoder, AnglePotentiometer, Transducer
+    assert {"transducer", "potentiometer", "encoder"} <= set(sensors.TYPES)
+    assert [sensors.of(s()).quantity for s in (Transducer, AnglePotentiometer, AngleEncoder)] == \
+        ["pressure", "angle", "angle"]
+    codes = [s.code for s in sensors.TYPES.values()]
+    assert len(codes) == len(set(codes))
+    assert all(loader.TYPES[n] is s.settings for n, s in sensors.TYPES.items())
+
+
+@njit
+def _count(code, v0, k, q0, full, vref, q):
+    return sensor_count(code, v0, k, q0, full, vref, q)
+
+
+def _counts(code, line, full, vref, q):
+    (v0, k, q0) = line
+    return _count(code, v0, k, q0, float(full), vref, q)
+
+
+def test_the_transducer_count_is_the_datasheet_conversion():
+    """0.5-4.5 V over 0-10 bar on a 10-bit ADC at V_REF 5 V (the ATmega2560 datasheet's
+    ADC = V_in 1024 / V_REF, truncated): 3 bar is 1.7 V, count floor(348.16) = 348; 0 bar 102;
+    past the top the count clips at 1023."""
+    from frogsim.circuit import sensors
+    from frogsim.scenario.firmware import Transducer
+    t = Transducer()
+    line, full = sensors.line(t, 5.0, 1024)
+    code = sensors.of(t).code
+    assert _counts(code, line, full, 5.0, 3e5) == 348
+    assert _counts(code, line, full, 5.0, 0.0) == 102
+    assert _counts(code, line, full, 5.0, 20e5) == 1023
+    # fault limits: (0.5 - 0.2) V and (4.5 + 0.2) V as counts
+    assert sensors.faults(t, 5.0, 1024) == (math.floor(0.3 * 1024 / 5), math.floor(4.7 * 1024 / 5))
+
+
+def test_the_encoder_count_is_the_counter_closed_form():
+    """count = floor(angle cpr / 2 pi) + 32768 on the 16-bit counter, no fault limits."""
+    from frogsim.circuit import sensors
+    from frogsim.scenario.firmware import AngleEncoder
+    e = AngleEncoder(counts_per_revolution=2000)
+    line, full = sensors.line(e, 5.0, 1024)
+    assert full == 65536 and sensors.faults(e, 5.0, 1024) is None
+    code = sensors.of(e).code
+    for turns in (0.0, 5.5 / 2000, -7.25 / 2000, 0.1):
+        angle = 2 * math.pi * turns
+        assert _counts(code, line, full, 5.0, angle) == math.floor(turns * 2000 + 1e-9) + 32768
+
+
+def test_an_unknown_sensor_code_is_an_error():
+    with pytest.raises(ValueError, match="sensor code is no sensor type's"):
+        _count(9.0, 0.5, 4e-6, 0.0, 1024.0, 5.0, 3e5)
+
+
+SENSOR_MODULE = '''
+"""A throw-away sensor type: a pressure transducer read as its count rounded to the nearest."""
+import math
+from dataclasses import dataclass
+from typing import ClassVar
+
+from frogsim._jit import jit_inner
+from frogsim.circuit.sensors.spec import SensorType, line_value
+from frogsim.scenario.fields import quantity
+from frogsim.scenario.sensors import SensorSettings
+
+CODE = {code}
+
+
+@dataclass(frozen=True)
+class Rounding(SensorSettings):
+    TYPE: ClassVar[str] = "rounding"
+    QUANTITY: ClassVar[str] = "pressure"
+    span: float = quantity("pressure", gt=0.0, display="bar", default=10e5)
+
+
+def line(s, vref, adc_full):
+    return (0.0, vref / s.span, 0.0), adc_full
+
+
+def faults(s, vref, adc_full):
+    return None
+
+
+@jit_inner
+def count(v0, k, q0, full, vref, q):
+    x = math.floor((v0 + k * (q - q0)) * full / vref + 0.5)
+    return int(min(max(x, 0.0), full - 1.0))
+
+
+@jit_inner
+def value(v0, k, q0, full, vref, c):
+    return line_value(v0, k, q0, full, vref, c)
+
+
+SENSOR = SensorType(settings=Rounding, code=CODE, line=line, faults=faults, count=count, value=value)
+'''
+
+SENSOR_RUN = r'''
+import json
+from numba import njit
+import frogsim
+from frogsim.circuit import sensors
+
+@njit
+def count(code, v0, k, q0, full, vref, q):
+    return sensors.sensor_count(code, v0, k, q0, full, vref, q)
+
+s = sensors.TYPES["rounding"].settings()
+(v0, k, q0), full = sensors.line(s, 5.0, 1024)
+print(json.dumps({"module": sensors.TYPES["rounding"].module, "quantity": sensors.TYPES["rounding"].quantity,
+                  "c": count(9.0, v0, k, q0, float(full), 5.0, 300488.28),
+                  "t": count(1.0, 0.5, 4e-6, 0.0, 1024.0, 5.0, 3e5)}))
+'''
+
+
+def _sensor_copy(root, modules: dict):
+    pkg = root / "src" / "frogsim"
+    shutil.copytree(PACKAGE, pkg, ignore=shutil.ignore_patterns("__pycache__"))
+    for name, text in modules.items():
+        assert not (pkg / "circuit" / "sensors" / name).exists()
+        (pkg / "circuit" / "sensors" / name).write_text(text)
+    return root / "src"
+
+
+def test_a_duplicate_sensor_code_is_refused_naming_both_modules(tmp_path):
+    src = _sensor_copy(tmp_path, {"rounding.py": SENSOR_MODULE.format(code=1.0)})
+    done = _run_copy(src, "-c", "import frogsim", cwd=tmp_path)
+    assert done.returncode != 0
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("ImportError: sensor types: "), done.stderr[-2000:]
+    assert "CODE 1.0 of frogsim.circuit.sensors.transducer (type 'transducer') is already taken by " \
+           "frogsim.circuit.sensors.rounding" in last, last
+
+
+def test_a_new_sensor_type_is_one_new_module(tmp_path):
+    """In a copy of the package, a "rounding" pressure sensor added as one new module: registered,
+    its line written by its own block, its integer form reached through the family's compiled
+    dispatch (300488.28 Pa on a 0-5 V line of 10 bar span at 10 bits: 1.5024414 V x 1024 / 5 V =
+    307.70, rounded 308 where the ADC's truncation gives 307), the shipped transducer's unchanged
+    (348)."""
+    src = _sensor_copy(tmp_path, {"rounding.py": SENSOR_MODULE.format(code=9.0)})
+    done = _run_copy(src, "-c", SENSOR_RUN, cwd=tmp_path, timeout=900)
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = json.loads(done.stdout.strip().splitlines()[-1])
+    assert out == {"module": "frogsim.circuit.sensors.rounding", "quantity": "pressure", "c": 308, "t": 348}
