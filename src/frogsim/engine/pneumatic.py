@@ -68,6 +68,7 @@ def check_volumes(model: PneumaticModel) -> None:
         fixed = mp[i, L.M_FIXEDV]
         if fixed > 0.0:
             continue
+        actuators.REGISTRY.by(mp[i, L.M_ACT])     # KeyError naming the codes: an unknown type, before the run
         nk = int(mot_n[i])
         vols = np.empty(nk)
         actuators.knot_volumes(mp, i, mot_L, nk, vols)
