@@ -127,7 +127,7 @@ def test_the_pages_recovery_table_and_prose(recovery):
         rel[name] = 100 * abs(h - h_cf) / h_cf
         check(text, [(r"h ≈ " + NUM + r" W/\(m² K\) after the " + name, h)] if name == "discharge" else
               [(r"and " + NUM + r" W/\(m² K\) after the filling", h)])
-    check(text, [(r"differ by " + NUM + " % and", rel["discharge"]), (r"% and " + NUM + " %, about", rel["filling"])])
+    check(text, [(r"differ by " + NUM + " % and", rel["discharge"]), (r"% and " + NUM + r" %\. The discharge", rel["filling"])])
     times, temps, T_a, _ = DISCHARGE
     tau = {d: _tau(times, temps, T_a + d) for d in (-2.0, 0.0, 2.0)}
     check(text, [(r"τ by −" + NUM + " % /", 100 * (tau[0.0] - tau[-2.0]) / tau[0.0]),
