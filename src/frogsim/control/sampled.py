@@ -54,7 +54,7 @@ from frogsim.control import kinds
 from frogsim.control.signals import (  # noqa: F401  (the memory layout and signals, re-exported)
     B_A_FILT, B_A_FILT_ON, B_A_SENSED, B_ANGLE, B_CLIPS, B_CMD_C, B_CMD_D, B_FILT, B_FILT_ON, B_INT, B_MODE,
     B_OMEGA, B_PHASE, B_PULSE, B_QC_HEAD, B_QC_N, B_QD_HEAD, B_QD_N, B_SENSED, B_SP, B_SW_C, B_SW_D,
-    B_TARGET, B_VALVE, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_FW, CS_PUMP, CS_Q, CS_SAMPLE, MODE_CHARGE,
+    B_TARGET, B_VALVE, B_W_FILT, B_W_SENSED, CS_BLOCK, CS_DT, CS_DUE, CS_FW, CS_PUMP, CS_Q, CS_SAMPLE, MODE_CHARGE,
     MODE_HOLD, MODE_VENT, TOL, B_FAULT_A, B_FAULT_P, B_FW0, FW_MEM, adc_count, fw_fault, pump_band, sense,
     sense_joint, sensor_noise, setpoint, block_size, controller_state_size, law_block, queue_due, queue_start)
 from frogsim.control.table import (  # noqa: F401  (the table's layout, re-exported)
@@ -96,8 +96,12 @@ def _block(cs, c):
 
 @jit_step
 def _push(cs, b, head, q0, due, state):
+    """Queue (due, state) at the end of the queue at ``head`` of the block at b; a first entry
+    (the queue was empty) may be the earliest due time of all, cs[CS_DUE]."""
     Q = int(cs[CS_Q])
     n = int(cs[b + head + 1])
+    if n == 0 and due < cs[CS_DUE]:
+        cs[CS_DUE] = due
     j = (int(cs[b + head]) + n) % Q
     e = b + queue_due(q0, j)
     cs[e] = due
@@ -160,11 +164,16 @@ def _is_valve_law(kind):
 
 @jit
 def apply_due(laws, t, u, cs):
-    """Write into u every queued valve command due at or before t; True if a valve changed."""
+    """Write into u every queued valve command due at or before t; True if a valve changed. The
+    earliest due time of the queues' first entries (cs[CS_DUE]) is kept up to date: when it lies
+    after t, every queue's first entry waits (the loop would stop at each), and nothing is read."""
     if laws.ndim == 1:                     # open loop: no valve laws, no command queue
+        return False
+    if cs[CS_DUE] > t + TOL:
         return False
     changed = False
     Q = int(cs[CS_Q])
+    first = math.inf
     for c in range(laws.shape[0]):
         if not _is_valve_law(laws[c, L_KIND]):
             continue
@@ -177,6 +186,7 @@ def apply_due(laws, t, u, cs):
                 h = int(cs[b + head])
                 e = b + queue_due(q0, h)
                 if cs[e] > t + TOL:
+                    first = min(first, cs[e])
                     break
                 state = cs[e + 1]
                 j = valve_index(i, valve)
@@ -186,6 +196,7 @@ def apply_due(laws, t, u, cs):
                     changed = True
                 cs[b + head] = float((h + 1) % Q)
                 cs[b + head + 1] -= 1.0
+    cs[CS_DUE] = first
     return changed
 
 
@@ -213,18 +224,7 @@ def next_due_time(laws, cs):
     time within TOL of a sample time k dt (a dead time that is a whole number of periods, summed
     in floating point) is that sample time when the sample is earlier: the command acts there, as
     :func:`apply_due` (tolerance TOL) applies it at that sample."""
-    t = math.inf
-    if laws.ndim == 1:
-        return t
-    Q = int(cs[CS_Q])
-    for c in range(laws.shape[0]):
-        if not _is_valve_law(laws[c, L_KIND]):
-            continue
-        b = _block(cs, c)
-        if cs[b + B_QC_N] > 0:
-            t = min(t, cs[b + queue_due(queue_start(VALVE_CHARGE, Q), int(cs[b + B_QC_HEAD]))])
-        if cs[b + B_QD_N] > 0:
-            t = min(t, cs[b + queue_due(queue_start(VALVE_VENT, Q), int(cs[b + B_QD_HEAD]))])
+    t = cs[CS_DUE]          # the queues' first entries' earliest (kept by _push and apply_due)
     if t < math.inf:
         dt = cs[CS_DT]
         ts = math.floor(t / dt + 0.5) * dt
@@ -378,6 +378,7 @@ def start_controllers(laws, mp, t0, y, u, ctrl_dt):
     if laws.ndim == 1:                     # open loop: no valve laws, no command queue
         cs = np.zeros(controller_state_size(0, 0))
         cs[CS_DT] = ctrl_dt
+        cs[CS_DUE] = math.inf
         cs[CS_SAMPLE] = math.floor(t0 / ctrl_dt + 1e-9) - 1.0
         sample_controllers(laws, mp, t0, y, u, cs)
         return cs
@@ -391,6 +392,7 @@ def start_controllers(laws, mp, t0, y, u, ctrl_dt):
     cs[CS_DT] = ctrl_dt
     cs[CS_BLOCK] = block
     cs[CS_Q] = Q
+    cs[CS_DUE] = math.inf
     for c in range(laws.shape[0]):
         if laws[c, L_FW] > 0.0:
             cs[CS_FW] = 1.0

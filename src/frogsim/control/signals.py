@@ -31,7 +31,9 @@ CS_DT = 2        # the controller period [s]
 CS_BLOCK = 3     # length of each law's block of memory
 CS_Q = 4         # capacity of each valve's queue of pending commands
 CS_FW = 5        # 1 if some row of the table has a firmware block (its integer twin runs), else 0
-CS_SIZE = 6      # law c's block follows (law_block)
+CS_DUE = 6       # the earliest due time [s] among the queues' first entries (inf: every queue empty),
+                 # kept by the queue's writers (frogsim.control.sampled: _push, apply_due)
+CS_SIZE = 7      # law c's block follows (law_block)
 # a valve law's block (offsets)
 B_MODE = 0       # the mode last commanded (MODE_*)
 B_CMD_C = 1      # the charge valve's last commanded state (queued or applied)
