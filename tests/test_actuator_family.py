@@ -5,14 +5,13 @@ is one new module, nothing else edited."""
 from __future__ import annotations
 
 import json
-import shutil
 
 import numpy as np
 import pytest
 
 import frogsim
 from frogsim.errors import ScenarioError
-from tests.test_controller_kinds import PACKAGE, _run_copy
+from tests.package_copy import package_copy, run_copy as _run_copy
 
 
 def test_the_registry_holds_the_mckibben_type_and_the_loader_its_settings():
@@ -147,14 +146,9 @@ print(json.dumps({"V0": float(r.volumes[0, 0]), "L0": float(r.lengths[0, 0]), "d
 
 
 def _actuator_copy(root, modules: dict):
-    """A copy of the package under root/src with ``modules`` added to circuit/actuators/; no file of
-    the copy is edited. Returns root/src."""
-    pkg = root / "src" / "frogsim"
-    shutil.copytree(PACKAGE, pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    for name, text in modules.items():
-        assert not (pkg / "circuit" / "actuators" / name).exists()
-        (pkg / "circuit" / "actuators" / name).write_text(text)
-    return root / "src"
+    """A copy of the package under root/src with ``modules`` ({file name: text}) added to
+    circuit/actuators/ (:func:`tests.package_copy.package_copy`). Returns root/src."""
+    return package_copy(root, {f"circuit/actuators/{name}": text for name, text in modules.items()})
 
 
 def test_a_duplicate_actuator_code_is_refused_naming_both_modules(tmp_path):
@@ -165,24 +159,3 @@ def test_a_duplicate_actuator_code_is_refused_naming_both_modules(tmp_path):
     assert last.startswith("ImportError: actuator types: "), done.stderr[-2000:]
     assert "CODE 1.0 of frogsim.circuit.actuators.mckibben (type 'mckibben') is already taken by " \
            "frogsim.circuit.actuators.bellows" in last, last
-
-
-def test_a_new_actuator_type_is_one_new_module(tmp_path):
-    """In a copy of the package, a "bellows" actuator type (V = A L, F = p A) added as one new
-    module, no other file edited: a muscle type naming it starts with the volume A L0 plus its dead
-    volume, charged from the source it ends at the source's pressure (the circuit's invariant), and
-    pulls p_gauge A."""
-    src = _actuator_copy(tmp_path, {"bellows.py": ACTUATOR_MODULE.format(code=9.0)})
-    changed = [p.relative_to(src / "frogsim").as_posix() for p in sorted((src / "frogsim").rglob("*.py"))
-               if not (PACKAGE / p.relative_to(src / "frogsim")).exists()
-               or (PACKAGE / p.relative_to(src / "frogsim")).read_bytes() != p.read_bytes()]
-    assert changed == ["circuit/actuators/bellows.py"]
-    work = tmp_path / "run"
-    work.mkdir()
-    done = _run_copy(src, "-c", ACTUATOR_RUN, cwd=work, timeout=1800)
-    assert done.returncode == 0, done.stderr[-3000:]
-    out = json.loads(done.stdout.strip().splitlines()[-1])
-    A = 8e-4
-    assert out["V0"] == pytest.approx(A * out["L0"] + out["dead"], rel=1e-12)
-    assert out["p_end"] == pytest.approx(out["ps_end"], rel=1e-4)
-    assert out["T_end"] == pytest.approx((out["p_end"] - out["patm"]) * A, rel=1e-9)

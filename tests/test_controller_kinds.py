@@ -20,9 +20,9 @@ import pytest
 import frogsim
 from frogsim.errors import ScenarioError
 from tests.conftest import P_ATM
+from tests.package_copy import PACKAGE, package_copy, run_copy as _run_copy
 from tests.test_control import closed_loop
 
-PACKAGE = Path(__file__).resolve().parent.parent / "src" / "frogsim"
 BAR = 1e5
 
 
@@ -305,19 +305,8 @@ def test_the_joint_angle_kind_reports_the_metrics_it_declares():
 # --- adding a kind: one new module, nothing else edited -----------------------------------------------
 def _package_copy(root: Path, modules: dict) -> Path:
     """A copy of the package under root/src with ``modules`` ({file name: text}) added to
-    control/kinds/; no file of the copy is edited. Returns root/src."""
-    pkg = root / "src" / "frogsim"
-    shutil.copytree(PACKAGE, pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    for name, text in modules.items():
-        assert not (pkg / "control" / "kinds" / name).exists()
-        (pkg / "control" / "kinds" / name).write_text(text)
-    return root / "src"
-
-
-def _run_copy(src: Path, *argv, cwd: Path, timeout: float = 120):
-    env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(src.parent / "numba"))
-    return subprocess.run([sys.executable, *argv], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=timeout)
+    control/kinds/ (:func:`tests.package_copy.package_copy`). Returns root/src."""
+    return package_copy(root, {f"control/kinds/{name}": text for name, text in modules.items()})
 
 
 KIND_MODULE = '''
@@ -474,46 +463,3 @@ fw = subprocess.run([sys.executable, "-m", "frogsim", "firmware", "vent.toml", "
 out["firmware"] = {"code": fw.returncode, "stderr": fw.stderr}
 print(json.dumps(out))
 '''
-
-
-@pytest.mark.slow          # compiles the engine afresh in the copy (a minute or two)
-def test_a_new_kind_is_one_new_module(tmp_path):
-    """In a copy of the package, two kinds added as one new module each, no other file edited: a
-    "vent-always" law (no firmware twin) vents its muscle from the first sample on, down to the
-    exhaust's pressure; a "fixed-duty" law keeps its charge valve open its duty's fraction of the
-    time, in simulate and in a sweep; `frogsim firmware` refuses the vent-always scenario by name."""
-    src = _package_copy(tmp_path, {"vent_always.py": _kind_module("vent-always", 9.0, "VentAlwaysSettings"),
-                                   "fixed_duty.py": FIXED_DUTY})
-    work = tmp_path / "run"
-    work.mkdir()
-    done = _run_copy(src, "-c", RUN, cwd=work, timeout=1200)
-    assert done.returncode == 0, done.stderr[-3000:]
-    out = json.loads(done.stdout.strip().splitlines()[-1])
-    v = out["vent"]
-    t = np.array(v["t"])
-    # the command of sample 0 acts one dead time later: from then on the discharge valve is open,
-    # the charge valve never opens
-    assert not any(v["charge"])
-    assert np.all(np.array(v["discharge"])[t > v["dead"] + 1e-9] == 1.0)
-    assert np.all(np.array(v["discharge"])[t < v["dead"] - 1e-9] == 0.0)
-    assert v["switchings"] == [0, 1]
-    p, pe = np.array(v["p"]), np.array(v["p_exhaust"])
-    assert p[0] - v["patm"] == pytest.approx(3e5)
-    # vented, the muscle ends at the exhaust's pressure (the circuit's invariant), falling all the way
-    assert abs(p[-1] - pe[-1]) < 0.01 * BAR
-    assert np.all(np.diff(p) <= 1e-6 * BAR)
-    assert not any(key.startswith("tracking") for key in v["metrics"])      # it tracks nothing
-    # fixed-duty, no dead time: the charge valve is open 3 of every 10 samples (1 ms each), vent the other 7
-    assert out["charge_fraction"] == pytest.approx(0.3, abs=0.01)
-    assert not out["vent_and_charge_together"]
-    assert abs(out["switchings"][0] - 2 * 50) <= 1      # 50 periods of 10 ms: it opens and closes once in each
-    # the sweep's points are the single runs (air charged over the run, a standard volume [m^3])
-    np.testing.assert_allclose(out["sweep"], out["single"], rtol=1e-12)
-    assert out["sweep"][1] > out["sweep"][0] > 0.0     # more duty, more air
-    # frogsim firmware: exit 2, one line naming the controller and its kind, no folder
-    fw = out["firmware"]
-    assert fw["code"] == 2, fw["stderr"]
-    err = fw["stderr"].strip()
-    assert len(err.splitlines()) == 1 and err.startswith("frogsim: error: "), err
-    assert "controllers.vent.kind = 'vent-always'" in err and "no firmware twin" in err, err
-    assert not (work / "fw").exists()

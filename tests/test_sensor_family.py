@@ -6,14 +6,13 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 
 import numpy as np
 import pytest
 from numba import njit
 
 from frogsim.circuit.sensors import sensor_count
-from tests.test_controller_kinds import PACKAGE, _run_copy
+from tests.package_copy import package_copy, run_copy as _run_copy
 
 
 def test_the_registry_holds_the_shipped_sensors_with_unique_codes():
@@ -79,7 +78,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from frogsim._jit import jit_inner
-from frogsim.circuit.sensors.spec import SensorType, line_value
+from frogsim.circuit.sensors.spec import SensorType, linear_value
 from frogsim.scenario.fields import quantity
 from frogsim.scenario.sensors import SensorSettings
 
@@ -107,12 +106,7 @@ def count(v0, k, q0, full, vref, q):
     return int(min(max(x, 0.0), full - 1.0))
 
 
-@jit_inner
-def value(v0, k, q0, full, vref, c):
-    return line_value(v0, k, q0, full, vref, c)
-
-
-SENSOR = SensorType(settings=Rounding, code=CODE, line=line, faults=faults, count=count, value=value)
+SENSOR = SensorType(settings=Rounding, code=CODE, line=line, faults=faults, count=count, value=linear_value)
 '''
 
 SENSOR_RUN = r'''
@@ -134,12 +128,9 @@ print(json.dumps({"module": sensors.TYPES["rounding"].module, "quantity": sensor
 
 
 def _sensor_copy(root, modules: dict):
-    pkg = root / "src" / "frogsim"
-    shutil.copytree(PACKAGE, pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    for name, text in modules.items():
-        assert not (pkg / "circuit" / "sensors" / name).exists()
-        (pkg / "circuit" / "sensors" / name).write_text(text)
-    return root / "src"
+    """A copy of the package under root/src with ``modules`` ({file name: text}) added to
+    circuit/sensors/ (:func:`tests.package_copy.package_copy`). Returns root/src."""
+    return package_copy(root, {f"circuit/sensors/{name}": text for name, text in modules.items()})
 
 
 def test_a_duplicate_sensor_code_is_refused_naming_both_modules(tmp_path):
@@ -150,16 +141,3 @@ def test_a_duplicate_sensor_code_is_refused_naming_both_modules(tmp_path):
     assert last.startswith("ImportError: sensor types: "), done.stderr[-2000:]
     assert "CODE 1.0 of frogsim.circuit.sensors.transducer (type 'transducer') is already taken by " \
            "frogsim.circuit.sensors.rounding" in last, last
-
-
-def test_a_new_sensor_type_is_one_new_module(tmp_path):
-    """In a copy of the package, a "rounding" pressure sensor added as one new module: registered,
-    its line written by its own block, its integer form reached through the family's compiled
-    dispatch (300488.28 Pa on a 0-5 V line of 10 bar span at 10 bits: 1.5024414 V x 1024 / 5 V =
-    307.70, rounded 308 where the ADC's truncation gives 307), the shipped transducer's unchanged
-    (348)."""
-    src = _sensor_copy(tmp_path, {"rounding.py": SENSOR_MODULE.format(code=9.0)})
-    done = _run_copy(src, "-c", SENSOR_RUN, cwd=tmp_path, timeout=900)
-    assert done.returncode == 0, done.stderr[-3000:]
-    out = json.loads(done.stdout.strip().splitlines()[-1])
-    assert out == {"module": "frogsim.circuit.sensors.rounding", "quantity": "pressure", "c": 308, "t": 348}

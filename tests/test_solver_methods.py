@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import os
-import shutil
 import subprocess
 import sys
 import textwrap
@@ -25,6 +24,7 @@ from frogsim.engine import methods
 from frogsim.errors import ScenarioError
 
 from conftest import K_AIR, P_ATM, R_AIR, T_REF, one_muscle_scenario, steps
+from tests.package_copy import package_copy, run_copy
 
 PACKAGE = Path(frogsim.__file__).resolve().parent
 CV = R_AIR / (K_AIR - 1.0)
@@ -217,19 +217,12 @@ METHOD = IntegrationMethod(settings=EulerSettings, code=CODE, step=step, dense=d
 
 def _package_copy(root: Path, modules: dict) -> Path:
     """A copy of the package under root/src with ``modules`` ({file name: text}) added to
-    engine/methods/; no file of the copy is edited. Returns root/src."""
-    pkg = root / "src" / "frogsim"
-    shutil.copytree(PACKAGE, pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    for name, text in modules.items():
-        assert not (pkg / "engine" / "methods" / name).exists()
-        (pkg / "engine" / "methods" / name).write_text(text)
-    return root / "src"
+    engine/methods/ (:func:`tests.package_copy.package_copy`). Returns root/src."""
+    return package_copy(root, {f"engine/methods/{name}": text for name, text in modules.items()})
 
 
 def _run_copy(src: Path, code: str, cwd: Path, timeout: float = 900):
-    env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(src.parent / "numba"))
-    return subprocess.run([sys.executable, "-c", code], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=timeout)
+    return run_copy(src, "-c", code, cwd=cwd, timeout=timeout)
 
 
 @pytest.mark.parametrize("case", ["code", "name", "no-declaration"])
@@ -254,32 +247,3 @@ def test_the_registry_refuses_a_duplicate_or_undeclared_method(tmp_path, case):
                "frogsim.engine.methods.added" in last, last
     else:
         assert "declares no METHOD = IntegrationMethod" in last, last
-
-
-def test_a_new_method_is_one_new_module(tmp_path):
-    src = _package_copy(tmp_path, {"euler.py": EULER.format(code=9.0, name="euler")})
-    # nothing but the new module differs from the package
-    changed = [p.relative_to(src / "frogsim").as_posix() for p in sorted((src / "frogsim").rglob("*.py"))
-               if not (PACKAGE / p.relative_to(src / "frogsim")).exists()
-               or (PACKAGE / p.relative_to(src / "frogsim")).read_bytes() != p.read_bytes()]
-    assert changed == ["engine/methods/euler.py"]
-    code = textwrap.dedent('''
-        import json, sys
-        import numpy as np
-        sys.path.insert(0, {tests!r})
-        import frogsim
-        from test_solver_methods import _cooling, _cooling_closed_form
-        out = {{}}
-        for step in (0.5, 0.25):
-            r = frogsim.simulate(frogsim.load_scenario(_cooling({{"name": "euler", "step": f"{{step}} ms"}})))
-            p, tau = _cooling_closed_form(r.t)
-            out[step] = [float(np.max(np.abs(r.source_pressure - p))), int(r.stats["steps"])]
-        print(json.dumps(out))
-    ''').format(tests=str(Path(__file__).resolve().parent))
-    done = _run_copy(src, code, tmp_path)
-    assert done.returncode == 0, done.stderr[-3000:]
-    import json
-    out = json.loads(done.stdout.strip().splitlines()[-1])
-    (e1, n1), (e2, n2) = out["0.5"], out["0.25"]
-    assert (n1, n2) == (60, 120)                 # its fixed grid: 30 ms in steps of 0.5 and 0.25 ms
-    assert 2 ** 1 * 0.8 < e1 / e2 < 2 ** 1 * 1.25, out      # explicit Euler: order 1

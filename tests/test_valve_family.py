@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 
 import numpy as np
 import pytest
@@ -16,7 +15,7 @@ import frogsim
 from frogsim.errors import ScenarioError
 from tests.conftest import P_ATM
 from tests.test_control import closed_loop
-from tests.test_controller_kinds import PACKAGE, _run_copy
+from tests.package_copy import package_copy, run_copy as _run_copy
 
 BAR = 1e5
 L_PER_MIN = 1e-3 / 60.0
@@ -339,14 +338,9 @@ print(json.dumps(out))
 
 
 def _valve_copy(root, modules: dict):
-    """A copy of the package under root/src with ``modules`` added to circuit/valves/; no file of the
-    copy is edited. Returns root/src."""
-    pkg = root / "src" / "frogsim"
-    shutil.copytree(PACKAGE, pkg, ignore=shutil.ignore_patterns("__pycache__"))
-    for name, text in modules.items():
-        assert not (pkg / "circuit" / "valves" / name).exists()
-        (pkg / "circuit" / "valves" / name).write_text(text)
-    return root / "src"
+    """A copy of the package under root/src with ``modules`` ({file name: text}) added to
+    circuit/valves/ (:func:`tests.package_copy.package_copy`). Returns root/src."""
+    return package_copy(root, {f"circuit/valves/{name}": text for name, text in modules.items()})
 
 
 def test_a_duplicate_valve_code_is_refused_naming_both_modules(tmp_path):
@@ -357,21 +351,3 @@ def test_a_duplicate_valve_code_is_refused_naming_both_modules(tmp_path):
     assert last.startswith("ImportError: valve types: "), done.stderr[-2000:]
     assert "CODE 1.0 of frogsim.circuit.valves.switching (type 'switching') is already taken by " \
            "frogsim.circuit.valves.a_throttled (type 'throttled')" in last, last
-
-
-@pytest.mark.slow          # compiles the engine afresh in the copy (a few minutes)
-def test_a_new_valve_type_is_one_new_module(tmp_path):
-    """In a copy of the package, a "throttled" valve type added as one new module, no other file
-    edited: an open-loop charge through it is Eq. (8) choked at its own conductance (half the
-    MHJ9's), and a bang-bang controller drives it through its controller view to the setpoint."""
-    src = _valve_copy(tmp_path, {"throttled.py": VALVE_MODULE.format(code=9.0)})
-    work = tmp_path / "run"
-    work.mkdir()
-    done = _run_copy(src, "-c", VALVE_RUN, cwd=work, timeout=1800)
-    assert done.returncode == 0, done.stderr[-3000:]
-    out = json.loads(done.stdout.strip().splitlines()[-1])
-    t, q = np.array(out["t"]), np.array(out["q"])
-    i1 = int(np.searchsorted(t, 0.5e-3 - 1e-12))
-    assert q[i1] / t[i1] == pytest.approx(0.2e-8 * out["rho"] * out["p_s"], rel=2e-3)
-    assert abs(out["p_end"] - 3e5) < 0.1e5
-    assert out["rms"] < 0.1
