@@ -44,12 +44,13 @@ class Registry:
     module declares its member under ("VALVE"); ``spec``: the declaration's class; ``settings_base``:
     the class every member's settings derive from; ``name_attr``: the settings' class attribute
     holding the member's name in files ("TYPE"); ``member``: what one member is called ("type"); ``loader``: ``loader(settings_class, decl)``,
-    the scenario layer's registration; ``check``: the family's own checks; ``reserved``: codes
-    members may not take, with what holds them; ``code_optional``: members may have code None."""
+    the scenario layer's registration; ``check``: the family's own checks; ``parts``: the names of
+    the declaration's functions every member must give; ``reserved``: codes members may not take,
+    with what holds them; ``code_optional``: members may have code None."""
 
     def __init__(self, family: str, attr: str, spec: type, settings_base: type, name_attr: str, member: str, *,
-                 loader: Callable | None = None, check: Callable | None = None, reserved: dict | None = None,
-                 code_optional: bool = False):
+                 loader: Callable | None = None, check: Callable | None = None, parts: tuple = (),
+                 reserved: dict | None = None, code_optional: bool = False):
         self.family = family
         self.member = member
         self.attr = attr
@@ -58,6 +59,7 @@ class Registry:
         self.name_attr = name_attr
         self.loader = loader
         self.check = check
+        self.parts = tuple(parts)
         self.reserved = dict(reserved or {})
         self.code_optional = code_optional
         #: member name -> its declaration, in the order of the modules' file names
@@ -86,6 +88,9 @@ class Registry:
         elif code in self.reserved:
             self.refuse(f"{module}: {self._what(decl)} has code {code!r}, which is reserved for "
                         f"{self.reserved[code]}")
+        for part in self.parts:
+            if not callable(getattr(decl, part, None)):
+                self.refuse(f"{module}: {self._what(decl)} has no {part}")
         if self.check is not None:
             self.check(decl, module)
 
@@ -132,6 +137,28 @@ class Registry:
                                 f"({self.spec.__module__})")
                 continue
             self.register(declared, name)
+
+    def discover_all(self, package: str, path) -> list:
+        """:meth:`discover`, refusing a package in which no module declares a member; the members
+        with a code, by code (:meth:`ordered`)."""
+        self.discover(package, path)
+        if not self.by_name:
+            self.refuse(f"no module of {package} declares {self.attr} = {self.spec.__name__}(...)")
+        return self.ordered()
+
+    def write_block(self, row, settings, code_col: int, block_col: int, width: int, width_name: str) -> None:
+        """Write the code of the member whose settings ``settings`` are into ``row[code_col]`` and
+        its parameter block (its declaration's ``block(settings)``) into ``row[block_col:]``, the rest
+        of the ``width`` entries zero; ValueError when the block is longer than ``width`` (the
+        layout's ``width_name``)."""
+        decl = self.of(settings)
+        block = tuple(float(v) for v in decl.block(settings))
+        if len(block) > width:
+            raise ValueError(f"{self.family}: {self._what(decl)} ({decl.module}) writes {len(block)} parameters; "
+                             f"the row holds {width} ({width_name})")
+        row[code_col] = decl.code
+        row[block_col:block_col + width] = 0.0
+        row[block_col:block_col + len(block)] = block
 
     def ordered(self) -> list:
         """The members with a code, by code."""

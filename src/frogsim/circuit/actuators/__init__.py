@@ -32,36 +32,21 @@ from frogsim.scenario.actuators import ActuatorSettings
 
 PARTS = ("block", "volume", "slope", "wall_area", "force", "force_block")
 
-
-def _check(at, module: str) -> None:
-    for what in PARTS:
-        if not callable(getattr(at, what)):
-            REGISTRY.refuse(f"{module}: actuator type {at.name!r} has no {what}")
-
-
 REGISTRY = Registry("actuator types", "ACTUATOR", ActuatorType, ActuatorSettings, "TYPE", "type",
-                    loader=lambda cls, at: settings_registry.register(cls), check=_check)
+                    loader=lambda cls, at: settings_registry.register(cls), parts=PARTS)
 #: type name -> its declaration, in the order of the modules' file names
 TYPES: dict[str, ActuatorType] = REGISTRY.by_name
 #: actuator code -> its type
 BY_CODE: dict[float, ActuatorType] = REGISTRY.by_code
 
 
-def of(settings) -> ActuatorType:
-    """The declaration of the actuator type of ``settings`` (a muscle type's settings or class)."""
-    return TYPES[settings.TYPE]
+#: the declaration of the actuator type of ``settings`` (a muscle type's settings or class)
+of = REGISTRY.of
 
 
 def write_block(row, settings) -> None:
     """Write the actuator type's code and parameter block into a muscle row ``row`` (of mp)."""
-    at = of(settings)
-    block = tuple(float(v) for v in at.block(settings))
-    if len(block) > ACTUATOR_PARAMS:
-        raise ValueError(f"actuator type {at.name!r} ({at.module}) writes {len(block)} parameters; the muscle row "
-                         f"holds {ACTUATOR_PARAMS} (frogsim.circuit.layout.ACTUATOR_PARAMS)")
-    row[M_ACT] = at.code
-    row[M_AP:M_AP + ACTUATOR_PARAMS] = 0.0
-    row[M_AP:M_AP + len(block)] = block
+    REGISTRY.write_block(row, settings, M_ACT, M_AP, ACTUATOR_PARAMS, "frogsim.circuit.layout.ACTUATOR_PARAMS")
 
 
 def force_block(types, law) -> tuple:
@@ -110,10 +95,7 @@ def force(mp, i: int, p_gauge: float, L: float, law, at: int = 0) -> float:
     return for_python(REGISTRY.by(mp[i, M_ACT]).force)(mp, i, float(p_gauge), float(L), law, at)
 
 
-REGISTRY.discover(__name__, __path__)
-if not BY_CODE:
-    REGISTRY.refuse("no module of frogsim.circuit.actuators declares an actuator type")
-_ORDER = REGISTRY.ordered()
+_ORDER = REGISTRY.discover_all(__name__, __path__)
 _UNKNOWN = "a muscle row's actuator code is no actuator type's (frogsim.circuit.actuators)"
 
 

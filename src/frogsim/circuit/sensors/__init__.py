@@ -27,24 +27,21 @@ QUANTITIES = ("pressure", "angle")
 
 
 def _check(st, module: str) -> None:
-    for what in ("line", "faults", "count", "value"):
-        if not callable(getattr(st, what)):
-            REGISTRY.refuse(f"{module}: sensor type {st.name!r} has no {what}")
     if st.quantity not in QUANTITIES:
         REGISTRY.refuse(f"{module}: sensor type {st.name!r} reads {st.quantity!r}: one of {', '.join(QUANTITIES)}")
 
 
 REGISTRY = Registry("sensor types", "SENSOR", SensorType, SensorSettings, "TYPE", "type",
-                    loader=lambda cls, st: settings_registry.register(cls), check=_check)
+                    loader=lambda cls, st: settings_registry.register(cls), check=_check,
+                    parts=("line", "faults", "count", "value"))
 #: type name -> its declaration, in the order of the modules' file names
 TYPES: dict[str, SensorType] = REGISTRY.by_name
 #: sensor code -> its type
 BY_CODE: dict[float, SensorType] = REGISTRY.by_code
 
 
-def of(settings) -> SensorType:
-    """The declaration of the sensor type of ``settings`` (a sensor's settings or class)."""
-    return TYPES[settings.TYPE]
+#: the declaration of the sensor type of ``settings`` (a sensor's settings or class)
+of = REGISTRY.of
 
 
 def line(settings, vref: float, adc_full: int) -> tuple:
@@ -58,10 +55,7 @@ def faults(settings, vref: float, adc_full: int):
     return of(settings).faults(settings, vref, adc_full)
 
 
-REGISTRY.discover(__name__, __path__)
-if not BY_CODE:
-    REGISTRY.refuse("no module of frogsim.circuit.sensors declares a sensor type")
-_ORDER = REGISTRY.ordered()
+_ORDER = REGISTRY.discover_all(__name__, __path__)
 _UNKNOWN = "a row's sensor code is no sensor type's (frogsim.circuit.sensors)"
 #: ``sensor_count(code, v0, k, q0, full, vref, q) -> int``: the firmware's integer of reading q
 sensor_count = dispatch([(s.code, s.count) for s in _ORDER], "v0, k, q0, full, vref, q",

@@ -10,8 +10,7 @@ from __future__ import annotations
 
 import math
 
-from frogsim._jit import jit_inner
-from frogsim.circuit.sensors.spec import SensorType, line_count, line_value
+from frogsim.circuit.sensors.spec import SensorType, linear_count, linear_value
 from frogsim.scenario.firmware import ENCODER_ZERO, AngleEncoder
 
 CODE = 3.0
@@ -28,14 +27,4 @@ def faults(s, vref: float, adc_full: int):
     return None
 
 
-@jit_inner
-def count(v0, k, q0, full, vref, q):
-    return line_count(v0, k, q0, full, vref, q)
-
-
-@jit_inner
-def value(v0, k, q0, full, vref, c):
-    return line_value(v0, k, q0, full, vref, c)
-
-
-SENSOR = SensorType(settings=AngleEncoder, code=CODE, line=line, faults=faults, count=count, value=value)
+SENSOR = SensorType(settings=AngleEncoder, code=CODE, line=line, faults=faults, count=linear_count, value=linear_value)

@@ -7,8 +7,7 @@ transducer's (:func:`frogsim.circuit.sensors.transducer.faults`).
 """
 from __future__ import annotations
 
-from frogsim._jit import jit_inner
-from frogsim.circuit.sensors.spec import SensorType, line_count, line_value
+from frogsim.circuit.sensors.spec import SensorType, linear_count, linear_value
 from frogsim.circuit.sensors.transducer import faults
 from frogsim.scenario.firmware import AnglePotentiometer
 
@@ -19,14 +18,5 @@ def line(s: AnglePotentiometer, vref: float, adc_full: int) -> tuple:
     return (s.low_voltage, (s.high_voltage - s.low_voltage) / (s.high_angle - s.low_angle), s.low_angle), adc_full
 
 
-@jit_inner
-def count(v0, k, q0, full, vref, q):
-    return line_count(v0, k, q0, full, vref, q)
-
-
-@jit_inner
-def value(v0, k, q0, full, vref, c):
-    return line_value(v0, k, q0, full, vref, c)
-
-
-SENSOR = SensorType(settings=AnglePotentiometer, code=CODE, line=line, faults=faults, count=count, value=value)
+SENSOR = SensorType(settings=AnglePotentiometer, code=CODE, line=line, faults=faults, count=linear_count,
+                    value=linear_value)

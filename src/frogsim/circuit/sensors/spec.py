@@ -6,7 +6,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Callable
 
-from frogsim._jit import jit
+from frogsim._jit import jit, jit_inner
 
 
 @jit
@@ -24,6 +24,19 @@ def line_value(v0, k, q0, full, vref, count):
     """The reading [Pa gauge or rad] in the middle of a count (the inverse of :func:`line_count`
     at count + 1/2)."""
     return q0 + ((count + 0.5) * vref / full - v0) / k
+
+
+@jit_inner
+def linear_count(v0, k, q0, full, vref, q):
+    """:func:`line_count` as a type's ``count``: a copy inlined into the family's compiled dispatch
+    (the shipped types' integer form)."""
+    return line_count(v0, k, q0, full, vref, q)
+
+
+@jit_inner
+def linear_value(v0, k, q0, full, vref, c):
+    """:func:`line_value` as a type's ``value``, inlined as :func:`linear_count` is."""
+    return line_value(v0, k, q0, full, vref, c)
 
 
 @dataclass(frozen=True)

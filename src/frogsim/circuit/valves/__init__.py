@@ -24,41 +24,24 @@ from frogsim.scenario import valves as settings_registry
 from frogsim.scenario.valves import ValveSettings
 
 
-def _check(vt, module: str) -> None:
-    for what in ("block", "flows", "openings"):
-        if getattr(vt, what) is None:
-            REGISTRY.refuse(f"{module}: valve type {vt.name!r} has no {what}")
-
-
 REGISTRY = Registry("valve types", "VALVE", ValveType, ValveSettings, "TYPE", "type",
-                    loader=lambda cls, vt: settings_registry.register(cls), check=_check)
+                    loader=lambda cls, vt: settings_registry.register(cls), parts=("block", "flows", "openings"))
 #: type name -> its declaration, in the order of the modules' file names
 TYPES: dict[str, ValveType] = REGISTRY.by_name
 #: valve code -> its type
 BY_CODE: dict[float, ValveType] = REGISTRY.by_code
 
 
-def of(settings) -> ValveType:
-    """The declaration of the valve type of ``settings`` (a [valves] settings object or class)."""
-    return TYPES[settings.TYPE]
+#: the declaration of the valve type of ``settings`` (a [valves] settings object or class)
+of = REGISTRY.of
 
 
 def write_block(row, settings) -> None:
     """Write the valve type's code and parameter block into a muscle row ``row`` (of mp)."""
-    vt = of(settings)
-    block = tuple(float(v) for v in vt.block(settings))
-    if len(block) > VALVE_PARAMS:
-        raise ValueError(f"valve type {vt.name!r} ({vt.module}) writes {len(block)} parameters; the muscle row "
-                         f"holds {VALVE_PARAMS} (frogsim.circuit.layout.VALVE_PARAMS)")
-    row[M_VALVE] = vt.code
-    row[M_VP:M_VP + VALVE_PARAMS] = 0.0
-    row[M_VP:M_VP + len(block)] = block
+    REGISTRY.write_block(row, settings, M_VALVE, M_VP, VALVE_PARAMS, "frogsim.circuit.layout.VALVE_PARAMS")
 
 
-REGISTRY.discover(__name__, __path__)
-if not BY_CODE:
-    REGISTRY.refuse("no module of frogsim.circuit.valves declares a valve type")
-_ORDER = REGISTRY.ordered()
+_ORDER = REGISTRY.discover_all(__name__, __path__)
 #: ``valve_flows(code, mp, i, u_c, u_d, p_up, T_up, p_i, T_i, p_e, T_e, rho_ref, T_ref)``: the mass
 #: flows of muscle i's valve (the registry's dispatch on mp[i, M_VALVE]; a code no type declares raises)
 valve_flows = dispatch([(vt.code, vt.flows) for vt in _ORDER], "mp, i, u_c, u_d, p_up, T_up, p_i, T_i, p_e, T_e, rho_ref, T_ref",
