@@ -225,9 +225,11 @@ def _run_copy(src: Path, code: str, cwd: Path, timeout: float = 900):
     return run_copy(src, "-c", code, cwd=cwd, timeout=timeout)
 
 
-@pytest.mark.parametrize("case", ["code", "name", "no-declaration"])
+@pytest.mark.parametrize("case", ["code", "name", "no-declaration", "signature"])
 def test_the_registry_refuses_a_duplicate_or_undeclared_method(tmp_path, case):
-    if case == "code":
+    if case == "signature":             # a step without the driver's last argument (stats)
+        module = EULER.format(code=9.0, name="euler").replace("aux, work, stats):", "aux, work):")
+    elif case == "code":
         module = EULER.format(code=2.0, name="euler")
     elif case == "name":
         module = EULER.format(code=9.0, name="rk4")
@@ -245,5 +247,7 @@ def test_the_registry_refuses_a_duplicate_or_undeclared_method(tmp_path, case):
     elif case == "name":
         assert "method name 'rk4' of frogsim.engine.methods.rk4 is already taken by " \
                "frogsim.engine.methods.added" in last, last
+    elif case == "signature":
+        assert "method 'euler''s step takes 21 arguments (t, h, " in last and "the driver passes 22: " in last, last
     else:
         assert "declares no METHOD = IntegrationMethod" in last, last

@@ -34,8 +34,10 @@ from frogsim.circuit.rhs import rhs
 from frogsim.control.sampled import (CS_PUMP, apply_due, next_due_time, next_sample_time, sample_controllers,
                                     start_controllers)
 from frogsim.engine import methods
-from frogsim.engine.methods.spec import (D_M0, D_M_COUNT, R_F, R_FN, R_OWN, R_RC1, R_RC2, R_RC3, R_RC4, R_YN,
-                                         R_YS, ROWS)
+# the driver state's columns (D_*, STATS_SIZE) are laid out with the methods' (frogsim.engine.methods.spec)
+from frogsim.engine.methods.spec import (D_ERR, D_F_VALID, D_H, D_M0, D_M_COUNT, D_OUT, D_PAUSE, D_REUSE_F, D_SI,
+                                         D_SIZE, D_T, PART_ARGS, R_F, R_FN, R_OWN, R_RC1, R_RC2, R_RC3, R_RC4, R_YN,
+                                         R_YS, ROWS, STATS_SIZE)
 from frogsim.engine.stepsize import EPS
 
 STATUS_OK = 0
@@ -52,38 +54,24 @@ STATUS_TEXT = {STATUS_STEP_UNDERFLOW: "step size fell below 1e-14 s",
                STATUS_ROWS_UNWRITTEN: "the run ended with output rows it never wrote (an output time "
                                       "past the end of the run)"}
 
-# --- driver state ds[:] (see advance) ----------------------------------------------------------------
-D_T = 0          # time reached [s]
-D_H = 1          # next trial step [s]
-D_ERR = 2        # the step-size control's memory: error norm of the last accepted step
-D_SI = 3         # index of the next valve-schedule entry
-D_OUT = 4        # next output row
-D_PAUSE = 5      # > 0: pause once this many steps are accepted in all (stats[0]); 0: never
-#                  6..11: the method's memory (D_M0.., frogsim.engine.methods.spec)
-D_F_VALID = 12   # 1: dy/dt at (ds[D_T], y) is kept after the method's entries (written by every call that ends well)
-D_REUSE_F = 13   # 1: the caller changed nothing that dy/dt reads since the last call: start from the kept one
-D_SIZE = 14
-STATS_SIZE = 4   # stats[:]: accepted steps, rejected steps, rhs evaluations, accepted Rosenbrock steps
-assert D_M0 == D_PAUSE + 1 and D_M0 + D_M_COUNT == D_F_VALID     # the method's columns between the driver's
 
 
 # --- the methods' dispatch, generated from the registry (frogsim.engine.methods, frogsim._registry.dispatch) --
 _METHODS = methods.ordered()
-_STEP_ARGS = ("t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux, "
-              "work, stats")
 #: one trial step of the run's method (its error estimate, its continuous extension made or not); the
 #: one dispatch that refuses a code no method declares (the others' last branch takes any code)
-trial = dispatch([(m.code, m.step) for m in _METHODS], _STEP_ARGS,
+trial = dispatch([(m.code, m.step) for m in _METHODS], PART_ARGS["step"],
                  unknown="advance: the solver's parameter block names an integration method code that no method "
                          "declares (frogsim.engine.methods)")
 #: the continuous extension of the run's method's last step
-dense_of = dispatch([(m.code, m.dense) for m in _METHODS], "h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4", returns=False)
+dense_of = dispatch([(m.code, m.dense) for m in _METHODS], PART_ARGS["dense"], returns=False)
 #: the run's method's step-size control: the next trial step, after an accepted, after a rejected step
-propose = dispatch([(m.code, m.control.propose) for m in _METHODS], "par, t, t_seg, h, max_step")
-accepted = dispatch([(m.code, m.control.accepted) for m in _METHODS], "ds, par, h, err, err_old, a1, a2, refresh, stats")
-rejected = dispatch([(m.code, m.control.rejected) for m in _METHODS], "ds, par, h, err")
+propose = dispatch([(m.code, m.control.propose) for m in _METHODS], PART_ARGS["propose"])
+accepted = dispatch([(m.code, m.control.accepted) for m in _METHODS], PART_ARGS["accepted"])
+rejected = dispatch([(m.code, m.control.rejected) for m in _METHODS], PART_ARGS["rejected"])
 #: the run's method's restart after a command change at a piece's end (nothing for a method without one)
-restart = dispatch([(m.code, m.restart) for m in _METHODS if m.restart is not None], "ds", returns=False,
+restart = dispatch([(m.code, m.restart) for m in _METHODS if m.restart is not None], PART_ARGS["restart"],
+                   returns=False,
                    optional=True)
 
 @jit_step

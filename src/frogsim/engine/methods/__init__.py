@@ -12,7 +12,9 @@ a run hands the driver (:func:`parameter_block`), and the driver's compiled disp
 Checked at import by the shared registry (:mod:`frogsim._registry`), each failure an ImportError
 naming the modules: two methods with one name or
 one code, a code that is not a finite float > 0, a declaration whose parts are missing (step,
-continuous extension, step-size control), more scratch vectors than the driver has, a settings
+continuous extension, step-size control), a part that takes another number of arguments than
+the driver passes it (:data:`frogsim.engine.methods.spec.PART_ARGS`, the one list the driver's
+dispatch is generated from), more scratch vectors than the driver has, a settings
 class without its ``METHOD`` declaration, and a registry without the default method
 (:data:`DEFAULT`). A method lives in this package (not outside it): the compiled code's cache is
 keyed on the files of :mod:`frogsim.engine` (:mod:`frogsim._jit`), so a new method module starts
@@ -20,10 +22,12 @@ a fresh cache and never meets the machine code of a dispatch that did not know i
 """
 from __future__ import annotations
 
+import inspect
+
 import numpy as np
 
 from frogsim._registry import Registry
-from frogsim.engine.methods.spec import PAR_SIZE, R_OWN, ROWS, IntegrationMethod, StepControl
+from frogsim.engine.methods.spec import PART_ARGS, PAR_SIZE, R_OWN, ROWS, IntegrationMethod, StepControl
 from frogsim.scenario import methods as settings_registry
 from frogsim.scenario.methods import MethodSettings
 
@@ -43,11 +47,29 @@ def _check(m, module: str) -> None:
                         "functions, frogsim.engine.stepsize)")
     if m.restart is not None and not callable(m.restart):
         REGISTRY.refuse(f"{module}: method {s.METHOD!r}'s restart is not a compiled function")
+    parts = {"step": m.step, "dense": m.dense, "propose": m.control.propose, "accepted": m.control.accepted,
+             "rejected": m.control.rejected, "restart": m.restart}
+    for part, fn in parts.items():
+        if fn is None:
+            continue
+        want = [a.strip() for a in PART_ARGS[part].split(",")]
+        got = _arguments(fn)
+        if got is not None and len(got) != len(want):
+            REGISTRY.refuse(f"{module}: method {s.METHOD!r}'s {part} takes {len(got)} arguments ({', '.join(got)}); "
+                            f"the driver passes {len(want)}: {', '.join(want)} (frogsim.engine.methods.spec.PART_ARGS)")
     if not isinstance(m.order, int) or m.order < 1:
         REGISTRY.refuse(f"{module}: method {s.METHOD!r} has order {m.order!r}: a whole number >= 1")
     if not isinstance(m.vectors, int) or not 0 <= m.vectors <= ROWS - R_OWN:
         REGISTRY.refuse(f"{module}: method {s.METHOD!r} asks for {m.vectors!r} scratch vectors; the driver has "
                         f"{ROWS - R_OWN} for a method's own stages")
+
+
+def _arguments(fn):
+    """The parameter names of a compiled function's Python source (None when it has none to read)."""
+    try:
+        return list(inspect.signature(getattr(fn, "py_func", fn)).parameters)
+    except (TypeError, ValueError):
+        return None
 
 
 REGISTRY = Registry("integration methods", "METHOD", IntegrationMethod, MethodSettings, "METHOD", "method",

@@ -11,7 +11,8 @@ checks when the package is imported. It names, in one place, everything the driv
   functions read, its ``check`` its cross-field checks);
 * ``code``: the float that selects it in the driver's dispatch (the first entry of the parameter
   block, ``par[0]``), unique among the methods;
-* ``step``: its compiled step (Numba, :func:`frogsim._jit.jit_inner` or ``jit_step``)::
+* ``step``: its compiled step (Numba, :func:`frogsim._jit.jit_inner` or ``jit_step``; every part
+  takes the arguments :data:`PART_ARGS` lists, in that order, which the registry checks)::
 
       step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, own, rc, mat,
            kmat, kvec, aux, work, stats) -> (err, a1, a2, dense_ready)
@@ -24,7 +25,7 @@ checks when the package is imported. It names, in one place, everything the driv
   ``dense_ready`` True when the step has also written its continuous extension into ``rc``
   (the driver's four vectors rc1..rc4, see ``dense``). ``model`` is the right-hand side's group
   (:func:`frogsim.circuit.rhs.rhs`); ``par`` the parameter block; ``ds`` the driver state (the
-  method's memory in columns D_M0.. of :mod:`frogsim.engine.integrator`); ``own`` the method's
+  method's memory in its columns D_M0.., laid out below); ``own`` the method's
   scratch vectors, a tuple of ROWS - R_OWN vectors of ny entries cut once a call (index it with
   constants; ``vectors`` of them are the method's), ``mat`` a scratch ny x ny matrix, ``kmat``
   (ny x ny) and ``kvec`` (ny) entries kept from call to call (the default's Jacobian and df/dt);
@@ -59,9 +60,35 @@ R_RC1, R_RC2, R_RC3, R_RC4 = 3, 4, 5, 6     # the step's continuous extension (s
 R_YS = 7         # the state at a sample inside the step (the driver's)
 R_OWN = 8        # the first row a method may use for its own stages
 ROWS = 22        # rows in all: R_OWN + 14 of the method's own
-# --- the driver state ds: the columns a method may keep its memory in (the driver's own are below) --------
-D_M0 = 6         # the first of them
+# --- the driver state ds[:] (frogsim.engine.integrator.advance): the driver's columns and, between them, the
+# columns a method may keep its memory in; then the method's kept entries, the kept dy/dt and the scratch
+# (integrator.ds_size)
+D_T = 0          # time reached [s]
+D_H = 1          # next trial step [s]
+D_ERR = 2        # the step-size control's memory: error norm of the last accepted step
+D_SI = 3         # index of the next valve-schedule entry
+D_OUT = 4        # next output row
+D_PAUSE = 5      # > 0: pause once this many steps are accepted in all (stats[0]); 0: never
+D_M0 = 6         # the first of the method's memory columns
 D_M_COUNT = 6    # how many
+D_F_VALID = 12   # 1: dy/dt at (ds[D_T], y) is kept after the method's entries (written by every call that ends well)
+D_REUSE_F = 13   # 1: the caller changed nothing that dy/dt reads since the last call: start from the kept one
+D_SIZE = 14
+STATS_SIZE = 4   # stats[:]: accepted steps, rejected steps, rhs evaluations, accepted Rosenbrock steps
+assert D_M0 == D_PAUSE + 1 and D_M0 + D_M_COUNT == D_F_VALID     # the method's columns between the driver's
+
+#: the arguments the driver passes each of a method's compiled parts, in order (the one list: the
+#: driver's dispatch is generated from it, and the registry refuses a part that takes another
+#: number of arguments). ``fn_`` is the step's ``fn`` (the dispatch's own closure holds a ``fn``).
+PART_ARGS = {
+    "step": "t, h, t_new, y, f, yn, fn_, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux, "
+            "work, stats",
+    "dense": "h, y, yn, f, fn_, own, rc1, rc2, rc3, rc4",
+    "propose": "par, t, t_seg, h, max_step",
+    "accepted": "ds, par, h, err, err_old, a1, a2, refresh, stats",
+    "rejected": "ds, par, h, err",
+    "restart": "ds",
+}
 #: entries of a method's parameter block ``par``: its code, then its settings' params()
 PAR_SIZE = 4
 
