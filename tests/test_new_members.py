@@ -80,9 +80,19 @@ def test_a_new_sensor_type_is_one_new_module(copy, tmp_path):
     """A "rounding" pressure sensor: registered, its line written by its own block, its integer form
     reached through the family's compiled dispatch (300488.28 Pa on a 0-5 V line of 10 bar span at
     10 bits: 1.5024414 V x 1024 / 5 V = 307.70, rounded 308 where the ADC's truncation gives 307),
-    the shipped transducer's unchanged (348)."""
+    the shipped transducer's unchanged (348: 0.5 V + 1.2 V at 3 bar on 0.5-4.5 V over 10 bar).
+    Chosen by name in hold-3bar's [firmware] (``transducer = { type = "rounding", ... }``), its
+    code is in the model's firmware row, the board's count of the muscle is its own (308 against
+    the transducer's 348 at 300488.28 Pa: floor(1.70195 V x 204.8) = 348), and bang-bang on it
+    holds the muscle at the 3 bar setpoint to within its 0.1 bar band's width."""
     out, _ = _run(copy, SENSOR_RUN, tmp_path)
-    assert out == {"module": "frogsim.circuit.sensors.rounding", "quantity": "pressure", "c": 308, "t": 348}
+    assert {k: out[k] for k in ("module", "quantity", "c", "t")} == {
+        "module": "frogsim.circuit.sensors.rounding", "quantity": "pressure", "c": 308, "t": 348}
+    assert {k: out["rounding"][k] for k in ("type", "code", "count")} == {"type": "rounding", "code": 9.0, "count": 308}
+    assert {k: out["transducer"][k] for k in ("type", "code", "count")} == {"type": "transducer", "code": 1.0,
+                                                                            "count": 348}
+    for name in ("rounding", "transducer"):
+        assert abs(out[name]["p_end"] - 3 * BAR) < 0.1 * BAR, out
 
 
 def test_a_new_kind_is_one_new_module(copy, tmp_path):

@@ -121,9 +121,28 @@ def count(code, v0, k, q0, full, vref, q):
 
 s = sensors.TYPES["rounding"].settings()
 (v0, k, q0), full = sensors.line(s, 5.0, 1024)
-print(json.dumps({"module": sensors.TYPES["rounding"].module, "quantity": sensors.TYPES["rounding"].quantity,
-                  "c": count(9.0, v0, k, q0, float(full), 5.0, 300488.28),
-                  "t": count(1.0, 0.5, 4e-6, 0.0, 1024.0, 5.0, 3e5)}))
+out = {"module": sensors.TYPES["rounding"].module, "quantity": sensors.TYPES["rounding"].quantity,
+       "c": count(9.0, v0, k, q0, float(full), 5.0, 300488.28),
+       "t": count(1.0, 0.5, 4e-6, 0.0, 1024.0, 5.0, 3e5)}
+
+# chosen by name in a scenario's [firmware]: the model's firmware row carries its code, and the board's
+# count of the muscle at 300488.28 Pa gauge is its own (SIL's counts, frogsim.control.firmware.adc_counts)
+import pathlib, tomllib
+from frogsim.circuit.layout import G_PATM, pressure_index
+from frogsim.circuit.model import build_model
+from frogsim.control.firmware import adc_counts, firmware_plan
+from frogsim.control.table import L_ADC_CODE
+d = tomllib.loads((pathlib.Path(frogsim.__file__).parent / "scenarios" / "hold-3bar.toml").read_text())
+for name, table in (("rounding", {"type": "rounding", "span": "10 bar"}), ("transducer", {"type": "transducer"})):
+    sc = frogsim.load_scenario(dict(d, duration="1 s", firmware=dict(d["firmware"], transducer=table)))
+    m = build_model(sc)
+    y = m.y0.copy()
+    y[pressure_index(0)] = m.g[G_PATM] + 300488.28
+    r = frogsim.simulate(sc)
+    out[name] = {"type": sc.firmware.transducer.TYPE, "code": float(m.laws[0, L_ADC_CODE]),
+                 "count": int(adc_counts(firmware_plan(m), m, y)[0]),
+                 "p_end": float(r.muscle_pressure("hip")[-1] - r.atmospheric_pressure)}
+print(json.dumps(out))
 '''
 
 
@@ -141,3 +160,60 @@ def test_a_duplicate_sensor_code_is_refused_naming_both_modules(tmp_path):
     assert last.startswith("ImportError: sensor types: "), done.stderr[-2000:]
     assert "CODE 1.0 of frogsim.circuit.sensors.transducer (type 'transducer') is already taken by " \
            "frogsim.circuit.sensors.rounding" in last, last
+
+
+# --- a sensor type chosen by name in [firmware] -------------------------------------------------------
+def _hold(firmware: dict) -> dict:
+    import tomllib
+    from tests.package_copy import PACKAGE
+    d = tomllib.loads((PACKAGE / "scenarios" / "hold-3bar.toml").read_text())
+    d["firmware"] = dict(d["firmware"], **firmware)
+    return d
+
+
+def test_a_sensor_type_is_chosen_by_name():
+    """``type`` names a sensor's type in its [firmware] table: the shipped names give the settings the
+    keys gave without one, and an encoder named as the angle sensor is the joints' encoders
+    (angle_encoder)."""
+    import frogsim
+    from frogsim.scenario.firmware import AngleEncoder, AnglePotentiometer, Transducer
+    line = {"low_voltage": "0.5 V", "high_voltage": "4.5 V"}
+    named = frogsim.load_scenario(_hold({"transducer": {"type": "transducer", **line},
+                                         "angle_sensor": {"type": "potentiometer", **line}})).firmware
+    plain = frogsim.load_scenario(_hold({"transducer": line, "angle_sensor": line})).firmware
+    assert named == plain
+    assert type(named.transducer) is Transducer and type(named.angle_sensor) is AnglePotentiometer
+    fw = frogsim.load_scenario(_hold({"angle_sensor": {"type": "encoder", "counts_per_revolution": 1000}})).firmware
+    assert fw.angle_encoder == AngleEncoder(counts_per_revolution=1000)
+    assert fw == frogsim.load_scenario(_hold({"angle_encoder": {"counts_per_revolution": 1000}})).firmware
+
+
+@pytest.mark.parametrize("firmware, field, words", [
+    ({"transducer": {"type": "thermocouple"}}, "firmware.transducer.type",
+     "must be one of the sensor types that read pressure: 'transducer'"),
+    ({"transducer": {"type": "potentiometer"}}, "firmware.transducer.type",
+     "reads angle; firmware.transducer is a sensor that reads pressure: 'transducer'"),
+    ({"angle_sensor": {"type": "transducer"}}, "firmware.angle_sensor.type",
+     "reads pressure; firmware.angle_sensor is a sensor that reads angle: 'encoder', 'potentiometer'"),
+    ({"angle_sensor": {"type": "encoder"}, "angle_encoder": {}}, "firmware.angle_sensor.type",
+     "the joints' encoders are given twice"),
+    ({"transducer": {"type": "transducer", "span": "10 bar"}}, "firmware.transducer.span", "unknown"),
+])
+def test_a_wrong_sensor_type_is_refused_naming_the_field(firmware, field, words):
+    import frogsim
+    from frogsim.errors import ScenarioError
+    with pytest.raises(ScenarioError) as e:
+        frogsim.load_scenario(_hold(firmware))
+    assert e.value.field == field and words in str(e.value), str(e.value)
+
+
+def test_the_cli_refuses_a_wrong_sensor_type_in_one_line(tmp_path):
+    import subprocess
+    import sys
+    from frogsim.sweep.spec import dumps_toml
+    (tmp_path / "s.toml").write_text(dumps_toml(_hold({"transducer": {"type": "potentiometer"}})))
+    done = subprocess.run([sys.executable, "-m", "frogsim", "simulate", "s.toml", "--out", "out"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "firmware.transducer.type" in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "out").exists()

@@ -129,6 +129,19 @@ def jit_inner(func):
         _nrt=False, no_cpython_wrapper=True, nopython=True, inline="always", **_OPTIONS_NO_CACHE))
 
 
+_FOR_PYTHON: dict = {}
+
+
+def for_python(fn):
+    """A family member's compiled function (inlined into its compiled callers, :func:`jit_inner`,
+    which Python cannot call) compiled once more for Python callers (:func:`jit`), once per
+    function."""
+    out = _FOR_PYTHON.get(fn)
+    if out is None:
+        out = _FOR_PYTHON[fn] = jit(getattr(fn, "py_func", fn))
+    return out
+
+
 def jit_alloc(func):
     """Compile func with frogsim's Numba settings and Numba's reference counting, for the few
     compiled functions that allocate arrays (a run's start, the measures over whole results).

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from frogsim._files import user_cache_folder
-from frogsim._jit import jit
+from frogsim._jit import for_python, jit
 from frogsim.circuit.layout import pressure_index
 from frogsim.components import atmega2560 as chip
 from frogsim.control import fixed, kinds
@@ -401,6 +401,9 @@ def _counter(plan: FirmwarePlan, model):
         patm = float(pm.g[G_PATM])
     pv0, pk, pq0 = fixed.pressure_volts(fw)
     av0, ak, aq0 = aline
+    # a type whose count is not the ADC's truncated line (frogsim.circuit.sensors.spec.linear_count)
+    # is counted by its own compiled count
+    pcount, acount = _own_count(fw.transducer), _own_count(fixed.angle_sensor(fw))
     joints = list(sc.joints)
     p_ch = [j for j, ch in enumerate(plan.channels) if ch.quantity == "pressure"]
     p_idx = np.array([pressure_index(pm.names.index(plan.channels[j].name)) for j in p_ch], np.int64)
@@ -418,12 +421,18 @@ def _counter(plan: FirmwarePlan, model):
     def counts(y, qpos=None):
         out = [0] * len(plan.channels)
         for j, i in p_pairs:
+            if pcount is not None:
+                out[j] = int(pcount(pv0, pk, pq0, full, vref, float(y[i]) - patm))
+                continue
             x = math.floor((pv0 + pk * ((float(y[i]) - patm) - pq0)) * full / vref)
             out[j] = int(min(max(x, 0.0), top_p))
         if a_pairs and qpos is None:
             raise FrogsimError(f"channel {plan.channels[a_ch[0]].signal!r}: the joint angles (qpos) are needed")
         for j, n, i in a_pairs:
             th = float(qpos[n] if isinstance(qpos, dict) else qpos[i])
+            if acount is not None:
+                out[j] = int(acount(av0, ak, aq0, afull_f, vref, th))
+                continue
             x = math.floor((av0 + ak * (th - aq0)) * afull_f / vref)
             out[j] = int(min(max(x, 0.0), top_a))
         return np.array(out, np.uint16)
@@ -431,6 +440,15 @@ def _counter(plan: FirmwarePlan, model):
         _COUNTERS.clear()
     _COUNTERS[key] = (plan, model, counts)
     return counts
+
+
+def _own_count(settings):
+    """None for a sensor whose count is the ADC's truncated line (:func:`_counter` counts it
+    inline), else its type's compiled ``count`` compiled once more for Python callers."""
+    from frogsim.circuit import sensors
+    from frogsim.circuit.sensors.spec import linear_count
+    count = sensors.of(settings).count
+    return None if count is linear_count else for_python(count)
 
 
 def firmware_memory(plan: FirmwarePlan) -> np.ndarray:

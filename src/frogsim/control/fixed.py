@@ -205,11 +205,12 @@ def top_pressure(sc) -> float:
 
 
 def fault_limits(sc) -> dict:
-    """{"pressure": (lo, hi), "angle": (lo, hi) or None}: the counts outside which a reading is a
+    """{"pressure": (lo, hi) or None, "angle": (lo, hi) or None}: the counts outside which a reading is a
     sensor fault (a transducer's live zero, low_voltage, less its ``fault_margin``, and its top
     plus the margin: lo = floor((low_voltage - margin) full / V_REF), hi = floor((high_voltage +
     margin) full / V_REF); a count below lo or above hi is a fault). A limit beyond the ADC's
-    range cannot be crossed. Encoder angles have none (None): their counts are not a voltage."""
+    range cannot be crossed. Encoder angles have none (None): their counts are not a voltage; nor
+    has a sensor type whose ``faults`` gives None (frogsim.circuit.sensors)."""
     fw = sc.firmware
     full = adc_full(sc)
     return {"pressure": sensors.faults(fw.transducer, fw.vref, full),
@@ -238,7 +239,9 @@ def fault_columns(row: np.ndarray, sc) -> None:
     muscle = list(sc.muscles)[int(row[L_MUSCLE])]
     j = int(row[L_JOINT1]) - 1
     joint = list(sc.joints)[j] if j >= 0 else None
-    row[L_FAULT_PLO], row[L_FAULT_PHI] = limits["pressure"] if ("pressure", muscle) in sensed else (-1, 0)
+    # (-1, 0): no limits (a channel not read, or a sensor type whose counts cannot show a fault)
+    row[L_FAULT_PLO], row[L_FAULT_PHI] = (limits["pressure"] if ("pressure", muscle) in sensed
+                                          and limits["pressure"] is not None else (-1, 0))
     row[L_FAULT_ALO], row[L_FAULT_AHI] = (limits["angle"] if joint is not None and limits["angle"] is not None
                                           else (-1, 0))
     row[L_FAULT_MODE] = -1.0 if fw.fault == "vent" else 0.0

@@ -11,19 +11,23 @@ changes. Every setting has a default, so ``[firmware]`` alone works::
     [firmware]
     name = "hold_3bar"                  # the sketch's name, a C identifier (default: the scenario's)
     vref = "5 V"                        # the ADC's reference (AVcc)
-    transducer = { low_voltage = "0.5 V", high_voltage = "4.5 V",
+    transducer = { type = "transducer", low_voltage = "0.5 V", high_voltage = "4.5 V",
                    low_pressure_gauge = "0 bar", high_pressure_gauge = "10 bar" }
-    angle_sensor = { low_voltage = "0.5 V", high_voltage = "4.5 V",
+    angle_sensor = { type = "potentiometer", low_voltage = "0.5 V", high_voltage = "4.5 V",
                      low_angle = "-90 deg", high_angle = "90 deg" }
     valve_pins = { hip = [22, 23] }     # muscle -> [charge, discharge]; others from D22 up
     pressure_inputs = { hip = 0 }       # muscle -> analog input (0 = A0); others from A0 up
     angle_inputs = { hip_left = 4 }     # joint -> analog input; others after the pressures
     angle_encoder = { counts_per_revolution = 2000 }   # joint angles from quadrature encoders
+                                        # (the same as angle_sensor = { type = "encoder", ... })
     encoder_pins = { hip_left = [2, 46] }   # joint -> [A (an external-interrupt pin), B]
     busy_pin = 13                       # high while the controller's interrupt runs
     baud = 115200
     log_rate = "100 Hz"                 # serial log lines per second
 
+Each sensor's table may name its type (a module of :mod:`frogsim.circuit.sensors`; without
+``type``: "transducer" for the pressures, "potentiometer" for the angles); a type that reads
+another quantity, or a pressure sensor the board would not read on an analog input, is refused.
 :func:`firmware_layout` resolves the defaults (pins, channels) and :func:`check_firmware` (one of
 the scenario's rules) refuses what the board cannot do, each with a one-line ScenarioError.
 """
@@ -39,6 +43,7 @@ from frogsim.errors import ScenarioError
 from frogsim.scenario.fields import build, choice, integer, quantity, unwrap
 from frogsim.scenario.motion import command_sample
 from frogsim.scenario.schema import BAR, GAUGE_MAX, GAUGE_MIN, AngleSetpoint
+from frogsim.scenario import sensors as sensor_types
 from frogsim.scenario.sensors import SensorSettings
 
 FIRST_VALVE_PIN = 22          # the Mega's double header D22..D53: valve pins by default
@@ -72,6 +77,15 @@ class Transducer(SensorSettings):
         return self.low_voltage + (self.high_voltage - self.low_voltage) * (
             (p_gauge - self.low_pressure_gauge) / (self.high_pressure_gauge - self.low_pressure_gauge))
 
+    def measured_range(self) -> tuple:
+        return self.low_pressure_gauge, self.high_pressure_gauge
+
+    def check(self, path: str, vref: float) -> None:
+        """Its line rises, stays within 0..V_REF, and is not so steep over frogsim's gauge pressures
+        that the firmware's fixed point overflows (:func:`_check_line`)."""
+        _check_line(self, path, vref, "low_pressure_gauge", "high_pressure_gauge", BAR, "bar",
+                    GAUGE_MAX - GAUGE_MIN, "gauge pressures")
+
 
 @dataclass(frozen=True)
 class AnglePotentiometer(SensorSettings):
@@ -92,6 +106,13 @@ class AnglePotentiometer(SensorSettings):
         return self.low_voltage + (self.high_voltage - self.low_voltage) * (
             (angle - self.low_angle) / (self.high_angle - self.low_angle))
 
+    def measured_range(self) -> tuple:
+        return self.low_angle, self.high_angle
+
+    def check(self, path: str, vref: float) -> None:
+        """As :meth:`Transducer.check`, over a turn of angles."""
+        _check_line(self, path, vref, "low_angle", "high_angle", math.pi / 180, "deg", 2.0 * math.pi, "angles")
+
 
 @dataclass(frozen=True)
 class AngleEncoder(SensorSettings):
@@ -106,6 +127,7 @@ class AngleEncoder(SensorSettings):
     (:mod:`frogsim.circuit.sensors.encoder`)."""
     TYPE: ClassVar[str] = "encoder"
     QUANTITY: ClassVar[str] = "angle"
+    CHANNEL: ClassVar[str] = "counter"
     counts_per_revolution: int = integer(ge=16, le=32768, default=2000,
                                          doc="counts per turn of the joint: 2 x the encoder's lines (x2 decoding)")
 
@@ -197,9 +219,27 @@ class Firmware:
         name = unwrap(raw.pop("name", ""))
         if not isinstance(name, str):
             raise ScenarioError(f"{path}.name", name, "expected text: the sketch's name, a C identifier")
+        given = {key: raw.pop(key) for key in ("transducer", "angle_sensor") if key in raw}
         fw = build(cls, raw, path)
-        return cls(name=name, vref=fw.vref, transducer=fw.transducer, angle_sensor=fw.angle_sensor,
-                   angle_encoder=fw.angle_encoder, velocity_filter=fw.velocity_filter,
+        transducer, angle_sensor, angle_encoder = fw.transducer, fw.angle_sensor, fw.angle_encoder
+        if "transducer" in given:
+            transducer = sensor_types.from_raw(given["transducer"], f"{path}.transducer", "pressure", "transducer")
+            if transducer.CHANNEL != "adc":
+                raise ScenarioError(f"{path}.transducer.type", transducer.TYPE,
+                                    "the board reads the muscles' pressures on analog inputs: a pressure sensor "
+                                    "read through the ADC")
+        if "angle_sensor" in given:
+            sensor = sensor_types.from_raw(given["angle_sensor"], f"{path}.angle_sensor", "angle", "potentiometer")
+            if sensor.CHANNEL == "counter":          # encoders: what angle_encoder says
+                if angle_encoder is not None:
+                    raise ScenarioError(f"{path}.angle_sensor.type", sensor.TYPE,
+                                        f"the joints' encoders are given twice: keep {path}.angle_encoder or "
+                                        f"angle_sensor = {{ type = {sensor.TYPE!r}, ... }}, not both")
+                angle_encoder = sensor
+            else:
+                angle_sensor = sensor
+        return cls(name=name, vref=fw.vref, transducer=transducer, angle_sensor=angle_sensor,
+                   angle_encoder=angle_encoder, velocity_filter=fw.velocity_filter,
                    velocity_window=fw.velocity_window, fault=fw.fault, fault_resume=fw.fault_resume,
                    sensor_faults=faults, busy_pin=fw.busy_pin, baud=fw.baud, log_rate=fw.log_rate, **tables)
 
@@ -475,36 +515,40 @@ def check_firmware(sc) -> None:
 
 
 def _check_transfer(fw, path: str, quantities: set) -> None:
-    """The sensors' lines rise and stay within 0..V_REF (a sensor no signal uses is not checked)."""
-    for key, obj, lo, hi, unit in (("transducer", fw.transducer, "low_pressure_gauge", "high_pressure_gauge", 1e5),
-                                   ("angle_sensor", fw.angle_sensor, "low_angle", "high_angle",
-                                    math.pi / 180)):
-        if ("pressure" if key == "transducer" else "angle") not in quantities:
-            continue
-        if obj.high_voltage <= obj.low_voltage:
-            raise ScenarioError(f"{path}.{key}.high_voltage", f"{obj.high_voltage:g} V",
-                                f"must exceed low_voltage ({obj.low_voltage:g} V)")
-        if obj.high_voltage > fw.vref:
-            raise ScenarioError(f"{path}.{key}.high_voltage", f"{obj.high_voltage:g} V",
-                                f"must not exceed the ADC's reference firmware.vref ({fw.vref:g} V)")
-        u = "bar" if unit == 1e5 else "deg"
-        if getattr(obj, hi) <= getattr(obj, lo):
-            raise ScenarioError(f"{path}.{key}.{hi}", f"{getattr(obj, hi) / unit:g} {u}",
-                                f"must exceed {lo} ({getattr(obj, lo) / unit:g} {u})")
-        # Q4 counts per unit (10 bits at most) times the widest range a value may span: frogsim's
-        # gauge pressures, or a turn of angles
-        width = (GAUGE_MAX - GAUGE_MIN) if key == "transducer" else 2.0 * math.pi
-        per_volt = Q4_PER_COUNT * ADC_FULL_MAX / fw.vref
-        span = getattr(obj, hi) - getattr(obj, lo)
-        q4 = per_volt * (obj.high_voltage - obj.low_voltage) / span * width
-        if q4 > Q4_LIMIT:
-            least = per_volt * (obj.high_voltage - obj.low_voltage) * width / Q4_LIMIT
-            raise ScenarioError(
-                f"{path}.{key}.{hi}", f"{getattr(obj, hi) / unit:g} {u}",
-                f"the span {getattr(obj, lo) / unit:g}..{getattr(obj, hi) / unit:g} {u} is so narrow that the "
-                f"firmware's fixed point overflows: {width / unit:.3g} {u} (the range of frogsim's "
-                f"{'gauge pressures' if u == 'bar' else 'angles'}) would be {q4:.3g} sixteenths of an ADC count, "
-                f"more than the 2^30 its int32 arithmetic holds; the span must be at least {least / unit:.3g} {u}")
+    """Each sensor a signal uses passes its type's own checks (its line rises and stays within
+    0..V_REF, :meth:`frogsim.scenario.sensors.SensorSettings.check`)."""
+    for key, obj, quantity in (("transducer", fw.transducer, "pressure"), ("angle_sensor", fw.angle_sensor, "angle")):
+        if quantity in quantities:
+            obj.check(f"{path}.{key}", fw.vref)
+
+
+def _check_line(obj, path: str, vref: float, lo: str, hi: str, unit: float, u: str, width: float,
+                what: str) -> None:
+    """A linear sensor's settings (low_voltage at ``lo``, high_voltage at ``hi``, ``unit`` its
+    display unit ``u`` in SI): the line rises, its high end stays within the ADC's reference, and
+    ``width`` (the widest span a value may take, frogsim's ``what``) is not so many Q4 counts that
+    the firmware's int32 fixed point overflows."""
+    if obj.high_voltage <= obj.low_voltage:
+        raise ScenarioError(f"{path}.high_voltage", f"{obj.high_voltage:g} V",
+                            f"must exceed low_voltage ({obj.low_voltage:g} V)")
+    if obj.high_voltage > vref:
+        raise ScenarioError(f"{path}.high_voltage", f"{obj.high_voltage:g} V",
+                            f"must not exceed the ADC's reference firmware.vref ({vref:g} V)")
+    if getattr(obj, hi) <= getattr(obj, lo):
+        raise ScenarioError(f"{path}.{hi}", f"{getattr(obj, hi) / unit:g} {u}",
+                            f"must exceed {lo} ({getattr(obj, lo) / unit:g} {u})")
+    # Q4 counts per unit (10 bits at most) times the widest range a value may span
+    per_volt = Q4_PER_COUNT * ADC_FULL_MAX / vref
+    span = getattr(obj, hi) - getattr(obj, lo)
+    q4 = per_volt * (obj.high_voltage - obj.low_voltage) / span * width
+    if q4 > Q4_LIMIT:
+        least = per_volt * (obj.high_voltage - obj.low_voltage) * width / Q4_LIMIT
+        raise ScenarioError(
+            f"{path}.{hi}", f"{getattr(obj, hi) / unit:g} {u}",
+            f"the span {getattr(obj, lo) / unit:g}..{getattr(obj, hi) / unit:g} {u} is so narrow that the "
+            f"firmware's fixed point overflows: {width / unit:.3g} {u} (the range of frogsim's {what}) would be "
+            f"{q4:.3g} sixteenths of an ADC count, more than the 2^30 its int32 arithmetic holds; the span must "
+            f"be at least {least / unit:.3g} {u}")
 
 
 def _check_rate(rate: float) -> None:
@@ -577,14 +621,13 @@ def setpoint_range(sp, duration: float) -> tuple:
 
 def _check_setpoints(sc, fw) -> None:
     """Every sensed controller's setpoint over the run stays within its sensor's range: a pressure
-    setpoint and its hold band (setpoint +- band/2) within the transducer's low_pressure_gauge ..
-    high_pressure_gauge, an angle setpoint within the angle sensor's low_angle .. high_angle (a
+    setpoint and its hold band (setpoint +- band/2) within the transducer's measured range
+    (low_pressure_gauge .. high_pressure_gauge), an angle setpoint within the angle sensor's (a
     joint-angle pair's co-contraction pressure and band within the transducer's). Beyond it the
     transducer's line is not the sensor's (its output saturates): the firmware would hold a
     pressure its sensor does not measure."""
-    t, a = fw.transducer, fw.angle_sensor
-    p_lo, p_hi = t.low_pressure_gauge, t.high_pressure_gauge
-    a_lo, a_hi = a.low_angle, a.high_angle
+    p_lo, p_hi = fw.transducer.measured_range()
+    a_lo, a_hi = fw.angle_sensor.measured_range()
     p_range = f"firmware.transducer's {p_lo / BAR:g}..{p_hi / BAR:g} bar gauge"
 
     def bar(x):

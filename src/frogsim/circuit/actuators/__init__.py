@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from frogsim._jit import jit, jit_inner
+from frogsim._jit import for_python, jit, jit_inner
 from frogsim._registry import Registry, dispatch, membership
 from frogsim.circuit.actuators.spec import FORCE_PARAMS, ActuatorType
 from frogsim.circuit.layout import ACTUATOR_PARAMS, M_ACT, M_AP, M_DEAD, M_SIZE
@@ -70,18 +70,6 @@ def settings_volume(settings, L: float) -> float:
     row = np.zeros((1, M_SIZE))
     write_block(row[0], settings)
     return for_python(of(settings).volume)(row, 0, float(L))
-
-
-_FOR_PYTHON: dict = {}
-
-
-def for_python(fn):
-    """A type's compiled function (inlined into its compiled callers, :func:`frogsim._jit.jit_inner`)
-    compiled once more for Python callers (:func:`frogsim._jit.jit`)."""
-    out = _FOR_PYTHON.get(fn)
-    if out is None:
-        out = _FOR_PYTHON[fn] = jit(getattr(fn, "py_func", fn))
-    return out
 
 
 def volume(mp, i: int, L: float) -> float:
