@@ -60,17 +60,15 @@ def test_the_mckibben_entries_are_the_physics_functions_bit_for_bit():
 
 def test_an_unknown_actuator_code_stops_the_run():
     """A muscle row whose actuator code no type declares: refused before the run (naming the code)
-    and by the compiled right-hand side itself (no silent default)."""
+    and by the driver's compiled start, which every engine's run passes (no silent default)."""
     from frogsim.circuit import layout as L
-    from frogsim.circuit.rhs import rhs
+    from frogsim.engine.integrator import begin
     m = frogsim.build_model(frogsim.load_scenario("paper-cycle"))
     m.mp[0, L.M_ACT] = 9.0
     with pytest.raises(KeyError, match="actuator types: code 9.0 is no type's"):
         frogsim.simulate(m)
-    n = m.n
-    y = m.y0.copy()
     with pytest.raises(ValueError, match="actuator code is no actuator type's"):
-        rhs(0.3, y, np.zeros(2 * n), 0.0, *m.rhs_model, np.zeros_like(y), np.zeros(2 * n + 1), np.zeros(4 * n))
+        begin(m.y0.copy(), 0.0, m.u0.copy(), m.mp, m.laws, m.sched_t, m.sched_u, 1e-3, m.out_t, 1e-4)
 
 
 ACTUATOR_MODULE = '''

@@ -27,7 +27,7 @@ import numpy as np
 from frogsim._jit import jit, jit_inner, jit_step
 
 from frogsim.circuit import valves as valve_types
-from frogsim.circuit.actuators import actuator_volume, actuator_wall_area, checked_volume, known_actuator
+from frogsim.circuit.actuators import actuator_wall_area, checked_volume
 from frogsim.circuit.valves import valve_flows
 from frogsim.circuit.layout import (
     G_A_E, G_A_S, G_BRANCH_LIMIT, G_H_E, G_H_S, G_HEAT, G_K, G_PUMP_DISP, G_PUMP_RMAX, G_R, G_RHOREF,
@@ -110,9 +110,7 @@ def common_piece(t, mp, mot_t, mot_n):
 
     The coupled engine gives all muscles paths with the same knot times, so one search serves
     them all, and the volume loop of :func:`rhs` then reads every muscle's path at the same
-    column (a loop the compiler vectorizes; with a search per muscle it cannot). Each muscle's
-    actuator code is checked against the registry here (:mod:`frogsim.circuit.actuators`), so that
-    loop dispatches without a refusal; an unknown code takes the other loop, which refuses it.
+    column (a loop the compiler vectorizes; with a search per muscle it cannot).
     """
     n = mp.shape[0]
     if n == 0 or mot_n[0] < 2 or not (t > mot_t[0, 0] and t < mot_t[0, mot_n[0] - 1]):
@@ -129,7 +127,7 @@ def common_piece(t, mp, mot_t, mot_n):
         nk = mot_n[i]
         # knots sorted: t_lo <= t < t_lo+1 inside (t_0, t_last) makes lo the one answer
         if not (mp[i, M_FIXEDV] <= 0.0 and lo + 1 < nk and t > mot_t[i, 0] and t < mot_t[i, nk - 1]
-                and mot_t[i, lo] <= t and t < mot_t[i, lo + 1] and known_actuator(mp[i, M_ACT])):
+                and mot_t[i, lo] <= t and t < mot_t[i, lo + 1]):
             return -1
     return lo
 
@@ -142,7 +140,7 @@ def muscle_volume_state(t, i, mp, mot_t, mot_L, mot_d, mot_n):
     if mp[i, M_FIXEDV] > 0.0:
         return mp[i, M_FIXEDV], 0.0, mot_L[i, 0]
     L, dL = motion_length(t, i, mot_t, mot_L, mot_d, mot_n)
-    V, dVdL = actuator_volume(mp[i, M_ACT], mp, i, L)
+    V, dVdL = checked_volume(mp[i, M_ACT], mp, i, L)
     return V + mp[i, M_DEAD], dVdL * dL, L
 
 

@@ -28,6 +28,7 @@ import numpy as np
 from frogsim._jit import jit, jit_alloc, jit_step
 from frogsim._registry import dispatch
 
+from frogsim.circuit.actuators import check_codes
 from frogsim.circuit.layout import (flows_size, muscle_count, physical_size, pump_entry, valve_muscles, valve_size,
                                    work_size)
 from frogsim.circuit.rhs import rhs
@@ -206,6 +207,7 @@ def start(t0, h0, y, u, mp, commands):
     .start_controllers`), the first trial step is h0 [s].
     """
     sched_t, sched_u, laws, ctrl_dt = commands
+    check_codes(mp)          # the muscles' actuator codes, once a run (the right-hand side trusts them)
     ds = np.zeros(ds_size(y.size))
     ds[D_T] = t0
     ds[D_H] = h0

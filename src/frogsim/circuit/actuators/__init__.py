@@ -102,10 +102,21 @@ _BOTH = [(a.code, _volume_and_slope(a.volume, a.slope)) for a in _ORDER]
 actuator_volume = dispatch(_BOTH, "mp, i, L", unknown="actuator_volume: " + _UNKNOWN)
 #: ``known_actuator(code) -> bool``: the code is a registered type's
 known_actuator = membership([a.code for a in _ORDER], "known_actuator")
-#: :func:`actuator_volume` for a loop whose codes :func:`known_actuator` has passed (the right-hand
-#: side's loop over muscles on one common piece): the last branch takes any code, so with one type
-#: the loop is the type's own code, as the compiler vectorizes it
+#: :func:`actuator_volume` for the muscles whose codes :func:`check_codes` has passed (the right-hand
+#: side's loops; the driver's start checks every run's rows): the last branch takes any code, so with
+#: one type a loop over the muscles is the type's own code, as the compiler vectorizes it
 checked_volume = dispatch(_BOTH, "mp, i, L")
+
+
+@jit
+def check_codes(mp):
+    """Raise ValueError when a muscle row's actuator code is no registered type's: the compiled
+    refusal of every run, made once at the driver's start (:func:`frogsim.engine.integrator.start`),
+    after which the right-hand side dispatches without one (:data:`checked_volume`)."""
+    for i in range(mp.shape[0]):
+        if not known_actuator(mp[i, M_ACT]):
+            raise ValueError("the driver's start: a muscle row's actuator code is no actuator type's "
+                             "(frogsim.circuit.actuators)")
 #: ``actuator_wall_area(code, mp, i, L)``: the wall's area [m^2] (after the volumes: the codes checked)
 actuator_wall_area = dispatch([(a.code, a.wall_area) for a in _ORDER], "mp, i, L")
 #: ``actuator_force(code, mp, i, p_gauge, L, law, at)``: the tension [N]
