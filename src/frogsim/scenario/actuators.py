@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from frogsim.errors import ScenarioError
-from frogsim.scenario.fields import build, unwrap
+from frogsim.scenario.fields import build, register_settings, unwrap
 
 #: the type of a muscle type that names none: the paper's braided (McKibben) muscle
 DEFAULT = "mckibben"
@@ -38,11 +38,7 @@ TYPES: dict[str, type] = {}
 def register(cls):
     """Make ``cls`` (an :class:`ActuatorSettings` dataclass) the settings of actuator type
     ``cls.TYPE``; ImportError when another class holds the name, naming both modules."""
-    other = TYPES.get(cls.TYPE)
-    if other is not None and other is not cls:
-        raise ImportError(f"actuator types: type name {cls.TYPE!r} of {cls.__module__} is already taken by "
-                          f"{other.__module__}: each actuator type needs its own name")
-    TYPES[cls.TYPE] = cls
+    register_settings(TYPES, cls, cls.TYPE, "actuator types", "type name", "actuator type")
     return cls
 
 

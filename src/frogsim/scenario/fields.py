@@ -222,3 +222,16 @@ def build_value(hint, raw, meta, path):
             raise ScenarioError(path, raw, "expected text")
         return raw
     return parse_field(raw, meta, path)
+
+
+def register_settings(table: dict, cls, name: str, family: str, what: str, each: str):
+    """Put the settings class ``cls`` of a family member into ``table`` under its ``name`` (the
+    loader's registry of one family: kinds, methods, valve, actuator and sensor types); ImportError
+    "``family``: ``what`` 'name' of <module> is already taken by <module>: each ``each`` needs its
+    own name" when another class holds the name. Returns cls."""
+    other = table.get(name)
+    if other is not None and other is not cls:
+        raise ImportError(f"{family}: {what} {name!r} of {cls.__module__} is already taken by "
+                          f"{other.__module__}: each {each} needs its own name")
+    table[name] = cls
+    return cls

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from frogsim.errors import MISSING, ScenarioError
-from frogsim.scenario.fields import _type_hints, build_value, unknown_key_error, unwrap
+from frogsim.scenario.fields import _type_hints, build_value, register_settings, unknown_key_error, unwrap
 
 #: kind name -> its settings class (filled by :func:`register`)
 KINDS: dict[str, type] = {}
@@ -39,11 +39,7 @@ def register(cls):
     """Make ``cls`` (a :class:`ControllerSettings` dataclass) the settings of kind ``cls.KIND``
     (the kinds' registry, :mod:`frogsim.control.kinds`, calls this for each kind it finds);
     ImportError when another class already holds the name, naming both modules."""
-    other = KINDS.get(cls.KIND)
-    if other is not None and other is not cls:
-        raise ImportError(f"controller kinds: kind name {cls.KIND!r} of {cls.__module__} is already taken by "
-                          f"{other.__module__}: each kind needs its own name")
-    KINDS[cls.KIND] = cls
+    register_settings(KINDS, cls, cls.KIND, "controller kinds", "kind name", "kind")
     return cls
 
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from frogsim.errors import ScenarioError
-from frogsim.scenario.fields import build, unwrap
+from frogsim.scenario.fields import build, register_settings, unwrap
 
 #: method name -> its settings class (filled by :func:`register`, in the registry's order)
 METHODS: dict[str, type] = {}
@@ -34,11 +34,7 @@ def register(cls, default: bool = False):
     """Make ``cls`` (a :class:`MethodSettings` dataclass) the settings of method ``cls.METHOD``
     (the methods' registry calls this for each method it finds; ``default`` for the one a scenario
     without ``method`` runs); ImportError when another class already holds the name."""
-    other = METHODS.get(cls.METHOD)
-    if other is not None and other is not cls:
-        raise ImportError(f"integration methods: method name {cls.METHOD!r} of {cls.__module__} is already taken "
-                          f"by {other.__module__}: each method needs its own name")
-    METHODS[cls.METHOD] = cls
+    register_settings(METHODS, cls, cls.METHOD, "integration methods", "method name", "method")
     if default:
         DEFAULT[:] = [cls.METHOD]
     return cls

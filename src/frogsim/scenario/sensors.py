@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from frogsim.errors import ScenarioError
-from frogsim.scenario.fields import build, unwrap
+from frogsim.scenario.fields import build, register_settings, unwrap
 
 #: type name -> its settings class (filled by :func:`register`)
 TYPES: dict[str, type] = {}
@@ -26,11 +26,7 @@ TYPES: dict[str, type] = {}
 def register(cls):
     """Make ``cls`` (a :class:`SensorSettings` dataclass) the settings of sensor type ``cls.TYPE``;
     ImportError when another class holds the name, naming both modules."""
-    other = TYPES.get(cls.TYPE)
-    if other is not None and other is not cls:
-        raise ImportError(f"sensor types: type name {cls.TYPE!r} of {cls.__module__} is already taken by "
-                          f"{other.__module__}: each sensor type needs its own name")
-    TYPES[cls.TYPE] = cls
+    register_settings(TYPES, cls, cls.TYPE, "sensor types", "type name", "sensor type")
     return cls
 
 
