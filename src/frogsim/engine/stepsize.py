@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 
-from frogsim._jit import jit_inner
+from frogsim._jit import jit_step
 
 SAFETY = 0.9
 BETA = 0.04                  # PI step control (Hairer's DOPRI5 default)
@@ -31,7 +31,7 @@ EXPO = 0.2 - 0.75 * BETA     # ... for an error estimate of order 4 (a 5(4) pair
 EPS = 1e-12                  # [s] stop times closer than this are one stop (they come from different sums)
 
 
-@jit_inner
+@jit_step
 def propose_adaptive(par, t, t_seg, h, max_step):
     """The adaptive trial step from t: h at most ``max_step``, shortened to end on ``t_seg``
     exactly (then ``last``). Returns (h, h_try, t_new, last): the carried step size (held to
@@ -48,7 +48,7 @@ def propose_adaptive(par, t, t_seg, h, max_step):
     return h, h_try, t_new, last
 
 
-@jit_inner
+@jit_step
 def pi_next(h, err, err_old):
     """Hairer's PI step-size controller (DOPRI5) after an accepted step of length h with error norm
     err, the previous accepted step's err_old: h fac, fac = 0.9 err^-(0.2 - 0.75 beta)
@@ -59,14 +59,14 @@ def pi_next(h, err, err_old):
     return h * fac, e
 
 
-@jit_inner
+@jit_step
 def order_next(h, err, expo):
     """The elementary controller after an accepted step: h 0.9 err^-expo within 0.2..5
     (expo = 1/(q+1) for an error estimate of order q), the error norm counted at least 1e-10."""
     return h * min(5.0, max(0.2, SAFETY * max(err, 1e-10) ** (-expo)))
 
 
-@jit_inner
+@jit_step
 def shrink(h, err, expo):
     """The step after a rejected one of length h with error norm err > 1: h 0.9 err^-expo, never
     below 0.2 h; after a non-finite trial (err inf or NaN) 0.1 h."""
@@ -75,19 +75,19 @@ def shrink(h, err, expo):
     return h * max(0.2, SAFETY * err ** (-expo))
 
 
-@jit_inner
+@jit_step
 def accepted_pi(ds, par, h, err, err_old, a1, a2, refresh, stats):
     """The adaptive control after an accepted step: :func:`pi_next`. Returns (h_next, err_old)."""
     return pi_next(h, err, err_old)
 
 
-@jit_inner
+@jit_step
 def rejected_pi(ds, par, h, err):
     """The adaptive control after a rejected step: :func:`shrink` with the PI exponent."""
     return shrink(h, err, EXPO)
 
 
-@jit_inner
+@jit_step
 def propose_grid(par, t, t_seg, h, max_step):
     """The fixed step from t: to the next point of the grid k par[1] (par[1] the method's step
     [s]; a point within EPS of t is t's own), or to ``t_seg`` when that comes first (within EPS:
@@ -100,13 +100,13 @@ def propose_grid(par, t, t_seg, h, max_step):
     return h, t_grid - t, t_grid, False
 
 
-@jit_inner
+@jit_step
 def accepted_fixed(ds, par, h, err, err_old, a1, a2, refresh, stats):
     """The fixed control after a step: the step stays the method's (par[1])."""
     return par[1], err_old
 
 
-@jit_inner
+@jit_step
 def rejected_fixed(ds, par, h, err):
     """A fixed-step method rejects nothing; a non-finite step (err inf or NaN) returns 0, which
     stops the run (the driver's step underflow: STATUS_NOT_FINITE)."""

@@ -2,13 +2,18 @@
 
 Numba compiles a function together with everything it calls, so the engine is a chain: the
 circuit's right-hand side, then the integration methods' compiled steps that call it, then the
-stepping driver (:func:`frogsim.engine.integrator.advance`) over all of them (the dispatch
-between the methods, and the methods' small functions, are inlined into the driver). Each part is compiled once, for the
-argument types the driver passes (a one-muscle circuit has the same types as any other), and
+stepping driver (:func:`frogsim.engine.integrator.advance`) over all of them. The dispatch
+between the methods is inlined into the driver, and so is the default method's short step,
+whose long pieces are compiled on their own; the methods' other members (continuous extension,
+step-size control) are compiled on their own too, as parts of their own, so that they compile
+beside the right-hand side rather than inside the driver's part. Each part is compiled once, for
+the argument types the driver passes (a one-muscle circuit has the same types as any other), and
 saved in the cache, where the next part, in this process or another, finds it. :data:`PARTS`
 lists the parts with the parts each needs first; :func:`warm_up_parts` runs them on a process
-pool, the driver's chain first, and what the driver does not need (a run's start, the measures,
-the physics a model's build calls from Python) on the other process while the driver compiles.
+pool, the driver's chain first (the longest: the manifold's flow, the right-hand side, the
+steps, the driver), the parts that need nothing on the other process while it waits for the
+chain, and what the driver does not need (a run's start, the measures, the physics a model's
+build calls from Python) on the other process while the driver compiles.
 """
 from __future__ import annotations
 
@@ -22,50 +27,67 @@ from frogsim.circuit import layout as L
 from frogsim.circuit.rhs import _hermite, common_piece, manifold_pressure, muscle_volume_state, rhs
 from frogsim.engine import integrator as I
 from frogsim.engine import methods
-from frogsim.engine.methods.spec import R_OWN
+from frogsim.engine.methods.spec import PART_ARGS, R_OWN
 from frogsim.engine.measures import _rises, _windows
 from frogsim.physics.air import choked_mass_flux_factor, critical_pressure_ratio
 from frogsim.physics.flow import main_pipe_branch_limit, tube_sonic_conductance
 from frogsim.physics.muscle import braid_parameters
 
 def _method_parts() -> list:
-    """The integration methods' parts (:mod:`frogsim.engine.methods`, each method's ``warm``, or
-    its step when it is compiled on its own), as (name, needs, what, calls); a method's part names
-    are prefixed with the method's ("dopri-rosenbrock:dopri")."""
+    """The integration methods' parts (:mod:`frogsim.engine.methods`), as (name, needs, what,
+    calls): each method's ``warm`` (or its step as one part when it is compiled on its own), then
+    its ``controls``: the rest of its members compiled on their own (continuous extension, step-size
+    control, restart), which need nothing and so compile beside the right-hand side rather than
+    inside the driver's part. A method's part names are prefixed with the method's
+    ("dopri-rosenbrock:dopri"); a member shared by two methods is compiled once (the second
+    finds it compiled)."""
     a = _one_muscle()
     out = []
     for m in methods.METHODS.values():
         if m.warm is not None:
-            parts = m.warm(a)
-        elif hasattr(m.step, "compile") and not m.step.targetoptions.get("inline") == "always":
-            calls = [(m.step, tuple(a[k] for k in _step_args(m.step)))]
-            parts = [("step", ("rhs",), f"the {m.name} step", calls)]
+            parts = list(m.warm(a))
+        elif _own(m.step):
+            parts = [("step", ("rhs",), f"the {m.name} step", [(m.step, _part_args(a, "step"))])]
         else:
             parts = []
+        members = {"dense": m.dense, "propose": m.control.propose, "accepted": m.control.accepted,
+                   "rejected": m.control.rejected, "restart": m.restart}
+        calls = [(fn, _part_args(a, part)) for part, fn in members.items() if _own(fn)]
+        if calls:
+            parts.append(("controls", (), "its continuous extension and step-size control", calls))
         for name, needs, what, calls in parts:
             out.append((f"{m.name}:{name}", tuple(n if n == "rhs" else f"{m.name}:{n}" for n in needs),
                         f"{what} ({m.name})", calls))
     return out
 
 
-def _step_args(step) -> tuple:
-    """The names of a method's step's arguments, in order, read off its compiled function's Python
-    signature (the one written in the method's module; frogsim.engine.methods.spec)."""
-    return tuple(inspect.signature(getattr(step, "py_func", step)).parameters)
+def _own(fn) -> bool:
+    """A method's member compiled on its own (``jit_step``), not inlined into the driver."""
+    return hasattr(fn, "compile") and fn.targetoptions.get("inline") != "always"
+
+
+def _part_args(a: dict, part: str) -> tuple:
+    """The arguments the driver passes a method's ``part``, in the order
+    :data:`frogsim.engine.methods.spec.PART_ARGS` lists them (the driver's names; "fn_" is fn)."""
+    return tuple(a[name.strip().rstrip("_")] for name in PART_ARGS[part].split(","))
 
 
 def _parts() -> tuple[dict, dict]:
-    """(PARTS, the methods' calls by part name)."""
-    head = {
+    """(PARTS, the methods' calls by part name), in the order the processes take them: the
+    driver's chain (the right-hand side, then what calls it), then the parts that need nothing
+    and wait for no chain (an accepted step's work, the methods' controls), the driver, and last
+    what the driver does not need, which compiles while it does."""
+    found = _method_parts()
+    parts = {
         "flow": ((), "the manifold pressure and the valves' flow (part of the right-hand side)"),
         "volume": ((), "the muscles' volumes along their length paths (part of the right-hand side)"),
-        "accept": ((), "an accepted step's work (samples, output rows, the continuous extension's evaluation)"),
+        "rhs": (("flow", "volume"), "the circuit's right-hand side"),
     }
-    found = _method_parts()
-    parts = dict(head)
+    # a method part that needs nothing first (the parts that need it come after it), then those
+    # that need the right-hand side
     parts.update({name: (needs, what) for name, needs, what, _ in found if not needs})
-    parts["rhs"] = (("flow", "volume"), "the circuit's right-hand side")
     parts.update({name: (needs, what) for name, needs, what, _ in found if needs})
+    parts["accept"] = ((), "an accepted step's work (samples, output rows, the continuous extension's evaluation)")
     parts["driver"] = (("rhs", "accept") + tuple(name for name, *_ in found), "the stepping driver")
     parts["start"] = ((), "a run's start")
     parts["measures"] = ((), "the rise-time measures")
@@ -96,13 +118,13 @@ def _one_muscle():
     # the rest of a method's step's arguments (frogsim.engine.methods.spec)
     a.update(t=0.0, h=1e-3, t_new=1e-3, yn=a["f"], fn=a["f"], pump_on=0.0, rtol=1e-7, mat=np.zeros((ny, ny)),
              own=tuple(a["vec"][k] for k in range(R_OWN, I.ROWS)), rc=a["dense"], kmat=np.zeros((ny, ny)),
-             kvec=np.zeros(ny))
+             kvec=np.zeros(ny), t_seg=1e-3, max_step=1e-3, err=0.5, err_old=1e-4, a1=0.0, a2=0.0, refresh=False)
+    a.update(zip(("rc1", "rc2", "rc3", "rc4"), a["dense"]))
     return a
 
 
-# name: (the parts it needs compiled first, what it compiles); handed to the processes in this
-# order (the driver's chain first: it is the longest), each once the parts it needs are done; the
-# integration methods' parts come from their declarations (frogsim.engine.methods)
+# name: (the parts it needs compiled first, what it compiles), in the order the processes take them
+# (warm_up_parts); the integration methods' parts come from their declarations (frogsim.engine.methods)
 PARTS, _METHOD_CALLS = _parts()
 
 
@@ -159,20 +181,28 @@ def warm_up(part: str) -> None:
 
 
 def warm_up_parts(pool, workers: int) -> None:
-    """Compile every part of :data:`PARTS` on ``pool`` (a process pool of ``workers`` processes), in
-    the listed order: the next part is handed to a free process once the parts it needs are done,
-    and a free process waits for it rather than jump ahead (a later part would hold up the driver's
-    chain). Returns when all are done; a part's error is raised here."""
+    """Compile every part of :data:`PARTS` on ``pool`` (a process pool of ``workers`` processes): a
+    free process takes the first part in the listed order whose needs are done (a part that
+    needs nothing goes ahead of one still waiting for the right-hand side), except the parts
+    listed after the driver, which wait until the driver is handed out (a long one taken early
+    would hold a process the driver's chain needs next). Returns when all are done; a part's error
+    is raised here."""
     from concurrent.futures import FIRST_COMPLETED, wait
+    order = list(PARTS)
+    after_driver = set(order[order.index("driver") + 1:])
     done: set[str] = set()
     running = {}
-    waiting = list(PARTS)
+    waiting = list(order)
     while waiting or running:
-        while waiting and len(running) < workers and all(d in done for d in PARTS[waiting[0]][0]):
-            name = waiting.pop(0)
+        while len(running) < workers:
+            held = after_driver if "driver" in waiting else set()
+            name = next((n for n in waiting if n not in held and all(d in done for d in PARTS[n][0])), None)
+            if name is None:
+                break
+            waiting.remove(name)
             running[pool.submit(warm_up, name)] = name
         if not running:
-            raise RuntimeError(f"part {waiting[0]!r} waits for parts listed after it")   # PARTS out of order
+            raise RuntimeError(f"part {waiting[0]!r} waits for parts that never run")   # PARTS out of order
         finished, _ = wait(running, return_when=FIRST_COMPLETED)
         for fut in finished:
             fut.result()

@@ -325,7 +325,7 @@ def dense(h, y, yn, f, fn, own, rc1, rc2, rc3, rc4):
     _dopri_dense(h, y, yn, f, own[1], own[2], own[3], own[4], fn, rc1, rc2, rc3, rc4)
 
 
-@jit_inner
+@jit_step
 def accepted(ds, par, h, err, err_old, num, den, refresh, stats):
     """After an accepted step of length h: the stiffness test (a Dormand-Prince step) or the count
     of Rosenbrock steps (stats[3]); the explicit method again when a command changed in the step;
@@ -351,7 +351,7 @@ def accepted(ds, par, h, err, err_old, num, den, refresh, stats):
     return pi_next(h, err, err_old)
 
 
-@jit_inner
+@jit_step
 def rejected(ds, par, h, err):
     """After a rejected step: :func:`frogsim.engine.stepsize.shrink` with the exponent of the
     step's error estimate (1/3 Rosenbrock's, the PI exponent Dormand-Prince's)."""
@@ -359,14 +359,17 @@ def rejected(ds, par, h, err):
 
 
 def warm(a) -> list:
-    """The parts of a first run's compilation (:mod:`frogsim.engine.warmup`): the LU solve (it needs
-    nothing), then the two steps, each for the arguments :func:`step` passes them."""
+    """The parts of a first run's compilation (:mod:`frogsim.engine.warmup`): the LU solve and the
+    continuous extension (they need nothing), then the two steps, each for the arguments
+    :func:`step` and :func:`dense` pass them."""
     ny = a["y"].size
     wk = (a["mat"],) + a["own"][6:14] + (a["kmat"], a["kvec"])
     stages = a["own"][:8]
     common = (a["t"], a["h"], a["t"] + a["h"], a["y"], a["f"], a["u"], a["pump_on"], a["model"], a["atol"], a["rtol"])
     return [
         ("lu", (), "the LU solve", [(_lu, (a["mat"], a["y"])), (_lu_solve, (a["mat"], a["y"], a["f"]))]),
+        ("dense", (), "the Dormand-Prince continuous extension",
+         [(_dopri_dense, (a["h"], a["y"], a["yn"], a["f"]) + a["own"][1:5] + (a["fn"],) + a["rc"])]),
         ("rosenbrock", ("rhs", "lu"), "the Rosenbrock step",
          [(_rosenbrock_step, common + (ny, wk, True, a["y"], a["f"], a["f"], a["f"], a["f"], a["f"], a["aux"],
                                        a["work"], a["stats"]))]),

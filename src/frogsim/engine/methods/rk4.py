@@ -30,7 +30,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from frogsim._jit import jit_inner
+from frogsim._jit import jit_step
 from frogsim.circuit.rhs import rhs
 from frogsim.engine.methods.spec import IntegrationMethod, StepControl
 from frogsim.engine.stepsize import accepted_fixed, propose_grid, rejected_fixed
@@ -67,7 +67,7 @@ class Rk4Settings(MethodSettings):
                                 f"{', '.join(f'{period * 1e3 / n:g} ms' for n in (1, 2, 4, 10))}")
 
 
-@jit_inner
+@jit_step
 def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, own, rc, mat, kmat, kvec, aux, work, stats):
     """One classical Runge-Kutta step from (t, y), f = dy/dt there, to t_new = t + h: y1 into yn,
     f(t_new, y1) into fn (the next step's k1). Returns (err, 0, 0, False): err 0, or inf when y1
@@ -96,7 +96,7 @@ def step(t, h, t_new, y, f, yn, fn, u, pump_on, model, atol, rtol, par, ds, own,
     return err, 0.0, 0.0, False
 
 
-@jit_inner
+@jit_step
 def dense(h, y, yn, f, fn, own, rc1, rc2, rc3, rc4):
     """The cubic Hermite interpolant of the step (y, yn and their slopes f, fn) in the driver's
     form: rc1 = yn - y, rc2 = h f - rc1, rc3 = rc1 - h fn - rc2, rc4 = 0."""

@@ -44,7 +44,9 @@ checks when the package is imported. It names, in one place, everything the driv
   "y", "f", "u", "pump_on", "model", "atol", "rtol", "par", "ds", "vec", "mat", "keep", "aux",
   "work", "stats"), ``needs`` the names of its own parts, or "rhs", compiled first. Without it a
   step compiled on its own (``jit_step``) is one part, compiled for the step's arguments; an
-  inlined step (``jit_inner``) is compiled with the driver.
+  inlined step (``jit_inner``) is compiled with the driver. The other members compiled on their
+  own (continuous extension, step-size control, restart) make one more part, ``controls``,
+  compiled for the arguments :data:`PART_ARGS` lists.
 """
 from __future__ import annotations
 
