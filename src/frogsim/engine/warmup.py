@@ -17,8 +17,6 @@ build calls from Python) on the other process while the driver compiles.
 """
 from __future__ import annotations
 
-import inspect
-
 import numpy as np
 from numba import typeof
 
@@ -74,9 +72,10 @@ def _part_args(a: dict, part: str) -> tuple:
 
 def _parts() -> tuple[dict, dict]:
     """(PARTS, the methods' calls by part name), in the order the processes take them: the
-    driver's chain (the right-hand side, then what calls it), then the parts that need nothing
-    and wait for no chain (an accepted step's work, the methods' controls), the driver, and last
-    what the driver does not need, which compiles while it does."""
+    right-hand side's chain (the manifold's flow, the volumes, the right-hand side), the methods'
+    parts that need nothing (taken while the right-hand side compiles), the methods' parts that
+    call the right-hand side, an accepted step's work, the driver, and last what the driver does
+    not need, which compiles while it does."""
     found = _method_parts()
     parts = {
         "flow": ((), "the manifold pressure and the valves' flow (part of the right-hand side)"),
@@ -202,7 +201,7 @@ def warm_up_parts(pool, workers: int) -> None:
             waiting.remove(name)
             running[pool.submit(warm_up, name)] = name
         if not running:
-            raise RuntimeError(f"part {waiting[0]!r} waits for parts that never run")   # PARTS out of order
+            raise RuntimeError(f"part {waiting[0]!r} waits for parts that never run")   # a need PARTS lacks
         finished, _ = wait(running, return_when=FIRST_COMPLETED)
         for fut in finished:
             fut.result()
